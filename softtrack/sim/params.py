@@ -1,0 +1,246 @@
+"""Physical and numerical parameters of the dual-arm Cosserat-rod scenario.
+
+Defaults are the study's setting (``SPEC.md`` §1–2). Every field can be overridden, and
+:meth:`SimParams.validate` rejects values that would crash or silently blow up the
+integrator later (non-positive sizes, an unstable time step, ...).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from softtrack.sim.stability import stable_time_step_limit
+
+__all__ = ["InvalidParameterError", "SimParams", "RodConstants", "STANDARD_GRAVITY"]
+
+STANDARD_GRAVITY = 9.81  # m/s², along −y when gravity is switched on
+
+
+class InvalidParameterError(ValueError):
+    """A simulation parameter is out of range; the message names the field and the fix."""
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """Settings of the clamped-rod scenario (SI units throughout).
+
+    Attributes:
+        n_elem: elements per arm (nodes = n_elem + 1).
+        length: rest length of each arm, m.
+        radius: cross-section radius, m.
+        density: mass density ρ, kg/m³.
+        youngs_modulus: E, Pa.
+        poisson_ratio: ν; the shear modulus is G = E / (2 (1 + ν)).
+        shear_correction: α_c in the shear stiffness α_c·G·A (PyElastica: 27/28).
+        damping: ν_d, the PyElastica-0.1 dissipation coefficient, N·s/m².
+        dt: integration time step, s.
+        steps_per_action: integration steps per control step.
+        gravity: gravitational acceleration along −y, m/s² (0 = off; ``True`` = 9.81).
+        torque_scale: element torque at a control value of 1, N·m.
+        base_positions: clamp position of each arm, m; its length is the number of arms.
+        direction: rest tangent d₃ of every arm (unit vector).
+        normal: rest normal d₁ of every arm (unit vector, orthogonal to ``direction``).
+    """
+
+    n_elem: int = 20
+    length: float = 1.0
+    radius: float = 0.05
+    density: float = 1000.0
+    youngs_modulus: float = 1.0e7
+    poisson_ratio: float = 0.5
+    shear_correction: float = 27.0 / 28.0
+    damping: float = 30.0
+    dt: float = 2.0e-4
+    steps_per_action: int = 10
+    gravity: float = 0.0
+    torque_scale: float = 75.0
+    base_positions: tuple[tuple[float, float, float], ...] = ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0))
+    direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    @classmethod
+    def from_overrides(cls, **overrides: Any) -> "SimParams":
+        """Defaults with ``overrides`` applied, validated.
+
+        Raises:
+            InvalidParameterError: for an unknown name or an invalid value.
+        """
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise InvalidParameterError(
+                f"unknown simulation parameter {unknown[0]!r}; valid names: {', '.join(sorted(names))}"
+            )
+        if "gravity" in overrides and isinstance(overrides["gravity"], bool):
+            overrides["gravity"] = STANDARD_GRAVITY if overrides["gravity"] else 0.0
+        for key in ("base_positions",):
+            if key in overrides:
+                overrides[key] = tuple(tuple(float(c) for c in p) for p in overrides[key])
+        for key in ("direction", "normal"):
+            if key in overrides:
+                overrides[key] = tuple(float(c) for c in overrides[key])
+        params = cls(**overrides)
+        params.validate()
+        return params
+
+    # ---- derived quantities -------------------------------------------------------------
+    @property
+    def n_arms(self) -> int:
+        return len(self.base_positions)
+
+    @property
+    def n_nodes(self) -> int:
+        return self.n_elem + 1
+
+    @property
+    def shear_modulus(self) -> float:
+        return self.youngs_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @property
+    def area(self) -> float:
+        return math.pi * self.radius**2
+
+    @property
+    def second_moment(self) -> float:
+        """I₁ = I₂ = πr⁴/4, m⁴."""
+        return math.pi * self.radius**4 / 4.0
+
+    @property
+    def bending_stiffness(self) -> float:
+        """EI, N·m²."""
+        return self.youngs_modulus * self.second_moment
+
+    @property
+    def control_dt(self) -> float:
+        """Duration of one control step, s."""
+        return self.dt * self.steps_per_action
+
+    @property
+    def dt_limit(self) -> float:
+        """Largest stable time step of this discretisation and damping, s."""
+        return stable_time_step_limit(self)
+
+    def validate(self) -> None:
+        """Raise :class:`InvalidParameterError` naming the first invalid field and the fix."""
+        if not isinstance(self.n_elem, (int, np.integer)) or self.n_elem < 2:
+            raise InvalidParameterError(f"n_elem={self.n_elem!r} must be an integer ≥ 2")
+        if not isinstance(self.steps_per_action, (int, np.integer)) or self.steps_per_action < 1:
+            raise InvalidParameterError(
+                f"steps_per_action={self.steps_per_action!r} must be an integer ≥ 1"
+            )
+        for name in ("length", "radius", "density", "youngs_modulus", "dt"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InvalidParameterError(f"{name}={value!r} must be a finite number > 0")
+        for name in ("damping", "gravity", "torque_scale", "shear_correction"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise InvalidParameterError(f"{name}={value!r} must be a finite number")
+        if self.damping < 0:
+            raise InvalidParameterError(f"damping={self.damping!r} must be ≥ 0")
+        if self.shear_correction <= 0:
+            raise InvalidParameterError(f"shear_correction={self.shear_correction!r} must be > 0")
+        if not (-1.0 < self.poisson_ratio <= 0.5):
+            raise InvalidParameterError(
+                f"poisson_ratio={self.poisson_ratio!r} must lie in (-1, 0.5]"
+            )
+        if self.n_arms < 1 or any(len(p) != 3 for p in self.base_positions):
+            raise InvalidParameterError("base_positions must be a list of (x, y, z) points, one per arm")
+        d = np.asarray(self.direction, dtype=float)
+        n = np.asarray(self.normal, dtype=float)
+        if d.shape != (3,) or n.shape != (3,) or not np.all(np.isfinite(d)) or not np.all(np.isfinite(n)):
+            raise InvalidParameterError("direction and normal must be finite 3-vectors")
+        if abs(np.linalg.norm(d) - 1) > 1e-9 or abs(np.linalg.norm(n) - 1) > 1e-9:
+            raise InvalidParameterError("direction and normal must be unit vectors")
+        if abs(float(d @ n)) > 1e-9:
+            raise InvalidParameterError("normal must be orthogonal to direction")
+        limit = self.dt_limit
+        if self.dt > limit:
+            raise InvalidParameterError(
+                f"dt={self.dt:g} s exceeds the explicit stability limit {limit:.3g} s of this "
+                f"discretisation (n_elem={self.n_elem}, damping={self.damping:g}); "
+                f"use dt ≤ {limit:.3g}"
+            )
+
+
+@dataclass(frozen=True)
+class RodConstants:
+    """Per-arm constant arrays of the discretised rods (identical for every environment).
+
+    Shapes use A = arms, N = elements. Only diagonals of the 3×3 tensors are stored.
+
+    Attributes:
+        rest_lengths: (N,) m.
+        rest_voronoi_lengths: (N−1,) m.
+        volume: (N,) m³.
+        inv_mass: (N+1,) 1/kg, lumped node masses.
+        mass: (N+1,) kg.
+        inertia: (3, N) kg·m², diagonal of J = ρ·dl·diag(I₁, I₂, I₃).
+        inv_inertia: (3, N) 1/(kg·m²).
+        shear_stiffness: (3, N) N, diagonal of S = (α_c·G·A, α_c·G·A, E·A).
+        bend_stiffness: (3, N−1) N·m², Voronoi length-weighted average of diag(E·I₁, E·I₂, G·I₃).
+        base_position: (A, 3) m, clamped node-0 position.
+        base_directors: (A, 3, 3) clamped element-0 directors (row r = d_{r+1}).
+    """
+
+    rest_lengths: np.ndarray
+    rest_voronoi_lengths: np.ndarray
+    volume: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    inertia: np.ndarray
+    inv_inertia: np.ndarray
+    shear_stiffness: np.ndarray
+    bend_stiffness: np.ndarray
+    base_position: np.ndarray
+    base_directors: np.ndarray
+    rest_position: np.ndarray = field(repr=False)  # (A, 3, N+1) m, the straight rest shape
+
+    @classmethod
+    def build(cls, p: SimParams) -> "RodConstants":
+        n = p.n_elem
+        dl = np.full(n, p.length / n)
+        area = p.area
+        i1 = p.second_moment
+        i3 = 2.0 * i1
+        volume = area * dl
+        mass = np.zeros(n + 1)
+        mass[:-1] += 0.5 * p.density * volume
+        mass[1:] += 0.5 * p.density * volume
+        inertia = np.stack([p.density * dl * i1, p.density * dl * i1, p.density * dl * i3])
+        shear = np.tile(
+            np.array([p.shear_correction * p.shear_modulus * area,
+                      p.shear_correction * p.shear_modulus * area,
+                      p.youngs_modulus * area])[:, None],
+            (1, n),
+        )
+        element_bend = np.tile(
+            np.array([p.youngs_modulus * i1, p.youngs_modulus * i1, p.shear_modulus * i3])[:, None],
+            (1, n),
+        )
+        bend = (element_bend[:, 1:] * dl[1:] + element_bend[:, :-1] * dl[:-1]) / (dl[1:] + dl[:-1])
+        direction = np.asarray(p.direction, dtype=float)
+        normal = np.asarray(p.normal, dtype=float)
+        directors = np.stack([normal, np.cross(direction, normal), direction])
+        bases = np.asarray(p.base_positions, dtype=float)
+        s = np.linspace(0.0, p.length, n + 1)
+        rest_position = bases[:, :, None] + direction[None, :, None] * s[None, None, :]
+        return cls(
+            rest_lengths=dl,
+            rest_voronoi_lengths=0.5 * (dl[1:] + dl[:-1]),
+            volume=volume,
+            mass=mass,
+            inv_mass=1.0 / mass,
+            inertia=inertia,
+            inv_inertia=1.0 / inertia,
+            shear_stiffness=shear,
+            bend_stiffness=bend,
+            base_position=bases.copy(),
+            base_directors=np.repeat(directors[None], len(bases), axis=0),
+            rest_position=rest_position,
+        )
