@@ -10,6 +10,10 @@ frames divided by the rest Voronoi length, Voronoi-averaged bend stiffness, the 
 dilatation factors, the Lagrangian-transport and unsteady-dilatation couples, and the
 PyElastica-0.1 explicit damping of SPEC §1.
 
+Speed: the loops run over elements with unit stride and no branches, so LLVM vectorises them.
+Small rotations (all of them, in practice) use Taylor series instead of sin/cos/acos; a rod
+with a large rotation in a step falls back to the trigonometric formulas for that step.
+
 Array layout (float64): positions/velocities (env, arm, 3, node), directors
 (env, arm, 3, 3, element) with row r = d_{r+1} in lab coordinates, angular velocities
 (env, arm, 3, element) in the local frame, torques (env, arm, 2, element) = (d₁, d₂) couples.
@@ -24,41 +28,50 @@ from numba import njit
 
 __all__ = ["advance"]
 
-# PyElastica regularises zero lengths and angles with this offset; kept for exact parity.
+# PyElastica regularises zero lengths and angles with this offset; kept for parity.
 _EPS = 1e-14
-# Below this squared rotation angle the Rodrigues coefficients use their Taylor series.
-_SERIES_THETA_SQ = 1e-2
+# Series are used below these squared angles; their truncation error is < 1e-13 relative.
+_ROTATION_SERIES_MAX = 1e-2  # θ² of a half-step frame rotation
+_CURVATURE_SERIES_MAX = 0.0625  # sin²θ between neighbouring frames (θ < 0.25 rad)
+
+_FLAGS = {"contract", "arcp", "nsz"}  # no 'nnan'/'ninf': NaN detection must keep working
 
 
-@njit(cache=True, fastmath=False, inline="always")
-def _rotate_frames(directors, omega, scale, n_elem):
+@njit(cache=True, fastmath=_FLAGS, inline="always")
+def _frame_rotation_coefficients(theta_sq, use_series):
+    """(sin θ/θ, (1 − cos θ)/θ²) for the squared angle θ²."""
+    if use_series:
+        a = 1.0 - theta_sq * (1.0 / 6.0 - theta_sq * (1.0 / 120.0 - theta_sq * (
+            1.0 / 5040.0 - theta_sq * (1.0 / 362880.0))))
+        b = 0.5 - theta_sq * (1.0 / 24.0 - theta_sq * (1.0 / 720.0 - theta_sq * (
+            1.0 / 40320.0 - theta_sq * (1.0 / 3628800.0))))
+        return a, b
+    theta = math.sqrt(theta_sq)
+    return math.sin(theta) / (theta + _EPS), (1.0 - math.cos(theta)) / (theta * (theta + _EPS))
+
+
+@njit(cache=True, fastmath=_FLAGS, inline="always")
+def _rotate_frames(directors, omega, scale, n_elem, use_series):
     """Q_k ← exp(−scale·[ω_k]ₓ)·Q_k for every element k (Rodrigues formula).
 
-    directors: (3, 3, N) frames, updated in place; omega: (3, N) rad/s local frame;
-    scale: time, s.
+    directors: (3, 3, N), updated in place; omega: (3, N) rad/s, local frame; scale: s.
     """
     for k in range(n_elem):
         w0 = scale * omega[0, k]
         w1 = scale * omega[1, k]
         w2 = scale * omega[2, k]
-        theta_sq = w0 * w0 + w1 * w1 + w2 * w2
-        if theta_sq < _SERIES_THETA_SQ:
-            # sin θ / θ and (1 − cos θ) / θ²
-            a = 1.0 - theta_sq / 6.0 * (1.0 - theta_sq / 20.0 * (1.0 - theta_sq / 42.0 * (1.0 - theta_sq / 72.0)))
-            b = 0.5 - theta_sq / 24.0 * (1.0 - theta_sq / 30.0 * (1.0 - theta_sq / 56.0 * (1.0 - theta_sq / 90.0)))
-        else:
-            theta = math.sqrt(theta_sq)
-            a = math.sin(theta) / (theta + _EPS)
-            b = (1.0 - math.cos(theta)) / (theta * (theta + _EPS))
+        a, b = _frame_rotation_coefficients(w0 * w0 + w1 * w1 + w2 * w2, use_series)
+        bw0 = b * w0
+        bw1 = b * w1
         r00 = 1.0 - b * (w1 * w1 + w2 * w2)
         r11 = 1.0 - b * (w0 * w0 + w2 * w2)
-        r22 = 1.0 - b * (w0 * w0 + w1 * w1)
-        r01 = a * w2 + b * w0 * w1
-        r10 = -a * w2 + b * w0 * w1
-        r02 = -a * w1 + b * w0 * w2
-        r20 = a * w1 + b * w0 * w2
-        r12 = a * w0 + b * w1 * w2
-        r21 = -a * w0 + b * w1 * w2
+        r22 = 1.0 - bw0 * w0 - bw1 * w1
+        r01 = a * w2 + bw0 * w1
+        r10 = -a * w2 + bw0 * w1
+        r02 = -a * w1 + bw0 * w2
+        r20 = a * w1 + bw0 * w2
+        r12 = a * w0 + bw1 * w2
+        r21 = -a * w0 + bw1 * w2
         for j in range(3):
             q0 = directors[0, j, k]
             q1 = directors[1, j, k]
@@ -68,77 +81,44 @@ def _rotate_frames(directors, omega, scale, n_elem):
             directors[2, j, k] = r20 * q0 + r21 * q1 + r22 * q2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=_FLAGS, inline="always")
 def _drift(position, velocity, directors, omega, half_dt, base_position, base_directors,
            n_elem):
     """Half kinematic step x += ½dt·v, Q ← exp(−½dt[ω]ₓ)Q, then re-apply the clamp."""
     for i in range(3):
         for k in range(n_elem + 1):
             position[i, k] += half_dt * velocity[i, k]
-    _rotate_frames(directors, omega, half_dt, n_elem)
+    largest = 0.0
+    for k in range(n_elem):
+        theta_sq = half_dt * half_dt * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k]
+                                        + omega[2, k] * omega[2, k])
+        largest = max(largest, theta_sq)
+    if largest < _ROTATION_SERIES_MAX:
+        _rotate_frames(directors, omega, half_dt, n_elem, True)
+    else:
+        _rotate_frames(directors, omega, half_dt, n_elem, False)
     for i in range(3):
         position[i, 0] = base_position[i]
         for j in range(3):
             directors[i, j, 0] = base_directors[i, j]
 
 
-@njit(cache=True)
-def _step_rod(position, velocity, directors, omega, torque, dt, damping, gravity,
-              rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia,
-              shear, bend, base_position, base_directors, scratch):
-    """One Position Verlet step of one clamped rod (see module docstring for shapes)."""
-    n_elem = rest_lengths.shape[0]
-    half_dt = 0.5 * dt
-    _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
+@njit(cache=True, fastmath=_FLAGS, inline="always")
+def _log_map_factor(sin_sq, cos_theta, use_series):
+    """θ / sin θ for the angle θ ∈ [0, π] with the given sin²θ and cos θ."""
+    if use_series:
+        # arcsin(s)/s = Σ (2n)! / (4ⁿ (n!)² (2n+1)) s²ⁿ
+        s = sin_sq
+        return 1.0 + s * (1.0 / 6.0 + s * (3.0 / 40.0 + s * (5.0 / 112.0 + s * (
+            35.0 / 1152.0 + s * (63.0 / 2816.0 + s * (231.0 / 13312.0 + s * (
+                143.0 / 10240.0 + s * (6435.0 / 557056.0))))))))
+    theta = math.acos(min(max(cos_theta, -1.0), 1.0)) + _EPS
+    return theta / math.sin(theta)
 
-    lengths = scratch[0]
-    dil = scratch[1]
-    dil_rate = scratch[2]
-    vor_dil_inv3 = scratch[3]
-    f_elem = scratch[4:7]        # (3, N) Qᵀn/e, lab frame
-    n_local = scratch[7:10]      # (3, N) internal stress, local frame
-    qt = scratch[10:13]          # (3, N) Q·t, local frame
-    couple = scratch[13:16]      # (3, N−1) bend/twist couple τ, local frame
-    kxc = scratch[16:19]         # (3, N−1) (κ×τ)·D̂/ε³
-    damp_f = scratch[19:22]      # (3, N) element damping force, lab frame
 
-    # --- elements: geometry, strains, stresses
-    for k in range(n_elem):
-        dx = position[0, k + 1] - position[0, k]
-        dy = position[1, k + 1] - position[1, k]
-        dz = position[2, k + 1] - position[2, k]
-        length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
-        lengths[k] = length
-        tx = dx / length
-        ty = dy / length
-        tz = dz / length
-        e = length / rest_lengths[k]
-        dil[k] = e
-        dvx = velocity[0, k + 1] - velocity[0, k]
-        dvy = velocity[1, k + 1] - velocity[1, k]
-        dvz = velocity[2, k + 1] - velocity[2, k]
-        dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) / length / rest_lengths[k]
-        q0 = directors[0, 0, k] * tx + directors[0, 1, k] * ty + directors[0, 2, k] * tz
-        q1 = directors[1, 0, k] * tx + directors[1, 1, k] * ty + directors[1, 2, k] * tz
-        q2 = directors[2, 0, k] * tx + directors[2, 1, k] * ty + directors[2, 2, k] * tz
-        qt[0, k] = q0
-        qt[1, k] = q1
-        qt[2, k] = q2
-        n0 = shear[0, k] * (e * q0)
-        n1 = shear[1, k] * (e * q1)
-        n2 = shear[2, k] * (e * q2 - 1.0)
-        n_local[0, k] = n0
-        n_local[1, k] = n1
-        n_local[2, k] = n2
-        for j in range(3):
-            f_elem[j, k] = (directors[0, j, k] * n0 + directors[1, j, k] * n1
-                            + directors[2, j, k] * n2) / e
-        c = damping * length * 0.5
-        damp_f[0, k] = c * (velocity[0, k] + velocity[0, k + 1])
-        damp_f[1, k] = c * (velocity[1, k] + velocity[1, k + 1])
-        damp_f[2, k] = c * (velocity[2, k] + velocity[2, k + 1])
-
-    # --- Voronoi points: curvature (rotation log map) and bend/twist couple
+@njit(cache=True, fastmath=_FLAGS, inline="always")
+def _curvatures(directors, inv_rest_voronoi, kappa, n_elem, use_series):
+    """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the N−1 Voronoi points, local frame, 1/m."""
     for j in range(n_elem - 1):
         m01 = 0.0
         m10 = 0.0
@@ -161,85 +141,162 @@ def _step_rod(position, velocity, directors, omega, torque, dt, damping, gravity
             m12 += a1 * b2
             m21 += a2 * b1
             trace += a0 * b0 + a1 * b1 + a2 * b2
-        trace = min(max(trace, -1.0), 3.0)
-        theta = math.acos(0.5 * trace - 0.5) + _EPS
-        mag = -0.5 * theta / math.sin(theta) / rest_voronoi[j]
-        k0 = mag * (m21 - m12)
-        k1 = mag * (m02 - m20)
-        k2 = mag * (m10 - m01)
-        c0 = bend[0, j] * k0
-        c1 = bend[1, j] * k1
-        c2 = bend[2, j] * k2
-        vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) / rest_voronoi[j]
-        inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
-        vor_dil_inv3[j] = inv3
-        couple[0, j] = c0 * inv3
-        couple[1, j] = c1 * inv3
-        couple[2, j] = c2 * inv3
-        w = rest_voronoi[j] * inv3
-        kxc[0, j] = (k1 * c2 - k2 * c1) * w
-        kxc[1, j] = (k2 * c0 - k0 * c2) * w
-        kxc[2, j] = (k0 * c1 - k1 * c0) * w
-
-    # --- nodes: forces → velocities
-    for i in range(3):
-        g = -gravity if i == 1 else 0.0
-        for k in range(n_elem + 1):
-            f = 0.0
-            fd = 0.0
-            if k < n_elem:
-                f += f_elem[i, k]
-                fd += damp_f[i, k]
-            if k > 0:
-                f -= f_elem[i, k - 1]
-                fd += damp_f[i, k - 1]
-            f_ext = -0.5 * fd + g * mass[k]
-            velocity[i, k] += dt * ((f + f_ext) * inv_mass[k])
-    for i in range(3):
-        velocity[i, 0] = 0.0
-
-    # --- elements: couples → angular velocities
-    for k in range(n_elem):
-        e = dil[k]
-        w0 = omega[0, k]
-        w1 = omega[1, k]
-        w2 = omega[2, k]
-        jw0 = inertia[0, k] * w0 / e
-        jw1 = inertia[1, k] * w1 / e
-        jw2 = inertia[2, k] * w2 / e
-        unsteady = dil_rate[k] / e
-        q0 = qt[0, k]
-        q1 = qt[1, k]
-        q2 = qt[2, k]
-        n0 = n_local[0, k]
-        n1 = n_local[1, k]
-        n2 = n_local[2, k]
-        dl = rest_lengths[k]
-        t0 = (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1) + jw0 * unsteady
-        t1 = (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2) + jw1 * unsteady
-        t2 = (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0) + jw2 * unsteady
-        if k < n_elem - 1:
-            t0 += couple[0, k] + 0.5 * kxc[0, k]
-            t1 += couple[1, k] + 0.5 * kxc[1, k]
-            t2 += couple[2, k] + 0.5 * kxc[2, k]
-        if k > 0:
-            t0 += -couple[0, k - 1] + 0.5 * kxc[0, k - 1]
-            t1 += -couple[1, k - 1] + 0.5 * kxc[1, k - 1]
-            t2 += -couple[2, k - 1] + 0.5 * kxc[2, k - 1]
-        damp = damping * lengths[k]
-        ext0 = torque[0, k] - damp * w0
-        ext1 = torque[1, k] - damp * w1
-        ext2 = -damp * w2
-        omega[0, k] = w0 + dt * (inv_inertia[0, k] * (t0 + ext0) * e)
-        omega[1, k] = w1 + dt * (inv_inertia[1, k] * (t1 + ext1) * e)
-        omega[2, k] = w2 + dt * (inv_inertia[2, k] * (t2 + ext2) * e)
-    for i in range(3):
-        omega[i, 0] = 0.0
-
-    _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
+        v0 = m21 - m12
+        v1 = m02 - m20
+        v2 = m10 - m01
+        sin_sq = 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)
+        mag = -0.5 * _log_map_factor(sin_sq, 0.5 * trace - 0.5, use_series) * inv_rest_voronoi[j]
+        kappa[0, j] = mag * v0
+        kappa[1, j] = mag * v1
+        kappa[2, j] = mag * v2
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FLAGS, inline="always")
+def _curvatures_need_trig(directors, n_elem):
+    """True if some neighbouring frames differ by too large an angle for the series."""
+    for j in range(n_elem - 1):
+        trace = 0.0
+        for i in range(3):
+            for c in range(3):
+                trace += directors[i, c, j + 1] * directors[i, c, j]
+        # cos θ = (trace − 1)/2; series region: cos θ > sqrt(1 − max sin²θ)
+        if 0.5 * trace - 0.5 < 0.9682458365518543:
+            return True
+    return False
+
+
+@njit(cache=True, fastmath=_FLAGS)
+def _advance_rod(position, velocity, directors, omega, torque, n_steps, dt, damping, gravity,
+              rest_lengths, inv_rest_lengths, rest_voronoi, inv_rest_voronoi, inv_mass, mass,
+              inertia, inv_inertia, shear, bend, base_position, base_directors,
+              lengths, dil, dil_rate, f_elem, n_local, qt, couple, kxc, damp_f, kappa,
+              torque_int):
+    """``n_steps`` Position Verlet steps of one clamped rod (shapes: module docstring).
+
+    The last eleven arguments are scratch arrays: lengths, dil, dil_rate (N,); f_elem
+    (Qᵀn/e, lab), n_local (internal stress, local), qt (Q·t), damp_f (−½ element damping
+    force), torque_int (internal couple) (3, N); couple (τ/ε³), kxc (½(κ×τ)·D̂/ε³), kappa
+    (3, N−1).
+    """
+    n_elem = rest_lengths.shape[0]
+    half_dt = 0.5 * dt
+    for _ in range(n_steps):
+        _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
+
+        # --- elements: geometry, strains, stresses
+        for k in range(n_elem):
+            dx = position[0, k + 1] - position[0, k]
+            dy = position[1, k + 1] - position[1, k]
+            dz = position[2, k + 1] - position[2, k]
+            length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
+            inv_length = 1.0 / length
+            lengths[k] = length
+            tx = dx * inv_length
+            ty = dy * inv_length
+            tz = dz * inv_length
+            e = length * inv_rest_lengths[k]
+            inv_e = rest_lengths[k] * inv_length
+            dil[k] = e
+            dvx = velocity[0, k + 1] - velocity[0, k]
+            dvy = velocity[1, k + 1] - velocity[1, k]
+            dvz = velocity[2, k + 1] - velocity[2, k]
+            dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) * inv_length * inv_rest_lengths[k]
+            q0 = directors[0, 0, k] * tx + directors[0, 1, k] * ty + directors[0, 2, k] * tz
+            q1 = directors[1, 0, k] * tx + directors[1, 1, k] * ty + directors[1, 2, k] * tz
+            q2 = directors[2, 0, k] * tx + directors[2, 1, k] * ty + directors[2, 2, k] * tz
+            qt[0, k] = q0
+            qt[1, k] = q1
+            qt[2, k] = q2
+            n0 = shear[0, k] * (e * q0)
+            n1 = shear[1, k] * (e * q1)
+            n2 = shear[2, k] * (e * q2 - 1.0)
+            n_local[0, k] = n0
+            n_local[1, k] = n1
+            n_local[2, k] = n2
+            f_elem[0, k] = (directors[0, 0, k] * n0 + directors[1, 0, k] * n1
+                            + directors[2, 0, k] * n2) * inv_e
+            f_elem[1, k] = (directors[0, 1, k] * n0 + directors[1, 1, k] * n1
+                            + directors[2, 1, k] * n2) * inv_e
+            f_elem[2, k] = (directors[0, 2, k] * n0 + directors[1, 2, k] * n1
+                            + directors[2, 2, k] * n2) * inv_e
+            c = -0.25 * damping * length
+            damp_f[0, k] = c * (velocity[0, k] + velocity[0, k + 1])
+            damp_f[1, k] = c * (velocity[1, k] + velocity[1, k + 1])
+            damp_f[2, k] = c * (velocity[2, k] + velocity[2, k + 1])
+
+        # --- Voronoi points: curvature and bend/twist couple
+        if _curvatures_need_trig(directors, n_elem):
+            _curvatures(directors, inv_rest_voronoi, kappa, n_elem, False)
+        else:
+            _curvatures(directors, inv_rest_voronoi, kappa, n_elem, True)
+        for j in range(n_elem - 1):
+            k0 = kappa[0, j]
+            k1 = kappa[1, j]
+            k2 = kappa[2, j]
+            c0 = bend[0, j] * k0
+            c1 = bend[1, j] * k1
+            c2 = bend[2, j] * k2
+            vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_voronoi[j]
+            inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
+            couple[0, j] = c0 * inv3
+            couple[1, j] = c1 * inv3
+            couple[2, j] = c2 * inv3
+            w = 0.5 * rest_voronoi[j] * inv3
+            kxc[0, j] = (k1 * c2 - k2 * c1) * w
+            kxc[1, j] = (k2 * c0 - k0 * c2) * w
+            kxc[2, j] = (k0 * c1 - k1 * c0) * w
+
+        # --- nodes: forces → velocities (node 0 is clamped)
+        last = n_elem
+        for i in range(3):
+            g = -gravity if i == 1 else 0.0
+            for k in range(1, last):
+                f = f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1] + g * mass[k]
+                velocity[i, k] += dt * (f * inv_mass[k])
+            f = -f_elem[i, last - 1] + damp_f[i, last - 1] + g * mass[last]
+            velocity[i, last] += dt * (f * inv_mass[last])
+            velocity[i, 0] = 0.0
+
+        # --- elements: couples → angular velocities (element 0 is clamped)
+        for i in range(3):
+            torque_int[i, 0] = couple[i, 0] + kxc[i, 0]
+            for k in range(1, n_elem - 1):
+                torque_int[i, k] = couple[i, k] - couple[i, k - 1] + kxc[i, k] + kxc[i, k - 1]
+            torque_int[i, n_elem - 1] = -couple[i, n_elem - 2] + kxc[i, n_elem - 2]
+        for k in range(1, n_elem):
+            e = dil[k]
+            inv_e = 1.0 / e
+            w0 = omega[0, k]
+            w1 = omega[1, k]
+            w2 = omega[2, k]
+            jw0 = inertia[0, k] * w0 * inv_e
+            jw1 = inertia[1, k] * w1 * inv_e
+            jw2 = inertia[2, k] * w2 * inv_e
+            unsteady = dil_rate[k] * inv_e
+            q0 = qt[0, k]
+            q1 = qt[1, k]
+            q2 = qt[2, k]
+            n0 = n_local[0, k]
+            n1 = n_local[1, k]
+            n2 = n_local[2, k]
+            dl = rest_lengths[k]
+            damp = damping * lengths[k]
+            t0 = (torque_int[0, k] + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
+                  + jw0 * unsteady + torque[0, k] - damp * w0)
+            t1 = (torque_int[1, k] + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
+                  + jw1 * unsteady + torque[1, k] - damp * w1)
+            t2 = (torque_int[2, k] + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
+                  + jw2 * unsteady - damp * w2)
+            omega[0, k] = w0 + dt * (inv_inertia[0, k] * t0 * e)
+            omega[1, k] = w1 + dt * (inv_inertia[1, k] * t1 * e)
+            omega[2, k] = w2 + dt * (inv_inertia[2, k] * t2 * e)
+        for i in range(3):
+            omega[i, 0] = 0.0
+
+        _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
+
+
+@njit(cache=True, fastmath=_FLAGS)
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
             rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
             base_position, base_directors):
@@ -259,7 +316,19 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
     n_env = position.shape[0]
     n_arm = position.shape[1]
     n_elem = rest_lengths.shape[0]
-    scratch = np.zeros((22, n_elem))
+    lengths = np.zeros(n_elem)
+    dil = np.zeros(n_elem)
+    dil_rate = np.zeros(n_elem)
+    f_elem = np.zeros((3, n_elem))
+    n_local = np.zeros((3, n_elem))
+    qt = np.zeros((3, n_elem))
+    damp_f = np.zeros((3, n_elem))
+    torque_int = np.zeros((3, n_elem))
+    couple = np.zeros((3, n_elem - 1))
+    kxc = np.zeros((3, n_elem - 1))
+    kappa = np.zeros((3, n_elem - 1))
+    inv_rest_lengths = 1.0 / rest_lengths
+    inv_rest_voronoi = 1.0 / rest_voronoi
     for env in range(n_env):
         for arm in range(n_arm):
             pos = position[env, arm]
@@ -267,7 +336,9 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
             dirs = directors[env, arm]
             om = omega[env, arm]
             tq = torques[env, arm]
-            for _ in range(n_steps):
-                _step_rod(pos, vel, dirs, om, tq, dt, damping, gravity, rest_lengths,
-                          rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-                          base_position[arm], base_directors[arm], scratch)
+            base_pos = base_position[arm]
+            base_dirs = base_directors[arm]
+            _advance_rod(pos, vel, dirs, om, tq, n_steps, dt, damping, gravity, rest_lengths,
+                         inv_rest_lengths, rest_voronoi, inv_rest_voronoi, inv_mass, mass,
+                         inertia, inv_inertia, shear, bend, base_pos, base_dirs, lengths, dil,
+                         dil_rate, f_elem, n_local, qt, couple, kxc, damp_f, kappa, torque_int)
