@@ -32,35 +32,40 @@ __all__ = ["advance"]
 _EPS = 1e-14
 # Series are used below these squared angles; their truncation error is < 1e-13 relative.
 _ROTATION_SERIES_MAX = 1e-2  # θ² of a half-step frame rotation
-_CURVATURE_SERIES_MAX = 0.0625  # sin²θ between neighbouring frames (θ < 0.25 rad)
+_CURVATURE_SERIES_MIN_COS = 0.9682458365518543  # cos θ between neighbouring frames: sin²θ ≤ 1/16
 
 _FLAGS = {"contract", "arcp", "nsz"}  # no 'nnan'/'ninf': NaN detection must keep working
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _frame_rotation_coefficients(theta_sq, use_series):
-    """(sin θ/θ, (1 − cos θ)/θ²) for the squared angle θ²."""
-    if use_series:
-        a = 1.0 - theta_sq * (1.0 / 6.0 - theta_sq * (1.0 / 120.0 - theta_sq * (
-            1.0 / 5040.0 - theta_sq * (1.0 / 362880.0))))
-        b = 0.5 - theta_sq * (1.0 / 24.0 - theta_sq * (1.0 / 720.0 - theta_sq * (
-            1.0 / 40320.0 - theta_sq * (1.0 / 3628800.0))))
-        return a, b
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _rotation_coefficients_series(theta_sq):
+    """(sin θ/θ, (1 − cos θ)/θ²) by Taylor series, for θ² < _ROTATION_SERIES_MAX."""
+    a = 1.0 - theta_sq * (1.0 / 6.0 - theta_sq * (1.0 / 120.0 - theta_sq * (
+        1.0 / 5040.0 - theta_sq * (1.0 / 362880.0))))
+    b = 0.5 - theta_sq * (1.0 / 24.0 - theta_sq * (1.0 / 720.0 - theta_sq * (
+        1.0 / 40320.0 - theta_sq * (1.0 / 3628800.0))))
+    return a, b
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _rotation_coefficients_trig(theta_sq):
+    """(sin θ/θ, (1 − cos θ)/θ²) for any squared angle θ², as PyElastica computes them."""
     theta = math.sqrt(theta_sq)
     return math.sin(theta) / (theta + _EPS), (1.0 - math.cos(theta)) / (theta * (theta + _EPS))
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _rotate_frames(directors, omega, scale, n_elem, use_series):
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _rotate_frames(directors, omega, scale, n_elem, coefficients):
     """Q_k ← exp(−scale·[ω_k]ₓ)·Q_k for every element k (Rodrigues formula).
 
-    directors: (3, 3, N), updated in place; omega: (3, N) rad/s, local frame; scale: s.
+    directors: (3, 3, N), updated in place; omega: (3, N) rad/s, local frame; scale: s;
+    coefficients: one of the ``_rotation_coefficients_*`` functions.
     """
     for k in range(n_elem):
         w0 = scale * omega[0, k]
         w1 = scale * omega[1, k]
         w2 = scale * omega[2, k]
-        a, b = _frame_rotation_coefficients(w0 * w0 + w1 * w1 + w2 * w2, use_series)
+        a, b = coefficients(w0 * w0 + w1 * w1 + w2 * w2)
         bw0 = b * w0
         bw1 = b * w1
         r00 = 1.0 - b * (w1 * w1 + w2 * w2)
@@ -81,44 +86,52 @@ def _rotate_frames(directors, omega, scale, n_elem, use_series):
             directors[2, j, k] = r20 * q0 + r21 * q1 + r22 * q2
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _drift(position, velocity, directors, omega, half_dt, base_position, base_directors,
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _drift(position, velocity, directors, omega, drift_dt, base_position, base_directors,
            n_elem):
-    """Half kinematic step x += ½dt·v, Q ← exp(−½dt[ω]ₓ)Q, then re-apply the clamp."""
+    """Kinematic step x += h·v, Q ← exp(−h[ω]ₓ)Q with h = drift_dt, then re-apply the clamp."""
     for i in range(3):
         for k in range(n_elem + 1):
-            position[i, k] += half_dt * velocity[i, k]
+            position[i, k] += drift_dt * velocity[i, k]
     largest = 0.0
     for k in range(n_elem):
-        theta_sq = half_dt * half_dt * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k]
+        theta_sq = drift_dt * drift_dt * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k]
                                         + omega[2, k] * omega[2, k])
         largest = max(largest, theta_sq)
     if largest < _ROTATION_SERIES_MAX:
-        _rotate_frames(directors, omega, half_dt, n_elem, True)
+        _rotate_frames(directors, omega, drift_dt, n_elem, _rotation_coefficients_series)
     else:
-        _rotate_frames(directors, omega, half_dt, n_elem, False)
+        _rotate_frames(directors, omega, drift_dt, n_elem, _rotation_coefficients_trig)
     for i in range(3):
         position[i, 0] = base_position[i]
         for j in range(3):
             directors[i, j, 0] = base_directors[i, j]
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _log_map_factor(sin_sq, cos_theta, use_series):
-    """θ / sin θ for the angle θ ∈ [0, π] with the given sin²θ and cos θ."""
-    if use_series:
-        # arcsin(s)/s = Σ (2n)! / (4ⁿ (n!)² (2n+1)) s²ⁿ
-        s = sin_sq
-        return 1.0 + s * (1.0 / 6.0 + s * (3.0 / 40.0 + s * (5.0 / 112.0 + s * (
-            35.0 / 1152.0 + s * (63.0 / 2816.0 + s * (231.0 / 13312.0 + s * (
-                143.0 / 10240.0 + s * (6435.0 / 557056.0))))))))
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _log_map_factor_series(sin_sq, cos_theta):
+    """θ / sin θ = arcsin(s)/s = Σ (2n)!/(4ⁿ(n!)²(2n+1)) s²ⁿ, for cos θ ≥ the series limit."""
+    s = sin_sq
+    return 1.0 + s * (1.0 / 6.0 + s * (3.0 / 40.0 + s * (5.0 / 112.0 + s * (
+        35.0 / 1152.0 + s * (63.0 / 2816.0 + s * (231.0 / 13312.0 + s * (
+            143.0 / 10240.0 + s * (6435.0 / 557056.0))))))))
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _log_map_factor_trig(sin_sq, cos_theta):
+    """θ / sin θ for any angle θ ∈ [0, π], as PyElastica computes it."""
     theta = math.acos(min(max(cos_theta, -1.0), 1.0)) + _EPS
     return theta / math.sin(theta)
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _curvatures(directors, inv_rest_voronoi, kappa, n_elem, use_series):
-    """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the N−1 Voronoi points, local frame, 1/m."""
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _curvatures(directors, inv_rest_voronoi, kappa, cosines, n_elem, log_map_factor):
+    """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the N−1 Voronoi points, local frame, 1/m.
+
+    Also stores cos θ_j of the angle between neighbouring frames in ``cosines`` (N−1,), so
+    the caller can see whether the series (valid for cos θ ≥ _CURVATURE_SERIES_MIN_COS) held.
+    ``log_map_factor`` is one of the ``_log_map_factor_*`` functions.
+    """
     for j in range(n_elem - 1):
         m01 = 0.0
         m10 = 0.0
@@ -145,158 +158,15 @@ def _curvatures(directors, inv_rest_voronoi, kappa, n_elem, use_series):
         v1 = m02 - m20
         v2 = m10 - m01
         sin_sq = 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)
-        mag = -0.5 * _log_map_factor(sin_sq, 0.5 * trace - 0.5, use_series) * inv_rest_voronoi[j]
+        cos_theta = 0.5 * trace - 0.5
+        cosines[j] = cos_theta
+        mag = -0.5 * log_map_factor(sin_sq, cos_theta) * inv_rest_voronoi[j]
         kappa[0, j] = mag * v0
         kappa[1, j] = mag * v1
         kappa[2, j] = mag * v2
 
 
-@njit(cache=True, fastmath=_FLAGS, inline="always")
-def _curvatures_need_trig(directors, n_elem):
-    """True if some neighbouring frames differ by too large an angle for the series."""
-    for j in range(n_elem - 1):
-        trace = 0.0
-        for i in range(3):
-            for c in range(3):
-                trace += directors[i, c, j + 1] * directors[i, c, j]
-        # cos θ = (trace − 1)/2; series region: cos θ > sqrt(1 − max sin²θ)
-        if 0.5 * trace - 0.5 < 0.9682458365518543:
-            return True
-    return False
-
-
-@njit(cache=True, fastmath=_FLAGS)
-def _advance_rod(position, velocity, directors, omega, torque, n_steps, dt, damping, gravity,
-              rest_lengths, inv_rest_lengths, rest_voronoi, inv_rest_voronoi, inv_mass, mass,
-              inertia, inv_inertia, shear, bend, base_position, base_directors,
-              lengths, dil, dil_rate, f_elem, n_local, qt, couple, kxc, damp_f, kappa,
-              torque_int):
-    """``n_steps`` Position Verlet steps of one clamped rod (shapes: module docstring).
-
-    The last eleven arguments are scratch arrays: lengths, dil, dil_rate (N,); f_elem
-    (Qᵀn/e, lab), n_local (internal stress, local), qt (Q·t), damp_f (−½ element damping
-    force), torque_int (internal couple) (3, N); couple (τ/ε³), kxc (½(κ×τ)·D̂/ε³), kappa
-    (3, N−1).
-    """
-    n_elem = rest_lengths.shape[0]
-    half_dt = 0.5 * dt
-    for _ in range(n_steps):
-        _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
-
-        # --- elements: geometry, strains, stresses
-        for k in range(n_elem):
-            dx = position[0, k + 1] - position[0, k]
-            dy = position[1, k + 1] - position[1, k]
-            dz = position[2, k + 1] - position[2, k]
-            length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
-            inv_length = 1.0 / length
-            lengths[k] = length
-            tx = dx * inv_length
-            ty = dy * inv_length
-            tz = dz * inv_length
-            e = length * inv_rest_lengths[k]
-            inv_e = rest_lengths[k] * inv_length
-            dil[k] = e
-            dvx = velocity[0, k + 1] - velocity[0, k]
-            dvy = velocity[1, k + 1] - velocity[1, k]
-            dvz = velocity[2, k + 1] - velocity[2, k]
-            dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) * inv_length * inv_rest_lengths[k]
-            q0 = directors[0, 0, k] * tx + directors[0, 1, k] * ty + directors[0, 2, k] * tz
-            q1 = directors[1, 0, k] * tx + directors[1, 1, k] * ty + directors[1, 2, k] * tz
-            q2 = directors[2, 0, k] * tx + directors[2, 1, k] * ty + directors[2, 2, k] * tz
-            qt[0, k] = q0
-            qt[1, k] = q1
-            qt[2, k] = q2
-            n0 = shear[0, k] * (e * q0)
-            n1 = shear[1, k] * (e * q1)
-            n2 = shear[2, k] * (e * q2 - 1.0)
-            n_local[0, k] = n0
-            n_local[1, k] = n1
-            n_local[2, k] = n2
-            f_elem[0, k] = (directors[0, 0, k] * n0 + directors[1, 0, k] * n1
-                            + directors[2, 0, k] * n2) * inv_e
-            f_elem[1, k] = (directors[0, 1, k] * n0 + directors[1, 1, k] * n1
-                            + directors[2, 1, k] * n2) * inv_e
-            f_elem[2, k] = (directors[0, 2, k] * n0 + directors[1, 2, k] * n1
-                            + directors[2, 2, k] * n2) * inv_e
-            c = -0.25 * damping * length
-            damp_f[0, k] = c * (velocity[0, k] + velocity[0, k + 1])
-            damp_f[1, k] = c * (velocity[1, k] + velocity[1, k + 1])
-            damp_f[2, k] = c * (velocity[2, k] + velocity[2, k + 1])
-
-        # --- Voronoi points: curvature and bend/twist couple
-        if _curvatures_need_trig(directors, n_elem):
-            _curvatures(directors, inv_rest_voronoi, kappa, n_elem, False)
-        else:
-            _curvatures(directors, inv_rest_voronoi, kappa, n_elem, True)
-        for j in range(n_elem - 1):
-            k0 = kappa[0, j]
-            k1 = kappa[1, j]
-            k2 = kappa[2, j]
-            c0 = bend[0, j] * k0
-            c1 = bend[1, j] * k1
-            c2 = bend[2, j] * k2
-            vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_voronoi[j]
-            inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
-            couple[0, j] = c0 * inv3
-            couple[1, j] = c1 * inv3
-            couple[2, j] = c2 * inv3
-            w = 0.5 * rest_voronoi[j] * inv3
-            kxc[0, j] = (k1 * c2 - k2 * c1) * w
-            kxc[1, j] = (k2 * c0 - k0 * c2) * w
-            kxc[2, j] = (k0 * c1 - k1 * c0) * w
-
-        # --- nodes: forces → velocities (node 0 is clamped)
-        last = n_elem
-        for i in range(3):
-            g = -gravity if i == 1 else 0.0
-            for k in range(1, last):
-                f = f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1] + g * mass[k]
-                velocity[i, k] += dt * (f * inv_mass[k])
-            f = -f_elem[i, last - 1] + damp_f[i, last - 1] + g * mass[last]
-            velocity[i, last] += dt * (f * inv_mass[last])
-            velocity[i, 0] = 0.0
-
-        # --- elements: couples → angular velocities (element 0 is clamped)
-        for i in range(3):
-            torque_int[i, 0] = couple[i, 0] + kxc[i, 0]
-            for k in range(1, n_elem - 1):
-                torque_int[i, k] = couple[i, k] - couple[i, k - 1] + kxc[i, k] + kxc[i, k - 1]
-            torque_int[i, n_elem - 1] = -couple[i, n_elem - 2] + kxc[i, n_elem - 2]
-        for k in range(1, n_elem):
-            e = dil[k]
-            inv_e = 1.0 / e
-            w0 = omega[0, k]
-            w1 = omega[1, k]
-            w2 = omega[2, k]
-            jw0 = inertia[0, k] * w0 * inv_e
-            jw1 = inertia[1, k] * w1 * inv_e
-            jw2 = inertia[2, k] * w2 * inv_e
-            unsteady = dil_rate[k] * inv_e
-            q0 = qt[0, k]
-            q1 = qt[1, k]
-            q2 = qt[2, k]
-            n0 = n_local[0, k]
-            n1 = n_local[1, k]
-            n2 = n_local[2, k]
-            dl = rest_lengths[k]
-            damp = damping * lengths[k]
-            t0 = (torque_int[0, k] + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
-                  + jw0 * unsteady + torque[0, k] - damp * w0)
-            t1 = (torque_int[1, k] + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
-                  + jw1 * unsteady + torque[1, k] - damp * w1)
-            t2 = (torque_int[2, k] + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
-                  + jw2 * unsteady - damp * w2)
-            omega[0, k] = w0 + dt * (inv_inertia[0, k] * t0 * e)
-            omega[1, k] = w1 + dt * (inv_inertia[1, k] * t1 * e)
-            omega[2, k] = w2 + dt * (inv_inertia[2, k] * t2 * e)
-        for i in range(3):
-            omega[i, 0] = 0.0
-
-        _drift(position, velocity, directors, omega, half_dt, base_position, base_directors, n_elem)
-
-
-@njit(cache=True, fastmath=_FLAGS)
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy")
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
             rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
             base_position, base_directors):
@@ -317,7 +187,8 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
     n_arm = position.shape[1]
     n_elem = rest_lengths.shape[0]
     lengths = np.zeros(n_elem)
-    dil = np.zeros(n_elem)
+    inv_lengths = np.zeros(n_elem)
+    cosines = np.zeros(n_elem - 1)
     dil_rate = np.zeros(n_elem)
     f_elem = np.zeros((3, n_elem))
     n_local = np.zeros((3, n_elem))
@@ -327,18 +198,160 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
     couple = np.zeros((3, n_elem - 1))
     kxc = np.zeros((3, n_elem - 1))
     kappa = np.zeros((3, n_elem - 1))
+    # Every array the loops touch is allocated here, so LLVM knows none of them alias and
+    # vectorises the element loops without runtime overlap checks; each rod's state is copied
+    # in, integrated, and copied back.
     inv_rest_lengths = 1.0 / rest_lengths
     inv_rest_voronoi = 1.0 / rest_voronoi
+    rest_lengths = rest_lengths.copy()
+    rest_voronoi = rest_voronoi.copy()
+    inv_mass = inv_mass.copy()
+    mass = mass.copy()
+    inertia = inertia.copy()
+    inv_inertia = inv_inertia.copy()
+    shear = shear.copy()
+    bend = bend.copy()
+    pos = np.empty((3, n_elem + 1))
+    vel = np.empty((3, n_elem + 1))
+    dirs = np.empty((3, 3, n_elem))
+    om = np.empty((3, n_elem))
+    tq = np.empty((2, n_elem))
+    base_pos = np.empty(3)
+    base_dirs = np.empty((3, 3))
     for env in range(n_env):
         for arm in range(n_arm):
-            pos = position[env, arm]
-            vel = velocity[env, arm]
-            dirs = directors[env, arm]
-            om = omega[env, arm]
-            tq = torques[env, arm]
-            base_pos = base_position[arm]
-            base_dirs = base_directors[arm]
-            _advance_rod(pos, vel, dirs, om, tq, n_steps, dt, damping, gravity, rest_lengths,
-                         inv_rest_lengths, rest_voronoi, inv_rest_voronoi, inv_mass, mass,
-                         inertia, inv_inertia, shear, bend, base_pos, base_dirs, lengths, dil,
-                         dil_rate, f_elem, n_local, qt, couple, kxc, damp_f, kappa, torque_int)
+            pos[:] = position[env, arm]
+            vel[:] = velocity[env, arm]
+            dirs[:] = directors[env, arm]
+            om[:] = omega[env, arm]
+            tq[:] = torques[env, arm]
+            base_pos[:] = base_position[arm]
+            base_dirs[:] = base_directors[arm]
+            half_dt = 0.5 * dt
+            # The closing half drift of one step and the opening half drift of the next are one
+            # drift of dt (same velocities, same rotation axis), so they are fused.
+            _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_elem)
+            for step in range(n_steps):
+
+                # --- elements: geometry, strains, stresses (split into short loops that vectorise)
+                for k in range(n_elem):
+                    dx = pos[0, k + 1] - pos[0, k]
+                    dy = pos[1, k + 1] - pos[1, k]
+                    dz = pos[2, k + 1] - pos[2, k]
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
+                    lengths[k] = length
+                    inv_lengths[k] = 1.0 / length
+                for k in range(n_elem):
+                    inv_length = inv_lengths[k]
+                    tx = (pos[0, k + 1] - pos[0, k]) * inv_length
+                    ty = (pos[1, k + 1] - pos[1, k]) * inv_length
+                    tz = (pos[2, k + 1] - pos[2, k]) * inv_length
+                    e = lengths[k] * inv_rest_lengths[k]
+                    q0 = dirs[0, 0, k] * tx + dirs[0, 1, k] * ty + dirs[0, 2, k] * tz
+                    q1 = dirs[1, 0, k] * tx + dirs[1, 1, k] * ty + dirs[1, 2, k] * tz
+                    q2 = dirs[2, 0, k] * tx + dirs[2, 1, k] * ty + dirs[2, 2, k] * tz
+                    qt[0, k] = q0
+                    qt[1, k] = q1
+                    qt[2, k] = q2
+                    n_local[0, k] = shear[0, k] * (e * q0)
+                    n_local[1, k] = shear[1, k] * (e * q1)
+                    n_local[2, k] = shear[2, k] * (e * q2 - 1.0)
+                for k in range(n_elem):
+                    inv_e = rest_lengths[k] * inv_lengths[k]
+                    n0 = n_local[0, k] * inv_e
+                    n1 = n_local[1, k] * inv_e
+                    n2 = n_local[2, k] * inv_e
+                    f_elem[0, k] = dirs[0, 0, k] * n0 + dirs[1, 0, k] * n1 + dirs[2, 0, k] * n2
+                    f_elem[1, k] = dirs[0, 1, k] * n0 + dirs[1, 1, k] * n1 + dirs[2, 1, k] * n2
+                    f_elem[2, k] = dirs[0, 2, k] * n0 + dirs[1, 2, k] * n1 + dirs[2, 2, k] * n2
+                for k in range(n_elem):
+                    dx = pos[0, k + 1] - pos[0, k]
+                    dy = pos[1, k + 1] - pos[1, k]
+                    dz = pos[2, k + 1] - pos[2, k]
+                    dvx = vel[0, k + 1] - vel[0, k]
+                    dvy = vel[1, k + 1] - vel[1, k]
+                    dvz = vel[2, k + 1] - vel[2, k]
+                    dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k] * inv_rest_lengths[k]
+                for k in range(n_elem):
+                    c = -0.25 * damping * lengths[k]
+                    damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
+                    damp_f[1, k] = c * (vel[1, k] + vel[1, k + 1])
+                    damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
+
+                # --- Voronoi points: curvature and bend/twist couple
+                _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_series)
+                smallest_cos = 1.0
+                for j in range(n_elem - 1):
+                    smallest_cos = min(smallest_cos, cosines[j])
+                if smallest_cos < _CURVATURE_SERIES_MIN_COS:
+                    _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_trig)
+                for j in range(n_elem - 1):
+                    vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_voronoi[j]
+                    inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
+                    k0 = kappa[0, j]
+                    k1 = kappa[1, j]
+                    k2 = kappa[2, j]
+                    c0 = bend[0, j] * k0
+                    c1 = bend[1, j] * k1
+                    c2 = bend[2, j] * k2
+                    couple[0, j] = c0 * inv3
+                    couple[1, j] = c1 * inv3
+                    couple[2, j] = c2 * inv3
+                    w = 0.5 * rest_voronoi[j] * inv3
+                    kxc[0, j] = (k1 * c2 - k2 * c1) * w
+                    kxc[1, j] = (k2 * c0 - k0 * c2) * w
+                    kxc[2, j] = (k0 * c1 - k1 * c0) * w
+
+                # --- nodes: forces → velocities (node 0 is clamped)
+                last = n_elem
+                for i in range(3):
+                    g = -gravity if i == 1 else 0.0
+                    for k in range(1, last):
+                        f = f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1] + g * mass[k]
+                        vel[i, k] += dt * (f * inv_mass[k])
+                    f = -f_elem[i, last - 1] + damp_f[i, last - 1] + g * mass[last]
+                    vel[i, last] += dt * (f * inv_mass[last])
+                    vel[i, 0] = 0.0
+
+                # --- elements: couples → angular velocities (element 0 is clamped)
+                for i in range(3):
+                    torque_int[i, 0] = couple[i, 0] + kxc[i, 0]
+                    for k in range(1, n_elem - 1):
+                        torque_int[i, k] = couple[i, k] - couple[i, k - 1] + kxc[i, k] + kxc[i, k - 1]
+                    torque_int[i, n_elem - 1] = -couple[i, n_elem - 2] + kxc[i, n_elem - 2]
+                for k in range(1, n_elem):
+                    e = lengths[k] * inv_rest_lengths[k]
+                    inv_e = rest_lengths[k] * inv_lengths[k]
+                    w0 = om[0, k]
+                    w1 = om[1, k]
+                    w2 = om[2, k]
+                    jw0 = inertia[0, k] * w0 * inv_e
+                    jw1 = inertia[1, k] * w1 * inv_e
+                    jw2 = inertia[2, k] * w2 * inv_e
+                    unsteady = dil_rate[k] * inv_e
+                    q0 = qt[0, k]
+                    q1 = qt[1, k]
+                    q2 = qt[2, k]
+                    n0 = n_local[0, k]
+                    n1 = n_local[1, k]
+                    n2 = n_local[2, k]
+                    dl = rest_lengths[k]
+                    damp = damping * lengths[k]
+                    t0 = (torque_int[0, k] + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
+                          + jw0 * unsteady + tq[0, k] - damp * w0)
+                    t1 = (torque_int[1, k] + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
+                          + jw1 * unsteady + tq[1, k] - damp * w1)
+                    t2 = (torque_int[2, k] + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
+                          + jw2 * unsteady - damp * w2)
+                    om[0, k] = w0 + dt * (inv_inertia[0, k] * t0 * e)
+                    om[1, k] = w1 + dt * (inv_inertia[1, k] * t1 * e)
+                    om[2, k] = w2 + dt * (inv_inertia[2, k] * t2 * e)
+                for i in range(3):
+                    om[i, 0] = 0.0
+
+                drift_dt = half_dt if step == n_steps - 1 else dt
+                _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_elem)
+            position[env, arm] = pos
+            velocity[env, arm] = vel
+            directors[env, arm] = dirs
+            omega[env, arm] = om
