@@ -40,6 +40,7 @@ class RodBatch:
         self.omega = np.empty((n_envs, p.n_arms, 3, p.n_elem))
         self.torques = np.zeros((n_envs, p.n_arms, 2, p.n_elem))
         self.time = np.zeros(n_envs)
+        self._finite = np.ones(n_envs, dtype=np.bool_)
         self._spline_scaled = p.torque_scale * spline_matrix(p.n_elem)  # (N, 6)
         self.reset()
 
@@ -67,6 +68,7 @@ class RodBatch:
         self.omega[idx] = 0.0
         self.torques[idx] = 0.0
         self.time[idx] = 0.0
+        self._finite[idx] = True
 
     def set_actions(self, actions: np.ndarray) -> None:
         """Set the element torques from control values.
@@ -75,7 +77,9 @@ class RodBatch:
             actions: (E, A, 2, 6) control values (direction 0 normal, 1 binormal), used as
                 given (clip them before if needed).
         """
-        np.matmul(actions, self._spline_scaled.T, out=self.torques)
+        e, a = self.torques.shape[:2]
+        np.matmul(np.reshape(actions, (e * a * 2, -1)), self._spline_scaled.T,
+                  out=self.torques.reshape(e * a * 2, -1))
 
     def set_element_torques(self, element_torques: np.ndarray) -> None:
         """Set the element torques directly: (E, A, 2, N) N·m."""
@@ -85,22 +89,21 @@ class RodBatch:
         """Integrate every environment by ``n_steps`` steps (default ``steps_per_action``)."""
         p = self.params
         steps = p.steps_per_action if n_steps is None else int(n_steps)
+        if steps < 0:
+            raise ValueError(f"n_steps={n_steps!r} must be ≥ 0")
+        if steps == 0:
+            return
         c = self.constants
         _advance_kernel(
             self.position, self.velocity, self.directors, self.omega, self.torques, steps,
-            p.dt, p.damping, p.gravity, c.rest_lengths, c.rest_voronoi_lengths, c.inv_mass,
+            float(p.dt), float(p.damping), float(p.gravity), c.rest_lengths, c.rest_voronoi_lengths, c.inv_mass,
             c.mass, c.inertia, c.inv_inertia, c.shear_stiffness, c.bend_stiffness,
-            c.base_position, c.base_directors,
+            c.base_position, c.base_directors, self._finite,
         )
         self.time += steps * p.dt
 
     def finite(self) -> np.ndarray:
-        """(E,) bool: True where every state value of the environment is finite."""
-        e = self.n_envs
-        return (
-            np.isfinite(self.position.reshape(e, -1)).all(axis=1)
-            & np.isfinite(self.velocity.reshape(e, -1)).all(axis=1)
-            & np.isfinite(self.directors.reshape(e, -1)).all(axis=1)
-            & np.isfinite(self.omega.reshape(e, -1)).all(axis=1)
-        )
+        """(E,) bool: True where every state value of the environment was finite after the
+        last :meth:`advance` (or since a reset)."""
+        return self._finite.copy()
 

@@ -169,7 +169,7 @@ def _curvatures(directors, inv_rest_voronoi, kappa, cosines, n_elem, log_map_fac
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
             rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-            base_position, base_directors):
+            base_position, base_directors, finite):
     """Integrate every rod of the batch by ``n_steps`` steps of ``dt`` seconds, in place.
 
     Args:
@@ -182,6 +182,7 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
         rest_lengths (N,), rest_voronoi (N−1,) m; inv_mass, mass (N+1,); inertia,
         inv_inertia (3, N) kg·m²; shear (3, N) N; bend (3, N−1) N·m²;
         base_position (A, 3) m; base_directors (A, 3, 3).
+        finite: (E,) bool output: False where any state value of the environment is NaN/inf.
     """
     n_env = position.shape[0]
     n_arm = position.shape[1]
@@ -219,6 +220,7 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
     base_pos = np.empty(3)
     base_dirs = np.empty((3, 3))
     for env in range(n_env):
+        finite[env] = True
         for arm in range(n_arm):
             pos[:] = position[env, arm]
             vel[:] = velocity[env, arm]
@@ -355,3 +357,7 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
             velocity[env, arm] = vel
             directors[env, arm] = dirs
             omega[env, arm] = om
+            # NaN and inf propagate through a sum, so one reduction checks the whole state.
+            checksum = pos.sum() + vel.sum() + dirs.sum() + om.sum()
+            if not math.isfinite(checksum):
+                finite[env] = False

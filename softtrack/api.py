@@ -1,0 +1,241 @@
+"""The public Python functions behind the ``softtrack`` command line.
+
+The CLI (:mod:`softtrack.cli`) only parses arguments and prints; everything it shows is
+computed here, so the same results are available from Python.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from datetime import UTC, datetime
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from softtrack.sim.params import InvalidParameterError
+from softtrack.spec import (
+    ExperimentSpec,
+    SpecError,
+    load_spec,
+    spec_json_schema,
+    spec_to_yaml,
+)
+from softtrack.store.runs import RunRecord, RunStore, RunStoreError, parse_time, resolve_runs_dir
+from softtrack.store.tables import TableError, read_table
+
+__all__ = [
+    "RUN_TABLE_COLUMNS",
+    "USER_ERRORS",
+    "final_stage_return",
+    "format_runs_table",
+    "list_run_summaries",
+    "resolved_spec_yaml",
+    "run_summary",
+    "spec_defaults_yaml",
+    "spec_schema_json",
+    "validate_spec",
+    "validation_summary",
+]
+
+#: Errors a user can cause; the CLI prints their one-line message and exits with code 2.
+USER_ERRORS: tuple[type[Exception], ...] = (
+    SpecError,
+    RunStoreError,
+    TableError,
+    InvalidParameterError,
+)
+
+DEFAULT_FINAL_STAGE_FRACTION = 0.1
+DEFAULT_HEARTBEAT_INTERVAL_S = 30.0
+
+
+# ---- specs --------------------------------------------------------------------------------
+def validate_spec(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> ExperimentSpec:
+    """Load and validate a spec file with ``--set`` style overrides (raises ``SpecError``)."""
+    return load_spec(path, overrides)
+
+
+def validation_summary(spec: ExperimentSpec) -> str:
+    """``ok: td3, 3 runs (seeds 0, 1, 2): td3/centralized, 10,000,000 env steps each``."""
+    seeds = ", ".join(str(s) for s in spec.seeds)
+    runs = f"{spec.n_runs} run{'s' if spec.n_runs != 1 else ''}"
+    seed_word = "seeds" if spec.n_runs != 1 else "seed"
+    return (
+        f"ok: {spec.name}, {runs} ({seed_word} {seeds}): {spec.algo.name}/{spec.controller}, "
+        f"{spec.training.total_timesteps:,} env steps each"
+    )
+
+
+def spec_defaults_yaml() -> str:
+    """The default spec as commented YAML (a template to copy)."""
+    header = (
+        "# softtrack experiment spec: every field with its default (the study's setting).\n"
+        "# Units are in brackets. Validate a copy with `softtrack validate FILE`.\n\n"
+    )
+    return header + spec_to_yaml(ExperimentSpec(), comments=True)
+
+
+def spec_schema_json() -> str:
+    """The JSON Schema of the spec, indented."""
+    return json.dumps(spec_json_schema(), indent=2, ensure_ascii=False)
+
+
+def resolved_spec_yaml(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> str:
+    """A spec file with defaults filled in and overrides applied, as YAML."""
+    return spec_to_yaml(load_spec(path, overrides))
+
+
+# ---- runs ---------------------------------------------------------------------------------
+def _raw_spec(record: RunRecord) -> dict[str, Any]:
+    """The run's spec.yaml as plain data (not validated, so old runs always list)."""
+    try:
+        data = yaml.safe_load(record.spec_path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _training_value(raw: dict[str, Any], key: str, default: float) -> float:
+    training = raw.get("training")
+    value = training.get(key) if isinstance(training, dict) else None
+    return (
+        float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else default
+    )
+
+
+def final_stage_return(
+    record: RunRecord, fraction: float | None = None
+) -> tuple[float | None, int, int]:
+    """Mean training-episode return over the last ``fraction`` of the run's budget (SPEC §4).
+
+    Episodes count when their ``global_step`` (at the episode's end) exceeds
+    ``(1 - fraction) · total_timesteps``. ``fraction`` defaults to the run's
+    ``training.final_stage_fraction`` (0.1).
+
+    Returns:
+        ``(mean return or None if no episode qualifies, number of such episodes,
+        largest global_step in the table or 0)``.
+    """
+    if fraction is None:
+        fraction = _training_value(
+            _raw_spec(record), "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION
+        )
+    df = read_table(record.table_path("train_episodes"), ["global_step", "return"], missing_ok=True)
+    if df.empty:
+        return None, 0, 0
+    last_step = int(df["global_step"].max())
+    threshold = (1.0 - fraction) * record.info.total_timesteps
+    final = df.loc[df["global_step"] > threshold, "return"]
+    final = pd.to_numeric(final, errors="coerce")
+    final = final[np.isfinite(final)]
+    if final.empty:
+        return None, 0, last_step
+    return float(final.mean()), int(final.size), last_step
+
+
+def _is_stale(record: RunRecord, heartbeat_interval: float, now: datetime) -> bool:
+    if record.info.status != "running":
+        return False
+    beat = parse_time(record.info.heartbeat or record.info.started or record.info.created)
+    if beat is None:
+        return False
+    return (now - beat).total_seconds() > max(120.0, 10.0 * heartbeat_interval)
+
+
+def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
+    """One row of ``softtrack runs`` (JSON-serialisable)."""
+    raw = _raw_spec(record)
+    info = record.info
+    try:
+        final, n_final, last_step = final_stage_return(
+            record, _training_value(raw, "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION)
+        )
+    except TableError:
+        final, n_final, last_step = None, 0, 0
+    now = now or datetime.now(UTC)
+    return {
+        "run_id": info.run_id,
+        "name": info.name,
+        "algo": info.algo,
+        "controller": info.controller,
+        "seed": info.seed,
+        "status": info.status,
+        "stale": _is_stale(
+            record, _training_value(raw, "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S), now
+        ),
+        "global_step": max(info.global_step, last_step),
+        "total_timesteps": info.total_timesteps,
+        "final_return": final,
+        "final_return_episodes": n_final,
+        "steps_per_second": info.steps_per_second,
+        "created": info.created,
+        "started": info.started,
+        "ended": info.ended,
+        "spec_hash": info.spec_hash,
+        "git_commit": info.git_commit,
+        "git_dirty": info.git_dirty,
+        "error": info.error,
+        "path": str(record.path),
+    }
+
+
+def list_run_summaries(runs_dir: str | os.PathLike[str] | None = None) -> list[dict[str, Any]]:
+    """Summaries of every run under ``runs_dir`` (resolved with ``resolve_runs_dir``), oldest first."""
+    store = RunStore(resolve_runs_dir(runs_dir))
+    now = datetime.now(UTC)
+    return [run_summary(record, now=now) for record in store.list_runs()]
+
+
+RUN_TABLE_COLUMNS = (
+    "ID",
+    "NAME",
+    "ALGO",
+    "CONTROLLER",
+    "SEED",
+    "STATUS",
+    "STEPS",
+    "FINAL RETURN",
+    "STARTED (UTC)",
+    "ENDED (UTC)",
+)
+
+
+def _time_cell(text: str | None) -> str:
+    moment = parse_time(text)
+    return moment.strftime("%Y-%m-%d %H:%M:%S") if moment else ""
+
+
+def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
+    """A plain, aligned text table of run summaries (one line per run, with a header)."""
+    rows = [list(RUN_TABLE_COLUMNS)]
+    for s in summaries:
+        status = s["status"] + (" (stale)" if s.get("stale") else "")
+        final = s.get("final_return")
+        rows.append(
+            [
+                s["run_id"],
+                s["name"],
+                s["algo"],
+                s["controller"],
+                str(s["seed"]),
+                status,
+                f"{s['global_step']}/{s['total_timesteps']}",
+                "" if final is None else f"{final:.2f}",
+                _time_cell(s.get("started")),
+                _time_cell(s.get("ended")),
+            ]
+        )
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    right = {4, 6, 7}  # numeric columns
+    lines = []
+    for row in rows:
+        cells = [
+            cell.rjust(widths[i]) if i in right else cell.ljust(widths[i])
+            for i, cell in enumerate(row)
+        ]
+        lines.append("  ".join(cells).rstrip())
+    return "\n".join(lines)

@@ -1,0 +1,166 @@
+"""The ``softtrack`` command line (Typer). Thin: it parses, calls :mod:`softtrack.api`, prints.
+
+Every error a user can cause (a bad spec, a bad override, a missing run) is printed as one
+line on stderr, ``error: <file>: <field>: <problem>; <fix>``, with exit code 2 and no traceback.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Annotated, NoReturn
+
+import typer
+
+from softtrack import api
+
+app = typer.Typer(
+    name="softtrack",
+    help="Train, evaluate and compare controllers for two soft arms tracking a moving target.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_show_locals=False,
+)
+
+SetOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--set",
+        "-s",
+        metavar="PATH=VALUE",
+        help="Override a spec field, e.g. --set training.total_timesteps=2000 --set 'seeds=[0,1]' "
+        "(values are YAML). Repeatable.",
+        show_default=False,
+    ),
+]
+RunsDirOption = Annotated[
+    str | None,
+    typer.Option(
+        "--runs-dir",
+        metavar="DIR",
+        help="Directory holding the runs [default: $SOFTTRACK_RUNS_DIR, else runs/].",
+        show_default=False,
+    ),
+]
+
+
+class OutputFormat(str, enum.Enum):
+    table = "table"
+    json = "json"
+
+
+def _fail(exc: BaseException) -> NoReturn:
+    typer.echo(f"error: {exc}", err=True)
+    raise typer.Exit(2)
+
+
+@contextmanager
+def _user_errors() -> Iterator[None]:
+    """Turn the user errors of softtrack into one stderr line and exit code 2."""
+    try:
+        yield
+    except api.USER_ERRORS as exc:
+        _fail(exc)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            typer.echo(f"softtrack {version('softtrack')}")
+        except PackageNotFoundError:
+            typer.echo("softtrack (not installed; running from source)")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")
+    ] = False,
+) -> None:
+    """Train, evaluate and compare controllers for two soft arms tracking a moving target."""
+
+
+@app.command()
+def validate(
+    spec: Annotated[
+        str, typer.Argument(metavar="SPEC", help="Experiment spec (YAML).", show_default=False)
+    ],
+    overrides: SetOption = None,
+) -> None:
+    """Check a spec file (and overrides) without running anything."""
+    with _user_errors():
+        resolved = api.validate_spec(spec, overrides or [])
+    typer.echo(api.validation_summary(resolved))
+
+
+@app.command("spec")
+def spec_command(
+    spec: Annotated[
+        str | None,
+        typer.Argument(
+            metavar="[SPEC]", help="Print this spec fully resolved.", show_default=False
+        ),
+    ] = None,
+    overrides: SetOption = None,
+    schema: Annotated[
+        bool, typer.Option("--schema", help="Print the JSON Schema of specs.")
+    ] = False,
+    defaults: Annotated[
+        bool, typer.Option("--defaults", help="Print the default spec as commented YAML.")
+    ] = False,
+) -> None:
+    """Show the spec format: the JSON Schema, the defaults, or a file fully resolved."""
+    chosen = sum([schema, defaults, spec is not None])
+    if chosen != 1:
+        _fail(
+            "spec: choose exactly one of --schema, --defaults or a SPEC file; "
+            "e.g. `softtrack spec --defaults > my.yaml`"
+        )
+    if overrides and spec is None:
+        _fail(
+            "spec: --set needs a SPEC file; e.g. `softtrack spec experiments/td3.yaml --set seeds=0`"
+        )
+    with _user_errors():
+        if schema:
+            typer.echo(api.spec_schema_json())
+        elif defaults:
+            typer.echo(api.spec_defaults_yaml(), nl=False)
+        else:
+            typer.echo(api.resolved_spec_yaml(spec, overrides or []), nl=False)
+
+
+@app.command()
+def runs(
+    runs_dir: RunsDirOption = None,
+    output_format: Annotated[
+        OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
+    ] = OutputFormat.table,
+) -> None:
+    """List the runs with their status, progress and final-stage return.
+
+    Columns: id, name, algorithm, controller, seed, status, env steps done / budget, final-stage
+    return (mean training-episode return over the last 10 % of the budget; blank until such
+    episodes exist), start and end times (UTC).
+    """
+    with _user_errors():
+        summaries = api.list_run_summaries(runs_dir)
+    if output_format is OutputFormat.json:
+        typer.echo(json.dumps(summaries, indent=2, ensure_ascii=False))
+        return
+    if not summaries:
+        from softtrack.store.runs import resolve_runs_dir
+
+        root = resolve_runs_dir(runs_dir)
+        note = "" if root.is_dir() else " (the directory does not exist)"
+        typer.echo(f"no runs in {root}{note}", err=True)
+        return
+    typer.echo(api.format_runs_table(summaries))
+
+
+if __name__ == "__main__":  # python -m softtrack.cli
+    app()

@@ -1,0 +1,118 @@
+"""One settings object for a tracking environment, built from flat keyword arguments."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from softtrack.env.reward import RewardConfig
+from softtrack.env.targets import TargetConfig
+from softtrack.sim.params import InvalidParameterError, SimParams
+
+__all__ = ["TrackingConfig", "make_config"]
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Everything that defines a tracking environment.
+
+    Attributes:
+        sim: physics and actuation (SPEC §1–2).
+        target: target motion (SPEC §3).
+        reward: reward terms (SPEC §3).
+        episode_duration: simulated seconds before truncation, s.
+    """
+
+    sim: SimParams
+    target: TargetConfig
+    reward: RewardConfig
+    episode_duration: float = 10.0
+
+    @property
+    def n_arms(self) -> int:
+        return self.sim.n_arms
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Control steps in one episode (5000 at the defaults)."""
+        return int(round(self.episode_duration / self.sim.control_dt))
+
+    def validate(self) -> None:
+        """Raise :class:`InvalidParameterError` naming the first invalid setting."""
+        self.sim.validate()
+        for part in (self.target, self.reward):
+            try:
+                part.validate()
+            except ValueError as err:
+                raise InvalidParameterError(str(err)) from None
+        if self.reward.n_arms != self.sim.n_arms:
+            raise InvalidParameterError(
+                f"arm_weights has {self.reward.n_arms} entries but the scene has "
+                f"{self.sim.n_arms} arms; give one weight per arm"
+            )
+        if not (math.isfinite(self.episode_duration) and self.episode_duration > 0):
+            raise InvalidParameterError(
+                f"episode_duration={self.episode_duration!r} must be a finite number > 0 s"
+            )
+        if self.max_episode_steps < 1:
+            raise InvalidParameterError("episode_duration is shorter than one control step")
+
+
+_SIM_FIELDS = {f.name for f in dataclasses.fields(SimParams)}
+_TARGET_FIELDS = {f.name for f in dataclasses.fields(TargetConfig)} - {"name"}
+_REWARD_FIELDS = {f.name for f in dataclasses.fields(RewardConfig)}
+
+
+def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> TrackingConfig:
+    """Build and validate a :class:`TrackingConfig` from flat keyword arguments.
+
+    Any field of :class:`SimParams`, :class:`TargetConfig` or :class:`RewardConfig` may be
+    given by name, plus ``target`` (a mode name or a ``TargetConfig``), ``reward`` (a
+    ``RewardConfig``) and ``episode_duration``.
+
+    Args:
+        n_arms: 2 for the dual-arm scene, 1 for a single arm.
+        arm: for ``n_arms=1``, which of the default dual-arm bases the arm sits at (0 or 1).
+
+    Raises:
+        InvalidParameterError: an unknown keyword (with the valid names) or an invalid value.
+    """
+    kwargs = dict(kwargs)
+    target = kwargs.pop("target", "random")
+    reward = kwargs.pop("reward", None)
+    episode_duration = float(kwargs.pop("episode_duration", 10.0))
+    sim_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _SIM_FIELDS}
+    target_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _TARGET_FIELDS}
+    reward_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _REWARD_FIELDS}
+    if kwargs:
+        valid = sorted(_SIM_FIELDS | _TARGET_FIELDS | _REWARD_FIELDS
+                       | {"target", "reward", "episode_duration"})
+        raise InvalidParameterError(
+            f"unknown environment parameter {sorted(kwargs)[0]!r}; valid names: {', '.join(valid)}"
+        )
+    if n_arms == 1:
+        if "base_positions" not in sim_kw:
+            bases = SimParams().base_positions
+            if arm not in (0, 1):
+                raise InvalidParameterError(f"arm={arm!r} must be 0 (base x = −0.1) or 1 (x = +0.1)")
+            sim_kw["base_positions"] = (bases[arm],)
+    elif n_arms != 2:
+        raise InvalidParameterError(f"n_arms={n_arms!r} must be 1 or 2")
+    sim = SimParams.from_overrides(**sim_kw)
+    if isinstance(target, TargetConfig):
+        target_config = dataclasses.replace(target, **target_kw)
+    else:
+        target_config = TargetConfig(name=str(target), **_tuples(target_kw))
+    if reward is None:
+        reward = RewardConfig() if n_arms == 2 else RewardConfig.single_arm()
+    reward_config = dataclasses.replace(reward, **_tuples(reward_kw))
+    config = TrackingConfig(sim, target_config, reward_config, episode_duration)
+    config.validate()
+    return config
+
+
+def _tuples(values: dict[str, Any]) -> dict[str, Any]:
+    """Lists (e.g. from YAML) become tuples so the frozen configs stay hashable."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}

@@ -1,0 +1,156 @@
+"""The batched tracking dynamics shared by the Gymnasium envs and the vectorised env.
+
+:class:`TrackingCore` steps ``n_envs`` environments with one engine call: actions → spline
+torques → 10 integration steps → target motion → observation, reward, termination. The
+single environments are a core with ``n_envs = 1``, so a vectorised env and N single envs
+compute the same transitions by construction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from softtrack.env.config import TrackingConfig
+from softtrack.env.observation import build_observation, observation_size
+from softtrack.env.reward import collision_penalty, tracking_reward
+from softtrack.env.targets import BatchedTargets
+from softtrack.sim.actuation import N_CONTROL_POINTS
+from softtrack.sim.engine import RodBatch
+
+__all__ = ["StepResult", "TrackingCore", "NonFiniteActionError"]
+
+
+class NonFiniteActionError(ValueError):
+    """An action contained NaN or inf."""
+
+
+@dataclass
+class StepResult:
+    """Outcome of one control step of every environment.
+
+    Attributes:
+        observation: (n, obs_dim) float32.
+        reward: (n,) float64.
+        terminated: (n,) bool, the state became non-finite.
+        truncated: (n,) bool, the episode reached its duration (and did not terminate).
+        distances: (n, A) tip–target distances, m.
+    """
+
+    observation: np.ndarray
+    reward: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    distances: np.ndarray
+
+
+class TrackingCore:
+    """``n_envs`` tracking environments stepped together (see module docstring).
+
+    Args:
+        n_envs: number of environments.
+        config: the validated settings shared by all of them.
+    """
+
+    def __init__(self, n_envs: int, config: TrackingConfig) -> None:
+        config.validate()
+        self.config = config
+        self.n_envs = int(n_envs)
+        self.n_arms = config.n_arms
+        self.engine = RodBatch(self.n_envs, config.sim)
+        self.targets = BatchedTargets(config.target, self.n_envs)
+        self.rngs: list[np.random.Generator | None] = [None] * self.n_envs
+        self.step_count = np.zeros(self.n_envs, dtype=np.int64)
+        self.max_steps = config.max_episode_steps
+        self.action_dim = self.n_arms * 2 * N_CONTROL_POINTS
+        self.obs_dim = observation_size(self.n_arms, config.sim.n_nodes)
+        self._obs = np.zeros((self.n_envs, self.obs_dim), dtype=np.float32)
+        self._control_dt = config.sim.control_dt
+
+    # ---- state ----------------------------------------------------------------------------
+    @property
+    def time(self) -> np.ndarray:
+        """(n,) simulated seconds since each environment's reset."""
+        return self.step_count * self._control_dt
+
+    @property
+    def tip_positions(self) -> np.ndarray:
+        """(n, A, 3) tip positions, m (a copy)."""
+        return self.engine.tip_position.copy()
+
+    def observe(self, env_indices: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Current observations of the listed environments: (k, obs_dim) float32 copy."""
+        engine, targets = self.engine, self.targets
+        build_observation(engine.position, engine.tip_velocity, targets.position,
+                          targets.velocity, out=self._obs)
+        obs = self._obs[env_indices]
+        if not np.isfinite(obs).all():
+            obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
+        return obs.copy()
+
+    def reset(self, env_indices: Sequence[int] | np.ndarray,
+              rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """Restart the listed environments (straight arms at rest, new target).
+
+        Args:
+            env_indices: (k,) environment indices.
+            rngs: k generators, kept by those environments for their random draws.
+
+        Returns:
+            (k, obs_dim) float32 initial observations.
+        """
+        idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        for i, rng in zip(idx.tolist(), rngs, strict=True):
+            self.rngs[i] = rng
+        self.engine.reset(idx)
+        self.targets.reset(idx, list(rngs))
+        self.step_count[idx] = 0
+        return self.observe(idx)
+
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Advance every environment by one control step.
+
+        Args:
+            actions: (n, 12·A) control values in [−1, 1]; out-of-range values are clipped.
+
+        Raises:
+            NonFiniteActionError: if an action is NaN or inf.
+        """
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != (self.n_envs, self.action_dim):
+            raise ValueError(
+                f"actions have shape {actions.shape}; expected {(self.n_envs, self.action_dim)}"
+            )
+        if not np.isfinite(actions).all():
+            row = int(np.argwhere(~np.isfinite(actions))[0, 0])
+            raise NonFiniteActionError(f"action of environment {row} contains NaN or inf")
+        clipped = np.clip(actions, -1.0, 1.0).reshape(self.n_envs, self.n_arms, 2, N_CONTROL_POINTS)
+        engine = self.engine
+        engine.set_actions(clipped)
+        engine.advance()
+        self.targets.step(self._control_dt)
+        self.step_count += 1
+
+        finite = engine.finite()
+        diff = engine.tip_position - self.targets.position[:, None, :]
+        distances = np.sqrt(np.einsum("nai,nai->na", diff, diff))
+        reward = tracking_reward(distances, self.config.reward)
+        if self.config.reward.collision_penalty:
+            reward = reward + collision_penalty(engine.position, self.config.reward)
+        terminated = ~finite
+        if terminated.any():
+            reward[terminated] = self.config.reward.nonfinite_reward
+        truncated = (self.step_count >= self.max_steps) & finite
+        return StepResult(self.observe(), reward, terminated, truncated, distances)
+
+    def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
+        """The SPEC's info dict of environment ``i`` after a step (copies, SI units)."""
+        return {
+            "tip_positions": self.engine.tip_position[i].copy(),
+            "target_position": self.targets.position[i].copy(),
+            "distances": distances[i].copy(),
+            "element_torques": self.engine.torques[i].copy(),
+            "time": float(self.step_count[i] * self._control_dt),
+        }

@@ -1,0 +1,166 @@
+"""Reward of the tracking environment (``SPEC.md`` §3, "Reward" and the safety penalty).
+
+With dᵢ the distance of arm i's tip to the target centre (m):
+
+    r = −Σᵢ wᵢ·dᵢ² + Σᵢ Σ_k b_k·1(dᵢ ≤ θ_k) + b_coop·1(all dᵢ ≤ θ_coop)
+
+(the cooperative term only with two or more arms). Optionally, −c_col when the closest pair
+of nodes of the two arms is nearer than 2·arm_radius + margin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["RewardConfig", "collision_penalty", "tip_distances", "tracking_reward"]
+
+
+def _finite(value: object) -> bool:
+    return (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Reward settings (defaults: the dual-arm reward of the study).
+
+    Attributes:
+        arm_weights: wᵢ, one per arm, weights of −dᵢ² (1/m²).
+        bonus_thresholds: θ_k, distance thresholds of the individual bonuses, m.
+        bonus_values: b_k, bonus paid per arm within θ_k (same length as the thresholds).
+        cooperative_threshold: θ_coop, m; the cooperative bonus needs every arm within it.
+        cooperative_bonus: b_coop (0 disables the term).
+        nonfinite_reward: reward of a step whose state is not finite (the episode ends).
+        collision_penalty: c_col ≥ 0 subtracted when the arms come too close (0 disables).
+        collision_margin: extra clearance added to 2·arm_radius, m.
+        arm_radius: radius of each arm for the collision test, m.
+    """
+
+    arm_weights: tuple[float, ...] = (1.0, 1.0)
+    bonus_thresholds: tuple[float, ...] = (0.10, 0.075)
+    bonus_values: tuple[float, ...] = (0.5, 1.0)
+    cooperative_threshold: float = 0.05
+    cooperative_bonus: float = 1.5
+    nonfinite_reward: float = -1000.0
+    collision_penalty: float = 0.0
+    collision_margin: float = 0.0
+    arm_radius: float = 0.05
+
+    @classmethod
+    def single_arm(cls) -> RewardConfig:
+        """The original single-arm reward: −d² + 0.5·1(d ≤ 0.10) + 1.5·1(d ≤ 0.05)."""
+        return cls(
+            arm_weights=(1.0,),
+            bonus_thresholds=(0.10, 0.05),
+            bonus_values=(0.5, 1.5),
+            cooperative_bonus=0.0,
+        )
+
+    @property
+    def n_arms(self) -> int:
+        return len(self.arm_weights)
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first invalid field and how to fix it."""
+        if len(self.arm_weights) < 1:
+            raise ValueError("reward arm_weights must hold one weight per arm (e.g. (1.0, 1.0))")
+        for name in ("arm_weights", "bonus_thresholds", "bonus_values"):
+            values = getattr(self, name)
+            if not all(_finite(v) for v in values):
+                raise ValueError(f"reward {name}={values!r} must be finite numbers")
+        if any(w < 0 for w in self.arm_weights):
+            raise ValueError(f"reward arm_weights={self.arm_weights!r} must be ≥ 0")
+        if len(self.bonus_thresholds) != len(self.bonus_values):
+            raise ValueError(
+                f"reward bonus_thresholds ({len(self.bonus_thresholds)} values) and bonus_values "
+                f"({len(self.bonus_values)} values) must have the same length"
+            )
+        if any(t <= 0 for t in self.bonus_thresholds):
+            raise ValueError(f"reward bonus_thresholds={self.bonus_thresholds!r} must be > 0 m")
+        for name in (
+            "cooperative_threshold",
+            "cooperative_bonus",
+            "nonfinite_reward",
+            "collision_penalty",
+            "collision_margin",
+            "arm_radius",
+        ):
+            if not _finite(getattr(self, name)):
+                raise ValueError(f"reward {name}={getattr(self, name)!r} must be a finite number")
+        if self.cooperative_threshold <= 0:
+            raise ValueError(
+                f"reward cooperative_threshold={self.cooperative_threshold!r} must be > 0 m"
+            )
+        if self.collision_penalty < 0:
+            raise ValueError(
+                f"reward collision_penalty={self.collision_penalty!r} must be ≥ 0 "
+                "(it is subtracted; 0 disables it)"
+            )
+        if self.collision_margin < 0:
+            raise ValueError(f"reward collision_margin={self.collision_margin!r} must be ≥ 0 m")
+        if self.arm_radius <= 0:
+            raise ValueError(f"reward arm_radius={self.arm_radius!r} must be > 0 m")
+
+
+def tip_distances(tips: np.ndarray, target_position: np.ndarray) -> np.ndarray:
+    """Distances dᵢ = ‖tipᵢ − target‖, (n, A) m, of tips (n, A, 3) m and targets (n, 3) m."""
+    e = np.asarray(tips, dtype=float) - np.asarray(target_position, dtype=float)[:, None, :]
+    x, y, z = e[..., 0], e[..., 1], e[..., 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def tracking_reward(distances: np.ndarray, config: RewardConfig) -> np.ndarray:
+    """Tracking reward of a batch of environments.
+
+    Args:
+        distances: (n, A) tip-to-target distances dᵢ, m; A must equal ``len(arm_weights)``.
+        config: the reward settings.
+
+    Returns:
+        (n,) float64 rewards; ``config.nonfinite_reward`` for a row with a NaN or inf distance.
+    """
+    d = np.asarray(distances, dtype=float)
+    if d.ndim != 2 or d.shape[1] != len(config.arm_weights):
+        raise ValueError(
+            f"distances must have shape (n, {len(config.arm_weights)}) to match arm_weights, "
+            f"got {d.shape}"
+        )
+    reward = -((d * d) @ np.asarray(config.arm_weights, dtype=float))
+    for threshold, value in zip(config.bonus_thresholds, config.bonus_values, strict=True):
+        reward += value * np.count_nonzero(d <= threshold, axis=1)
+    if d.shape[1] >= 2 and config.cooperative_bonus != 0:
+        reward += config.cooperative_bonus * np.all(d <= config.cooperative_threshold, axis=1)
+    return np.where(np.isfinite(reward), reward, config.nonfinite_reward)
+
+
+def collision_penalty(nodes: np.ndarray, config: RewardConfig) -> np.ndarray:
+    """Inter-arm safety penalty.
+
+    Args:
+        nodes: (n, 2, 3, n_nodes) node positions of the two arms, m.
+        config: the reward settings (``collision_penalty``, ``collision_margin``, ``arm_radius``).
+
+    Returns:
+        (n,) float64: −collision_penalty where the smallest distance between any node of arm 1
+        and any node of arm 2 is < 2·arm_radius + collision_margin, else 0 (zeros at once when
+        collision_penalty is 0). Non-finite nodes give 0 (the episode terminates anyway).
+    """
+    n = np.shape(nodes)[0]
+    if config.collision_penalty == 0:
+        return np.zeros(n)
+    nodes = np.asarray(nodes, dtype=float)
+    if nodes.ndim != 4 or nodes.shape[1] != 2 or nodes.shape[2] != 3:
+        raise ValueError(f"nodes must have shape (n, 2, 3, n_nodes), got {nodes.shape}")
+    diff = nodes[:, 0, :, :, None] - nodes[:, 1, :, None, :]  # (n, 3, n_nodes, n_nodes)
+    np.multiply(diff, diff, out=diff)
+    dist2 = diff[:, 0] + diff[:, 1]  # (n, node of arm 1, node of arm 2), m²
+    dist2 += diff[:, 2]
+    min_dist2 = dist2.reshape(n, -1).min(axis=1)
+    clearance = 2.0 * config.arm_radius + config.collision_margin
+    return np.where(min_dist2 < clearance * clearance, -float(config.collision_penalty), 0.0)

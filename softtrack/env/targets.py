@@ -1,0 +1,363 @@
+"""Kinematic spherical targets, batched over environments (``SPEC.md`` §3, "Target").
+
+Modes:
+
+* ``random`` (training): constant speed, a new direction uniform on the unit sphere every
+  ``redirect_interval`` seconds, specular reflection (per velocity component) at the walls of
+  the box so that the whole sphere stays inside it.
+* ``circle``, ``rectangle``, ``figure8`` (evaluation): closed-form periodic paths in the
+  plane y = ``center[1]``, one lap per ``period`` seconds; see :func:`trajectory_position`.
+* ``fixed``: a still target at ``fixed_position``.
+
+Everything is vectorised over environments; the only per-environment Python work is drawing
+the random target's new direction (once per ``redirect_interval``) and resets. Each random
+environment draws only from its own :class:`numpy.random.Generator`, so stepping N
+environments together gives bit-for-bit the numbers of N single-environment instances.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "CLOSED_FORM_MODES",
+    "TARGET_MODES",
+    "BatchedTargets",
+    "TargetConfig",
+    "trajectory_position",
+    "trajectory_velocity",
+]
+
+TARGET_MODES = ("random", "circle", "rectangle", "figure8", "fixed")
+CLOSED_FORM_MODES = ("circle", "rectangle", "figure8", "fixed")
+
+# A redirect that is due at t = k·interval still happens on the step that ends at
+# k·interval even when the summed time steps fall short of it by rounding (s).
+_REDIRECT_TOLERANCE = 1e-9
+
+
+def _is_finite_number(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, bool
+    ) and math.isfinite(float(value))
+
+
+def _finite_vector(value: object, length: int) -> np.ndarray | None:
+    """``value`` as a float array of ``length`` finite entries, or None if it is not one."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    if arr.shape != (length,) or not np.all(np.isfinite(arr)):
+        return None
+    return arr
+
+
+@dataclass(frozen=True)
+class TargetConfig:
+    """Target motion settings (SI units; defaults are the study's, ``SPEC.md`` §3).
+
+    Attributes:
+        name: one of ``random``, ``circle``, ``rectangle``, ``figure8``, ``fixed``.
+        sphere_radius: radius of the target sphere, m.
+        speed: speed of the random target, m/s.
+        redirect_interval: time between two direction draws of the random target, s.
+        box_low: (x, y, z) lower corner of the random target's box, m.
+        box_high: (x, y, z) upper corner of the random target's box, m.
+        center: centre of the circle / rectangle / figure-eight paths, m.
+        circle_radius: radius of the circle, m.
+        rectangle_size: side lengths of the rectangle (along x, along z), m.
+        figure8_amplitude: (x amplitude, z amplitude) of the figure-eight, m.
+        period: duration of one lap of the circle, rectangle and figure-eight, s.
+        fixed_position: position of the ``fixed`` target, m.
+    """
+
+    name: str = "random"
+    sphere_radius: float = 0.05
+    speed: float = 0.3
+    redirect_interval: float = 1.0
+    box_low: tuple[float, float, float] = (-0.6, 0.3, -0.6)
+    box_high: tuple[float, float, float] = (0.6, 0.9, 0.6)
+    center: tuple[float, float, float] = (0.0, 0.6, 0.0)
+    circle_radius: float = 0.3
+    rectangle_size: tuple[float, float] = (0.6, 0.4)
+    figure8_amplitude: tuple[float, float] = (0.3, 0.15)
+    period: float = 10.0
+    fixed_position: tuple[float, float, float] = (0.3, 0.6, 0.0)
+
+    @property
+    def angular_frequency(self) -> float:
+        """ω = 2π / period, rad/s."""
+        return 2.0 * math.pi / self.period
+
+    @property
+    def is_closed_form(self) -> bool:
+        """True for the deterministic modes (everything but ``random``)."""
+        return self.name in CLOSED_FORM_MODES
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first invalid field and how to fix it."""
+        if self.name not in TARGET_MODES:
+            raise ValueError(
+                f"target name={self.name!r} is unknown; use one of {', '.join(TARGET_MODES)}"
+            )
+        positive = ("sphere_radius", "speed", "redirect_interval", "circle_radius", "period")
+        for field_name in positive:
+            value = getattr(self, field_name)
+            if not (_is_finite_number(value) and value > 0):
+                raise ValueError(f"target {field_name}={value!r} must be a finite number > 0")
+        for field_name, length in (
+            ("box_low", 3),
+            ("box_high", 3),
+            ("center", 3),
+            ("fixed_position", 3),
+            ("rectangle_size", 2),
+            ("figure8_amplitude", 2),
+        ):
+            if _finite_vector(getattr(self, field_name), length) is None:
+                value = getattr(self, field_name)
+                raise ValueError(f"target {field_name}={value!r} must be {length} finite numbers")
+        for field_name in ("rectangle_size", "figure8_amplitude"):
+            if np.any(np.asarray(getattr(self, field_name), dtype=float) <= 0):
+                raise ValueError(
+                    f"target {field_name}={getattr(self, field_name)!r}: every entry must be > 0"
+                )
+        low = np.asarray(self.box_low, dtype=float)
+        high = np.asarray(self.box_high, dtype=float)
+        if np.any(low >= high):
+            axis = "xyz"[int(np.argmax(low >= high))]
+            raise ValueError(
+                f"target box_low={self.box_low!r} must be below box_high={self.box_high!r} "
+                f"on every axis (fails along {axis}); swap or widen them"
+            )
+        if np.any(high - low <= 2.0 * self.sphere_radius):
+            axis = "xyz"[int(np.argmax(high - low <= 2.0 * self.sphere_radius))]
+            raise ValueError(
+                f"target box (box_low={self.box_low!r}, box_high={self.box_high!r}) is not wider "
+                f"than the sphere's diameter 2·sphere_radius={2.0 * self.sphere_radius:g} m along "
+                f"{axis}; enlarge the box or reduce sphere_radius"
+            )
+
+
+# ---- closed forms --------------------------------------------------------------------------
+
+
+def _rectangle_state(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rectangle position and velocity offsets (x, z) from the centre, each (..., 2).
+
+    Sides in order: +x from (−w/2, −h/2), +z from (w/2, −h/2), −x from (w/2, h/2),
+    −z from (−w/2, h/2); arc length grows at perimeter/period.
+    """
+    w, h = (float(v) for v in config.rectangle_size)
+    perimeter = 2.0 * (w + h)
+    speed = perimeter / config.period
+    starts = np.array([0.0, w, w + h, 2.0 * w + h])  # arc length at each corner
+    corners = np.array([[-0.5 * w, -0.5 * h], [0.5 * w, -0.5 * h], [0.5 * w, 0.5 * h],
+                        [-0.5 * w, 0.5 * h]])
+    directions = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    s = np.mod(t, config.period) * speed  # arc length from the first corner, in [0, perimeter]
+    side = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, 3)
+    pos = corners[side] + directions[side] * (s - starts[side])[..., None]
+    return pos, speed * directions[side]
+
+
+def _planar(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(x, z) offsets from the centre and their time derivatives, each (..., 2)."""
+    omega = config.angular_frequency
+    if config.name == "circle":
+        r = config.circle_radius
+        c, s = np.cos(omega * t), np.sin(omega * t)
+        return np.stack([r * c, r * s], axis=-1), np.stack([-r * omega * s, r * omega * c], axis=-1)
+    if config.name == "figure8":
+        ax, az = (float(v) for v in config.figure8_amplitude)
+        pos = np.stack([ax * np.sin(omega * t), az * np.sin(2.0 * omega * t)], axis=-1)
+        vel = np.stack(
+            [ax * omega * np.cos(omega * t), 2.0 * az * omega * np.cos(2.0 * omega * t)], axis=-1
+        )
+        return pos, vel
+    if config.name == "rectangle":
+        return _rectangle_state(config, t)
+    raise AssertionError(config.name)  # pragma: no cover
+
+
+def _closed_form(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    if config.name == "random":
+        raise ValueError(
+            "the random target has no closed-form trajectory; use BatchedTargets, or pick one "
+            f"of {', '.join(CLOSED_FORM_MODES)}"
+        )
+    if config.name not in CLOSED_FORM_MODES:
+        config.validate()  # raises with the list of valid names
+    t = np.asarray(t, dtype=float)
+    if config.name == "fixed":
+        pos = np.broadcast_to(np.asarray(config.fixed_position, dtype=float), t.shape + (3,))
+        return pos.copy(), np.zeros(t.shape + (3,))
+    planar_pos, planar_vel = _planar(config, t)
+    pos = np.empty(t.shape + (3,))
+    vel = np.zeros(t.shape + (3,))
+    cx, cy, cz = (float(v) for v in config.center)
+    pos[..., 0] = cx + planar_pos[..., 0]
+    pos[..., 1] = cy
+    pos[..., 2] = cz + planar_pos[..., 1]
+    vel[..., 0] = planar_vel[..., 0]
+    vel[..., 2] = planar_vel[..., 1]
+    return pos, vel
+
+
+def trajectory_position(config: TargetConfig, t: np.ndarray) -> np.ndarray:
+    """Target centre of a closed-form mode at times ``t``.
+
+    Args:
+        config: a ``circle``, ``rectangle``, ``figure8`` or ``fixed`` target.
+        t: times since reset, s, any shape (...).
+
+    Returns:
+        (..., 3) positions, m.
+
+    Raises:
+        ValueError: for the ``random`` mode (it has no closed form) or an unknown name.
+    """
+    return _closed_form(config, t)[0]
+
+
+def trajectory_velocity(config: TargetConfig, t: np.ndarray) -> np.ndarray:
+    """Analytic time derivative of :func:`trajectory_position`, (..., 3) m/s.
+
+    On the rectangle, a corner belongs to the side that starts there.
+    """
+    return _closed_form(config, t)[1]
+
+
+# ---- batched state ---------------------------------------------------------------------------
+
+
+class BatchedTargets:
+    """The targets of ``n_envs`` environments, advanced together.
+
+    Attributes:
+        config: the (validated) settings shared by all environments.
+        n_envs: number of environments.
+        position: (n_envs, 3) target centres, m.
+        velocity: (n_envs, 3) target velocities, m/s.
+        time: (n_envs,) time since each environment's last reset, s.
+
+    Random mode needs :meth:`reset` of every environment (with its generator) before
+    :meth:`step`; the closed-form modes start at t = 0 and may be stepped at once.
+    """
+
+    def __init__(self, config: TargetConfig, n_envs: int) -> None:
+        config.validate()
+        if not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
+            raise ValueError(f"n_envs={n_envs!r} must be an integer ≥ 1")
+        self.config = config
+        self.n_envs = int(n_envs)
+        self.time = np.zeros(self.n_envs)
+        self.position = np.zeros((self.n_envs, 3))
+        self.velocity = np.zeros((self.n_envs, 3))
+        radius = float(config.sphere_radius)
+        # Bounds of the sphere's centre: the box shrunk by the radius.
+        self._low = np.asarray(config.box_low, dtype=float) + radius
+        self._high = np.asarray(config.box_high, dtype=float) - radius
+        self._random = config.name == "random"
+        self._rngs: list[np.random.Generator | None] = [None] * self.n_envs
+        self._since_redirect = np.zeros(self.n_envs)
+        self._all_reset = False  # random mode: has every environment got its generator?
+        if self._random:
+            self.position[:] = 0.5 * (self._low + self._high)
+        else:
+            self.position[:], self.velocity[:] = _closed_form(config, self.time)
+
+    @property
+    def shrunk_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) bounds of the random target's centre, each (3,), m."""
+        return self._low.copy(), self._high.copy()
+
+    def reset(
+        self,
+        env_indices: np.ndarray | Sequence[int],
+        rngs: Sequence[np.random.Generator] | None = None,
+    ) -> None:
+        """Restart the listed environments at time 0.
+
+        Args:
+            env_indices: (k,) indices of the environments to reset.
+            rngs: k generators, ``rngs[i]`` for ``env_indices[i]``; required in random mode
+                (and kept for that environment's later direction draws), ignored otherwise.
+                Random mode draws, per environment, the centre uniformly in the shrunk box
+                (3 uniforms) and then a direction (3 standard normals, normalised).
+        """
+        idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_envs)):
+            raise ValueError(f"env_indices must be a 1-D list of indices in [0, {self.n_envs})")
+        if self._random:
+            if rngs is None or len(rngs) != len(idx):
+                raise ValueError(
+                    "random targets need one numpy Generator per reset environment: "
+                    f"got {0 if rngs is None else len(rngs)} for {len(idx)} indices"
+                )
+            for rng in rngs:
+                if not isinstance(rng, np.random.Generator):
+                    raise TypeError(f"rngs must be numpy.random.Generator objects, not {type(rng)}")
+        self.time[idx] = 0.0
+        self._since_redirect[idx] = 0.0
+        if not self._random:
+            self.position[idx], self.velocity[idx] = _closed_form(self.config, self.time[idx])
+            return
+        assert rngs is not None
+        for i, rng in zip(idx.tolist(), rngs, strict=True):
+            self._rngs[i] = rng
+            self.position[i] = rng.uniform(self._low, self._high)
+            self._draw_direction(i)
+        self._all_reset = all(rng is not None for rng in self._rngs)
+
+    def _draw_direction(self, i: int) -> None:
+        """New velocity of env ``i``: ``speed`` times a direction uniform on the unit sphere."""
+        rng = self._rngs[i]
+        assert rng is not None
+        while True:
+            g = rng.standard_normal(3)
+            gx, gy, gz = (float(c) for c in g)
+            norm = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if norm > 1e-12:  # practically always; redraw the measure-zero degenerate case
+                break
+        self.velocity[i] = (self.config.speed / norm) * g
+
+    def step(self, dt: float) -> None:
+        """Advance every environment by ``dt`` seconds."""
+        if not (_is_finite_number(dt) and dt > 0):
+            raise ValueError(f"dt={dt!r} must be a finite number > 0")
+        self.time += dt
+        if not self._random:
+            self.position[:], self.velocity[:] = _closed_form(self.config, self.time)
+            return
+        if not self._all_reset:
+            missing = [i for i, rng in enumerate(self._rngs) if rng is None]
+            raise RuntimeError(f"random targets {missing[:5]} were never reset; call reset first")
+        pos = self.position + self.velocity * dt
+        vel = self.velocity
+        low, high = self._low, self._high
+        # Mirror every component that left [low, high] at the wall it crossed, flipping its
+        # velocity; repeat in case a huge step crossed the box more than once.
+        for _ in range(1000):
+            above = pos > high
+            below = pos < low
+            crossed = above | below
+            if not crossed.any():
+                break
+            pos = np.where(above, 2.0 * high - pos, np.where(below, 2.0 * low - pos, pos))
+            vel = np.where(crossed, -vel, vel)
+        else:  # pragma: no cover - needs a step thousands of box widths long
+            raise RuntimeError(f"dt={dt!r} is too long for the random target's box")
+        self.position[:] = pos
+        self.velocity[:] = vel
+        self._since_redirect += dt
+        due = np.flatnonzero(
+            self._since_redirect >= self.config.redirect_interval - _REDIRECT_TOLERANCE
+        )
+        for i in due.tolist():
+            self._draw_direction(i)
+            self._since_redirect[i] -= self.config.redirect_interval

@@ -1,0 +1,430 @@
+"""Run directories and their ``run.json``.
+
+A :class:`RunStore` is a directory (``runs/`` by default, see :func:`resolve_runs_dir`) with
+one sub-directory per run, named by its ULID (:mod:`softtrack.store.ids`). A run directory is
+created atomically, then ``spec.yaml`` and finally ``run.json`` are written (atomically); a
+directory without ``run.json`` is an aborted creation and is ignored by :meth:`RunStore.list_runs`.
+
+``run.json`` (:class:`RunInfo`) holds the status (queued → running → completed | failed |
+interrupted), ISO-8601 UTC times (created, started, ended, heartbeat), the seed, the spec
+hash, the git commit and dirty flag of the code, library versions, the command line and the
+progress (global_step, steps_per_second). It has a single writer at a time (the process that
+runs the run); every update is an atomic read-modify-write of the whole file.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.metadata
+import os
+import platform
+import shutil
+import socket
+import subprocess
+import sys
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from softtrack.spec import ExperimentSpec, load_spec, spec_hash, spec_to_yaml
+from softtrack.store.atomic import atomic_write_text, is_temp_file
+from softtrack.store.ids import create_unique_dir
+
+__all__ = [
+    "RUNS_DIR_ENV",
+    "RUN_STATUSES",
+    "RunInfo",
+    "RunNotFoundError",
+    "RunRecord",
+    "RunStatus",
+    "RunStore",
+    "RunStoreError",
+    "git_info",
+    "library_versions",
+    "resolve_runs_dir",
+    "utc_now",
+]
+
+RUNS_DIR_ENV = "SOFTTRACK_RUNS_DIR"
+RUN_STATUSES = ("queued", "running", "completed", "failed", "interrupted")
+RunStatus = Literal["queued", "running", "completed", "failed", "interrupted"]
+_TRACKED_LIBRARIES = (
+    "softtrack",
+    "numpy",
+    "scipy",
+    "numba",
+    "torch",
+    "stable_baselines3",
+    "sbx-rl",
+    "jax",
+    "gymnasium",
+    "pyelastica",
+    "pydantic",
+    "pyarrow",
+)
+
+
+class RunStoreError(Exception):
+    """A user-facing problem with the run store; the message is one line with the fix."""
+
+
+class RunNotFoundError(RunStoreError, LookupError):
+    """No run (or no unique run) matches the given id."""
+
+
+def utc_now() -> str:
+    """The current time as ISO 8601 UTC with milliseconds, e.g. ``2025-11-23T09:18:01.123Z``."""
+    return datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _iso(value: Any) -> Any:
+    if isinstance(value, datetime):
+        if value.tzinfo is None:
+            value = value.replace(tzinfo=UTC)
+        return value.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return value
+
+
+def parse_time(text: str | None) -> datetime | None:
+    """Parse a time written by :func:`utc_now` (``None`` stays ``None``)."""
+    if not text:
+        return None
+    return datetime.fromisoformat(text)
+
+
+@functools.cache
+def git_info(directory: str | None = None) -> tuple[str | None, bool | None]:
+    """``(commit, dirty)`` of the git checkout containing ``directory`` (default: the
+    softtrack package), or ``(None, None)`` outside git or without a git executable.
+
+    ``dirty`` is true when tracked files differ from the commit or untracked (non-ignored)
+    files exist. Read-only: ``--no-optional-locks`` keeps ``git status`` from touching the index.
+    """
+    cwd = directory or str(Path(__file__).resolve().parents[1])
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            check=False,
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        if commit.returncode != 0:
+            return None, None
+        status = subprocess.run(
+            ["git", "--no-optional-locks", "status", "--porcelain"],
+            check=False,
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None, None
+    dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
+    return commit.stdout.strip() or None, dirty
+
+
+def library_versions() -> dict[str, str]:
+    """Versions of Python and the installed libraries that matter for results.
+
+    Uses package metadata only (no imports, so torch is not loaded); absent ones are left out.
+    """
+    versions = {"python": platform.python_version()}
+    for name in _TRACKED_LIBRARIES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            continue
+    return versions
+
+
+class RunInfo(BaseModel):
+    """The content of ``run.json``. Unknown keys written by newer code are kept."""
+
+    model_config = ConfigDict(extra="allow", validate_assignment=True)
+
+    format_version: int = Field(1, description="version of this file's layout")
+    run_id: str = Field(description="ULID of the run (= its directory name)")
+    name: str = Field(description="experiment name (spec.name)")
+    algo: str = Field(description="algorithm (spec.algo.name)")
+    controller: str = Field(description="centralized or independent")
+    seed: int = Field(description="random seed of this run")
+    status: RunStatus = Field(
+        "queued", description="queued, running, completed, failed, interrupted"
+    )
+    created: str = Field(description="creation time, ISO 8601 UTC")
+    started: str | None = Field(None, description="time training (last) started, ISO 8601 UTC")
+    ended: str | None = Field(None, description="time the run ended, ISO 8601 UTC")
+    heartbeat: str | None = Field(None, description="last sign of life of the training process")
+    total_timesteps: int = Field(description="training budget, env steps (spec.training)")
+    global_step: int = Field(0, description="env steps done so far")
+    steps_per_second: float | None = Field(None, description="training throughput, env steps/s")
+    spec_hash: str = Field(description="softtrack.spec.spec_hash of the spec (seed-independent)")
+    git_commit: str | None = Field(None, description="commit of the softtrack code, if in git")
+    git_dirty: bool | None = Field(None, description="uncommitted changes in the checkout")
+    versions: dict[str, str] = Field(
+        default_factory=dict, description="python and library versions"
+    )
+    command: list[str] = Field(default_factory=list, description="command line (sys.argv)")
+    host: str | None = Field(None, description="host name of the (last) running process")
+    pid: int | None = Field(None, description="process id of the (last) running process")
+    error: str | None = Field(None, description="one-line error of a failed run")
+    notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
+
+
+_UPDATABLE = frozenset(RunInfo.model_fields) - {"format_version", "run_id", "created"}
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A run directory and its ``run.json`` as read at one moment."""
+
+    run_id: str
+    path: Path
+    info: RunInfo
+
+    @property
+    def spec_path(self) -> Path:
+        return self.path / "spec.yaml"
+
+    @property
+    def run_json_path(self) -> Path:
+        return self.path / "run.json"
+
+    @property
+    def model_path(self) -> Path:
+        """The final model (SB3 zip)."""
+        return self.path / "model.zip"
+
+    @property
+    def checkpoints_dir(self) -> Path:
+        return self.path / "checkpoints"
+
+    def checkpoint_dir(self, global_step: int) -> Path:
+        """``checkpoints/step-<12-digit step>/`` (sorts by step); write it with ``atomic_dir``."""
+        return self.checkpoints_dir / f"step-{int(global_step):012d}"
+
+    def list_checkpoints(self) -> list[Path]:
+        """Complete checkpoint directories, oldest first (temporary ones skipped)."""
+        if not self.checkpoints_dir.is_dir():
+            return []
+        return sorted(
+            p
+            for p in self.checkpoints_dir.iterdir()
+            if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
+        )
+
+    @property
+    def tables_dir(self) -> Path:
+        return self.path / "tables"
+
+    def table_path(self, name: str) -> Path:
+        """``tables/<name>.parquet``, e.g. ``table_path("train_episodes")``."""
+        return self.tables_dir / f"{name}.parquet"
+
+    @property
+    def log_path(self) -> Path:
+        """Text log of the training process."""
+        return self.path / "train.log"
+
+    def load_spec(self) -> ExperimentSpec:
+        """The run's fully resolved spec (raises ``SpecError`` if it no longer validates)."""
+        return load_spec(self.spec_path)
+
+
+def resolve_runs_dir(option: str | os.PathLike[str] | None = None) -> Path:
+    """The runs directory: ``option`` if given, else ``$SOFTTRACK_RUNS_DIR``, else ``runs/``."""
+    if option is not None and str(option) != "":
+        return Path(option)
+    env = os.environ.get(RUNS_DIR_ENV)
+    return Path(env) if env else Path("runs")
+
+
+class RunStore:
+    """The runs under one directory.
+
+    Args:
+        root: the runs directory (created on the first :meth:`create_run`).
+    """
+
+    def __init__(self, root: str | os.PathLike[str]) -> None:
+        self.root = Path(root)
+
+    def __repr__(self) -> str:
+        return f"RunStore({str(self.root)!r})"
+
+    # ---- creation ----------------------------------------------------------------------
+    def create_run(
+        self,
+        spec: ExperimentSpec,
+        seed: int,
+        command: list[str] | None = None,
+        *,
+        status: RunStatus = "queued",
+    ) -> RunRecord:
+        """Create a run directory with ``spec.yaml`` (``spec`` with ``seeds: [seed]``) and
+        ``run.json``. The directory name is a fresh ULID obtained with an atomic ``mkdir``.
+
+        Args:
+            spec: the validated experiment spec.
+            seed: this run's seed (normally one of ``spec.seeds``).
+            command: the command line to record (default ``sys.argv``).
+            status: initial status.
+        """
+        run_spec = spec.with_seed(seed)
+        run_id, path = create_unique_dir(self.root)
+        try:
+            header = f"# fully resolved spec of run {run_id} (seed {int(seed)})\n"
+            atomic_write_text(path / "spec.yaml", header + spec_to_yaml(run_spec))
+            (path / "tables").mkdir()
+            (path / "checkpoints").mkdir()
+            commit, dirty = git_info()
+            info = RunInfo(
+                run_id=run_id,
+                name=spec.name,
+                algo=spec.algo.name,
+                controller=spec.controller,
+                seed=int(seed),
+                status=status,
+                created=utc_now(),
+                total_timesteps=spec.training.total_timesteps,
+                spec_hash=spec_hash(spec),
+                git_commit=commit,
+                git_dirty=dirty,
+                versions=library_versions(),
+                command=list(sys.argv if command is None else command),
+                host=socket.gethostname(),
+            )
+            self._write(path, info)  # last: a directory with run.json is a complete run
+        except BaseException:
+            shutil.rmtree(path, ignore_errors=True)
+            raise
+        return RunRecord(run_id, path, info)
+
+    # ---- lookup ------------------------------------------------------------------------
+    def _resolve(self, run_id: str) -> Path:
+        if not self.root.is_dir():
+            raise RunNotFoundError(
+                f"{self.root}: no runs directory, so no run {run_id!r}; "
+                "pass --runs-dir or set SOFTTRACK_RUNS_DIR to the directory holding the runs"
+            )
+        run_id = run_id.strip().rstrip("/").split("/")[-1]
+        exact = self.root / run_id
+        if run_id and (exact / "run.json").is_file():
+            return exact
+        key = run_id.upper()
+        matches = [
+            p
+            for p in self.root.iterdir()
+            if key and p.name.upper().startswith(key) and (p / "run.json").is_file()
+        ]
+        if len(matches) == 1:
+            return matches[0]
+        hint = f"list the runs with `softtrack runs --runs-dir {self.root}`"
+        if len(matches) > 1:
+            raise RunNotFoundError(
+                f"{self.root}: {run_id!r} matches {len(matches)} runs; give more characters of "
+                f"the id ({hint})"
+            )
+        raise RunNotFoundError(f"{self.root}: no run {run_id!r}; {hint}")
+
+    def _read(self, path: Path) -> RunInfo:
+        try:
+            return RunInfo.model_validate_json((path / "run.json").read_bytes())
+        except (OSError, ValidationError, ValueError) as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RunStoreError(f"{path / 'run.json'}: unreadable run record ({first})") from None
+
+    def _write(self, path: Path, info: RunInfo) -> None:
+        atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")
+
+    def get_run(self, run_id: str) -> RunRecord:
+        """The run with this id, or with a unique id prefix (case-insensitive).
+
+        Raises:
+            RunNotFoundError: no such run, or the prefix is ambiguous.
+            RunStoreError: its run.json is unreadable.
+        """
+        path = self._resolve(run_id)
+        return RunRecord(path.name, path, self._read(path))
+
+    def list_runs(self) -> list[RunRecord]:
+        """All complete runs, oldest first. Unreadable or unfinished directories are skipped."""
+        if not self.root.is_dir():
+            return []
+        records = []
+        for path in sorted(self.root.iterdir()):
+            if not path.is_dir() or is_temp_file(path) or not (path / "run.json").is_file():
+                continue
+            try:
+                records.append(RunRecord(path.name, path, self._read(path)))
+            except RunStoreError:
+                continue
+        return records
+
+    # ---- updates -----------------------------------------------------------------------
+    def update_run(self, run_id: str, **fields: Any) -> RunRecord:
+        """Atomically read, update and rewrite ``run.json``; returns the new record.
+
+        ``datetime`` values are stored as ISO 8601 UTC. Keys must be :class:`RunInfo`
+        fields (put free-form data under ``notes``).
+
+        Raises:
+            TypeError: an unknown or read-only field.
+            pydantic.ValidationError: a value of the wrong type (e.g. an unknown status).
+        """
+        bad = sorted(set(fields) - _UPDATABLE)
+        if bad:
+            raise TypeError(
+                f"cannot update run.json field(s) {bad}; updatable: {sorted(_UPDATABLE)}"
+            )
+        path = self._resolve(run_id)
+        data = self._read(path).model_dump()
+        data.update({key: _iso(value) for key, value in fields.items()})
+        info = RunInfo.model_validate(data)
+        self._write(path, info)
+        return RunRecord(path.name, path, info)
+
+    def mark_running(self, run_id: str) -> RunRecord:
+        """status=running, started/heartbeat=now, this host and pid, error cleared."""
+        now = utc_now()
+        return self.update_run(
+            run_id,
+            status="running",
+            started=now,
+            heartbeat=now,
+            ended=None,
+            error=None,
+            host=socket.gethostname(),
+            pid=os.getpid(),
+        )
+
+    def heartbeat(
+        self, run_id: str, global_step: int, steps_per_second: float | None = None
+    ) -> RunRecord:
+        """Record progress and the time of this sign of life."""
+        fields: dict[str, Any] = {"heartbeat": utc_now(), "global_step": int(global_step)}
+        if steps_per_second is not None:
+            fields["steps_per_second"] = float(steps_per_second)
+        return self.update_run(run_id, **fields)
+
+    def mark_finished(
+        self,
+        run_id: str,
+        status: Literal["completed", "failed", "interrupted"],
+        *,
+        error: str | None = None,
+        **fields: Any,
+    ) -> RunRecord:
+        """Final status, ended=now, an optional one-line error, and any other fields."""
+        now = utc_now()
+        if error is not None:
+            error = " ".join(str(error).split())
+        return self.update_run(
+            run_id, status=status, ended=now, heartbeat=now, error=error, **fields
+        )

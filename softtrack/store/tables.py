@@ -1,0 +1,184 @@
+"""Parquet tables of a run, written crash-safely.
+
+Design: a table is **one ordinary Parquet file** (``tables/<name>.parquet``), readable by any
+tool (``pandas.read_parquet``, DuckDB, Polars). :func:`append_rows` reads the current file,
+appends the new rows and *atomically replaces the whole file* (temporary file + fsync +
+rename, :mod:`softtrack.store.atomic`). A process killed at any moment — including SIGKILL in
+the middle of an append — therefore leaves the table exactly as it was after the last
+completed append; at worst a temporary ``.<name>.tmp-<hex>.parquet`` is left beside it, which
+:func:`read_table` never opens and :func:`list_tables` skips.
+
+Why not one part file per append? Part directories need compaction to stay fast to read, and
+compaction needs its own crash-safety protocol; whole-file replacement is simpler and is
+cheap for the tables of a run: ``train_episodes`` has one row per finished episode
+(≈2 000 rows for 1e7 steps of 5 000-step episodes), and an append of a 10 000-row table costs
+a few milliseconds. The cost grows linearly with the table, so append in batches (e.g. every
+few episodes) and write large per-step tables (trajectories) once with :func:`write_table`.
+
+Tables have a single writer (the run's training or evaluation process); concurrent readers
+are always safe.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from softtrack.store.atomic import atomic_path, is_temp_file
+
+__all__ = [
+    "TRAIN_EPISODES_COLUMNS",
+    "TableError",
+    "TableNotFoundError",
+    "append_rows",
+    "list_tables",
+    "read_arrow",
+    "read_table",
+    "write_table",
+]
+
+#: Columns of ``tables/train_episodes.parquet``: the run id, the episode index (0-based, in
+#: completion order over all envs), the global env step at the episode's end, the undiscounted
+#: return, the length in control steps, and the wall-clock seconds since training started.
+TRAIN_EPISODES_COLUMNS = ("run_id", "episode", "global_step", "return", "length", "wall_time")
+
+
+class TableError(Exception):
+    """A table cannot be read or written; the message names the file."""
+
+
+class TableNotFoundError(TableError, FileNotFoundError):
+    """The table file does not exist."""
+
+
+def _to_arrow(data: pd.DataFrame | pa.Table | Sequence[Mapping[str, Any]]) -> pa.Table:
+    if isinstance(data, pa.Table):
+        return data
+    if isinstance(data, pd.DataFrame):
+        return pa.Table.from_pandas(data, preserve_index=False)
+    rows = list(data)
+    columns: dict[str, list[Any]] = {}
+    for row in rows:  # union of keys, in first-seen order; missing values become null
+        for key in row:
+            columns.setdefault(str(key), [])
+    for key, values in columns.items():
+        values.extend(_plain(row.get(key)) for row in rows)
+    return pa.table(columns)
+
+
+def _plain(value: Any) -> Any:
+    """numpy scalars → Python scalars (pyarrow infers types from Python objects)."""
+    item = getattr(value, "item", None)
+    if item is not None and getattr(value, "shape", None) == ():
+        return item()
+    return value
+
+
+def _write(path: Path, table: pa.Table) -> None:
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def write_table(
+    path: str | os.PathLike[str], data: pd.DataFrame | pa.Table | Sequence[Mapping[str, Any]]
+) -> None:
+    """Write (or replace) a whole table atomically.
+
+    Args:
+        path: the ``.parquet`` file.
+        data: a DataFrame (its index is dropped), an Arrow table, or a list of row dicts.
+    """
+    _write(Path(path), _to_arrow(data))
+
+
+def append_rows(path: str | os.PathLike[str], rows: Iterable[Mapping[str, Any]]) -> int:
+    """Append ``rows`` (dicts: column → value) to the table at ``path``; create it if missing.
+
+    The table is replaced atomically (see the module docstring), so a crash leaves either the
+    old or the new content. Columns missing from some rows are null; a column whose type
+    widens (int → float) is promoted. Returns the number of rows now in the table.
+
+    Raises:
+        TableError: the existing file is unreadable or the new rows do not fit its schema.
+    """
+    path = Path(path)
+    rows = list(rows)
+    if not rows:
+        return _count(path)
+    new = _to_arrow(rows)
+    if path.exists():
+        old = read_arrow(path)
+        try:
+            table = pa.concat_tables([old, new], promote_options="permissive")
+        except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+            raise TableError(f"{path}: new rows do not match the table's columns ({exc})") from exc
+    else:
+        table = new
+    _write(path, table)
+    return table.num_rows
+
+
+def _count(path: Path) -> int:
+    if not path.exists():
+        return 0
+    return pq.ParquetFile(path).metadata.num_rows
+
+
+def read_arrow(path: str | os.PathLike[str], columns: Sequence[str] | None = None) -> pa.Table:
+    """Read a table as Arrow (see :func:`read_table`)."""
+    path = Path(path)
+    if not path.exists():
+        raise TableNotFoundError(f"{path}: no such table")
+    try:
+        # (a directory is read as a dataset; pyarrow skips its '.'/'_'-prefixed files)
+        return pq.read_table(path, columns=list(columns) if columns else None)
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise TableError(f"{path}: unreadable Parquet table ({exc})") from exc
+
+
+def read_table(
+    path: str | os.PathLike[str],
+    columns: Sequence[str] | None = None,
+    *,
+    missing_ok: bool = False,
+) -> pd.DataFrame:
+    """Read a table into a DataFrame.
+
+    Temporary files of interrupted writers (``.<name>.tmp-*``) sit beside the table under
+    other names and are never read. ``path`` may also be a directory of Parquet part files
+    (a dataset); hidden (``.``/``_``-prefixed) files in it are ignored.
+
+    Args:
+        columns: read only these columns.
+        missing_ok: return an empty DataFrame (with ``columns``, if given) instead of raising
+            when the table does not exist.
+
+    Raises:
+        TableNotFoundError: the table does not exist (and ``missing_ok`` is false).
+        TableError: the file is not readable Parquet.
+    """
+    try:
+        return read_arrow(path, columns).to_pandas()
+    except TableNotFoundError:
+        if missing_ok:
+            return pd.DataFrame({c: [] for c in columns or ()})
+        raise
+
+
+def list_tables(tables_dir: str | os.PathLike[str]) -> dict[str, Path]:
+    """The tables in a directory: ``{name: path}`` for each ``<name>.parquet``, sorted by name,
+    skipping temporary files."""
+    tables_dir = Path(tables_dir)
+    if not tables_dir.is_dir():
+        return {}
+    return {
+        p.name[: -len(".parquet")]: p
+        for p in sorted(tables_dir.iterdir())
+        if p.name.endswith(".parquet") and not is_temp_file(p) and not p.name.startswith(".")
+    }

@@ -1,0 +1,150 @@
+"""``softtrack runs`` over several fake runs, as a table and as JSON."""
+
+from __future__ import annotations
+
+import json
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from softtrack.api import final_stage_return, list_run_summaries
+from softtrack.cli import app
+from softtrack.spec import parse_spec
+from softtrack.store.runs import RunStore
+from softtrack.store.tables import append_rows
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def runs_dir(tmp_path: Path) -> Path:
+    """Three runs: completed with episodes, running without final-stage episodes, queued."""
+    root = tmp_path / "runs"
+    store = RunStore(root)
+    td3 = parse_spec(
+        {
+            "name": "td3-small",
+            "training": {"total_timesteps": 1000},
+            "algo": {"learning_starts": 10},
+        }
+    )
+    ppo = parse_spec(
+        {
+            "name": "ppo-small",
+            "controller": "independent",
+            "algo": {"name": "ppo", "n_steps": 64, "batch_size": 32},
+            "training": {"total_timesteps": 2000},
+        }
+    )
+
+    done = store.create_run(td3, seed=0)
+    store.mark_running(done.run_id)
+    # episodes end at steps 100, 200, ..., 1000; the last 10 % of 1000 steps is (900, 1000]
+    append_rows(
+        done.table_path("train_episodes"),
+        [
+            {
+                "run_id": done.run_id,
+                "episode": i,
+                "global_step": 100 * (i + 1),
+                "return": float(i),
+                "length": 100,
+                "wall_time": 0.1 * i,
+            }
+            for i in range(10)
+        ],
+    )
+    store.mark_finished(done.run_id, "completed", global_step=1000, steps_per_second=500.0)
+
+    running = store.create_run(td3, seed=1)
+    store.mark_running(running.run_id)
+    append_rows(
+        running.table_path("train_episodes"),
+        [
+            {
+                "run_id": running.run_id,
+                "episode": 0,
+                "global_step": 300,
+                "return": -5.0,
+                "length": 100,
+                "wall_time": 1.0,
+            }
+        ],
+    )
+    store.heartbeat(running.run_id, global_step=250)
+
+    store.create_run(ppo, seed=7)
+    return root
+
+
+def test_final_stage_return(runs_dir: Path) -> None:
+    records = RunStore(runs_dir).list_runs()
+    assert final_stage_return(records[0]) == (9.0, 1, 1000)  # only the episode ending at 1000
+    assert final_stage_return(records[0], fraction=0.3) == (8.0, 3, 1000)  # 800, 900, 1000
+    assert final_stage_return(records[1]) == (None, 0, 300)
+    assert final_stage_return(records[2]) == (None, 0, 0)
+
+
+def test_runs_json(runs_dir: Path) -> None:
+    result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)
+    assert [(r["name"], r["algo"], r["controller"], r["seed"], r["status"]) for r in rows] == [
+        ("td3-small", "td3", "centralized", 0, "completed"),
+        ("td3-small", "td3", "centralized", 1, "running"),
+        ("ppo-small", "ppo", "independent", 7, "queued"),
+    ]
+    assert [r["final_return"] for r in rows] == [9.0, None, None]
+    assert [r["global_step"] for r in rows] == [1000, 300, 0]  # the table's steps count too
+    assert [r["total_timesteps"] for r in rows] == [1000, 1000, 2000]
+    assert rows[0]["started"] and rows[0]["ended"] and rows[1]["ended"] is None
+    assert rows[0]["steps_per_second"] == 500.0
+    assert rows[0]["run_id"] < rows[1]["run_id"] < rows[2]["run_id"]
+    assert not any(r["stale"] for r in rows)
+
+
+def test_runs_table(runs_dir: Path) -> None:
+    result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert len(lines) == 4
+    assert lines[0].split()[:6] == ["ID", "NAME", "ALGO", "CONTROLLER", "SEED", "STATUS"]
+    ids = [r.run_id for r in RunStore(runs_dir).list_runs()]
+    for line, run_id in zip(lines[1:], ids):
+        assert line.startswith(run_id)
+    assert "completed" in lines[1] and "1000/1000" in lines[1] and "9.00" in lines[1]
+    assert "running" in lines[2] and "300/1000" in lines[2]
+    assert "queued" in lines[3] and "0/2000" in lines[3] and "independent" in lines[3]
+    today = datetime.now(UTC).strftime("%Y-%m-%d")
+    assert today in lines[1]
+
+
+def test_runs_dir_from_environment(runs_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("SOFTTRACK_RUNS_DIR", str(runs_dir))
+    result = runner.invoke(app, ["runs", "-f", "json"])
+    assert result.exit_code == 0 and len(json.loads(result.stdout)) == 3
+
+
+def test_stale_running_run(runs_dir: Path) -> None:
+    store = RunStore(runs_dir)
+    running = store.list_runs()[1]
+    store.update_run(running.run_id, heartbeat=datetime.now(UTC) - timedelta(hours=1))
+    rows = list_run_summaries(runs_dir)
+    assert [r["stale"] for r in rows] == [False, True, False]
+    result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir)])
+    assert "running (stale)" in result.stdout
+
+
+def test_no_runs(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["runs", "--runs-dir", str(tmp_path / "absent")])
+    assert result.exit_code == 0
+    assert "no runs in" in result.stderr and result.stdout == ""
+    result = runner.invoke(app, ["runs", "--runs-dir", str(tmp_path), "--format", "json"])
+    assert result.exit_code == 0 and json.loads(result.stdout) == []
+
+
+def test_bad_format_is_a_usage_error(runs_dir: Path) -> None:
+    result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "--format", "xml"])
+    assert result.exit_code == 2
