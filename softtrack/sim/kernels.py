@@ -32,7 +32,7 @@ __all__ = ["advance"]
 _EPS = 1e-14
 # Series are used below these squared angles; their truncation error is < 1e-13 relative.
 _ROTATION_SERIES_MAX = 1e-2  # θ² of a half-step frame rotation
-_CURVATURE_SERIES_MIN_COS = 0.9682458365518543  # cos θ between neighbouring frames: sin²θ ≤ 1/16
+_CURVATURE_SERIES_MIN_COS = 0.0  # the trig-free log map holds up to 90° between neighbours
 
 _FLAGS = {"contract", "arcp", "nsz"}  # no 'nnan'/'ninf': NaN detection must keep working
 
@@ -109,12 +109,23 @@ def _drift(position, velocity, directors, omega, drift_dt, base_position, base_d
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _log_map_factor_series(sin_sq, cos_theta):
-    """θ / sin θ = arcsin(s)/s = Σ (2n)!/(4ⁿ(n!)²(2n+1)) s²ⁿ, for cos θ ≥ the series limit."""
-    s = sin_sq
-    return 1.0 + s * (1.0 / 6.0 + s * (3.0 / 40.0 + s * (5.0 / 112.0 + s * (
-        35.0 / 1152.0 + s * (63.0 / 2816.0 + s * (231.0 / 13312.0 + s * (
-            143.0 / 10240.0 + s * (6435.0 / 557056.0))))))))
+def _log_map_factor_halving(sin_sq, cos_theta):
+    """θ / sin θ for θ ∈ [0, π/2] (cos θ ≥ 0) without trigonometric calls (vectorisable).
+
+    Three half-angle steps take tan(θ/2) = sin θ/(1 + cos θ) to x = tan(θ/8) ≤ 0.199, where
+    atan(x)/x is an alternating series; then θ/sin θ = 8·atan(x)·(1 + tan²(θ/2))/(2 tan(θ/2)).
+    Relative error < 1e-15 over the whole range (checked against 40-digit arithmetic).
+    """
+    t_sq = sin_sq / ((1.0 + cos_theta) * (1.0 + cos_theta))  # tan²(θ/2)
+    r1 = 1.0 + math.sqrt(1.0 + t_sq)
+    t2_sq = t_sq / (r1 * r1)  # tan²(θ/4)
+    r2 = 1.0 + math.sqrt(1.0 + t2_sq)
+    x = t2_sq / (r2 * r2)  # tan²(θ/8)
+    # atan(√x)/√x = Σ (−x)ⁿ/(2n+1), n ≤ 11
+    atan_ratio = 1.0 - x * (1.0 / 3.0 - x * (1.0 / 5.0 - x * (1.0 / 7.0 - x * (1.0 / 9.0 - x * (
+        1.0 / 11.0 - x * (1.0 / 13.0 - x * (1.0 / 15.0 - x * (1.0 / 17.0 - x * (1.0 / 19.0 - x * (
+            1.0 / 21.0 - x * (1.0 / 23.0)))))))))))
+    return 4.0 * atan_ratio * (1.0 + t_sq) / (r1 * r2)
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -281,7 +292,7 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
                     damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
 
                 # --- Voronoi points: curvature and bend/twist couple
-                _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_series)
+                _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_halving)
                 smallest_cos = 1.0
                 for j in range(n_elem - 1):
                     smallest_cos = min(smallest_cos, cosines[j])
