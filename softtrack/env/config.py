@@ -100,6 +100,9 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
             sim_kw["base_positions"] = (bases[arm],)
     elif n_arms != 2:
         raise InvalidParameterError(f"n_arms={n_arms!r} must be 1 or 2")
+    elif arm is not None:
+        raise InvalidParameterError("arm= selects the base of a single-arm scene; the dual-arm "
+                                    "scene has both arms (set base_positions to move them)")
     sim = SimParams.from_overrides(**sim_kw)
     if isinstance(target, TargetConfig):
         target_config = dataclasses.replace(target, **target_kw)

@@ -37,6 +37,8 @@ class TrackingVecEnv(VecEnv):
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
     """
 
+    render_mode: str | None = None  # no rendering; read by VecEnv.__init__ via get_attr
+
     def __init__(self, n_envs: int, config: TrackingConfig | None = None, *,
                  full_info: bool = False, **env_kwargs: Any) -> None:
         self.config = config if config is not None else make_config(**env_kwargs)

@@ -151,6 +151,10 @@ class SimParams:
             )
         if self.n_arms < 1 or any(len(p) != 3 for p in self.base_positions):
             raise InvalidParameterError("base_positions must be a list of (x, y, z) points, one per arm")
+        if not np.all(np.isfinite(np.asarray(self.base_positions, dtype=float))):
+            raise InvalidParameterError(
+                f"base_positions={self.base_positions!r} must contain finite coordinates"
+            )
         d = np.asarray(self.direction, dtype=float)
         n = np.asarray(self.normal, dtype=float)
         if d.shape != (3,) or n.shape != (3,) or not np.all(np.isfinite(d)) or not np.all(np.isfinite(n)):
