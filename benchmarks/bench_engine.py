@@ -26,17 +26,14 @@ import numpy as np
 from softtrack.sim import RodBatch, SimParams, actions_to_element_torques
 
 
-def _median_rate(run_once, n_steps_per_run: int, repeats: int) -> float:
-    """Median steps/s over ``repeats`` timed calls of ``run_once``."""
-    rates = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        run_once()
-        rates.append(n_steps_per_run / (time.perf_counter() - start))
-    return statistics.median(rates)
+def _timed(run_once) -> float:
+    start = time.perf_counter()
+    run_once()
+    return time.perf_counter() - start
 
 
-def bench_pyelastica(params: SimParams, torques: np.ndarray, control_steps: int, repeats: int) -> float:
+def make_pyelastica_runner(params: SimParams, torques: np.ndarray, control_steps: int):
+    """A function integrating PyElastica for ``control_steps`` control steps."""
     from softtrack.sim.pyelastica_backend import PyElasticaDualArm
 
     sim = PyElasticaDualArm(params)
@@ -46,13 +43,11 @@ def bench_pyelastica(params: SimParams, torques: np.ndarray, control_steps: int,
             sim.set_element_torques(torques[k % len(torques)])
             sim.advance(params.steps_per_action)
 
-    run()  # warm-up (numba compilation of PyElastica's kernels)
-    return _median_rate(run, control_steps * params.steps_per_action, repeats)
+    return run
 
 
-def bench_softtrack(params: SimParams, torques: np.ndarray, n_envs: int, control_steps: int,
-                    repeats: int) -> float:
-    """Per-environment integration steps/s of a batch of ``n_envs``."""
+def make_softtrack_runner(params: SimParams, torques: np.ndarray, n_envs: int, control_steps: int):
+    """A function integrating a batch of ``n_envs`` for ``control_steps`` control steps."""
     batch = RodBatch(n_envs, params)
     tiled = np.broadcast_to(torques[:, None], (len(torques), n_envs) + torques.shape[1:]).copy()
 
@@ -61,8 +56,7 @@ def bench_softtrack(params: SimParams, torques: np.ndarray, n_envs: int, control
             batch.set_element_torques(tiled[k % len(tiled)])
             batch.advance()
 
-    run()
-    return _median_rate(run, control_steps * params.steps_per_action * n_envs, repeats)
+    return run
 
 
 def warm_start_seconds() -> float:
@@ -82,7 +76,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--control-steps", type=int, default=200,
                         help="control steps (of 10 integration steps) per timed run")
-    parser.add_argument("--repeats", type=int, default=7, help="timed runs per measurement")
+    parser.add_argument("--repeats", type=int, default=11, help="timed runs per measurement")
     parser.add_argument("--batch", type=int, default=64, help="environments in the batch")
     args = parser.parse_args()
 
@@ -91,18 +85,38 @@ def main() -> None:
     actions = rng.uniform(-0.3, 0.3, size=(50, params.n_arms, 2, 6))
     torques = actions_to_element_torques(actions, params.n_elem, params.torque_scale)
 
-    pyelastica = bench_pyelastica(params, torques, args.control_steps, args.repeats)
-    single = bench_softtrack(params, torques, 1, args.control_steps, args.repeats)
-    batch = bench_softtrack(params, torques, args.batch, max(args.control_steps // args.batch, 5),
-                            args.repeats)
+    steps = params.steps_per_action
+    batch_control_steps = max(args.control_steps // args.batch, 5)
+    runners = {
+        "pyelastica": (make_pyelastica_runner(params, torques, args.control_steps),
+                       args.control_steps * steps),
+        "single": (make_softtrack_runner(params, torques, 1, args.control_steps),
+                   args.control_steps * steps),
+        "batch": (make_softtrack_runner(params, torques, args.batch, batch_control_steps),
+                  batch_control_steps * steps * args.batch),
+    }
+    for run, _ in runners.values():
+        run()  # warm-up: compilation and caches
+    # Interleaved repeats: each repeat times all three back to back, so the machine's load
+    # affects them alike; ratios are taken within a repeat, then the median over repeats.
+    rates: dict[str, list[float]] = {name: [] for name in runners}
+    for _ in range(args.repeats):
+        for name, (run, n_steps) in runners.items():
+            rates[name].append(n_steps / _timed(run))
+    pyelastica = statistics.median(rates["pyelastica"])
+    single = statistics.median(rates["single"])
+    batch = statistics.median(rates["batch"])
+    single_ratio = statistics.median(s / p for s, p in zip(rates["single"], rates["pyelastica"]))
+    batch_ratio = statistics.median(b / p for b, p in zip(rates["batch"], rates["pyelastica"]))
     warm = warm_start_seconds()
 
-    print("integration steps/s (both arms, dt = 2e-4 s), median of", args.repeats, "runs")
+    print("integration steps/s (both arms, dt = 2e-4 s), median of", args.repeats,
+          "interleaved runs; ratios are medians of per-run ratios")
     print(f"  PyElastica 1.0.0          {pyelastica:12,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
     print(f"  softtrack, 1 env          {single:12,.0f}   ({1e6 / single:6.2f} µs/step)"
-          f"   {single / pyelastica:5.1f}× PyElastica")
+          f"   {single_ratio:5.1f}× PyElastica")
     print(f"  softtrack, {args.batch} envs, per env {batch:9,.0f}   ({1e6 / batch:6.2f} µs/step)"
-          f"   {batch / pyelastica:5.1f}× PyElastica")
+          f"   {batch_ratio:5.1f}× PyElastica")
     print(f"warm start (import + first step, cached compilation): {warm:.2f} s")
 
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -27,6 +27,9 @@ from softtrack.spec import (
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, parse_time, resolve_runs_dir
 from softtrack.store.tables import TableError, read_table
 
+if TYPE_CHECKING:
+    from softtrack.rl.train import TrainOutcome
+
 __all__ = [
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
@@ -34,9 +37,11 @@ __all__ = [
     "format_runs_table",
     "list_run_summaries",
     "resolved_spec_yaml",
+    "resume",
     "run_summary",
     "spec_defaults_yaml",
     "spec_schema_json",
+    "train",
     "validate_spec",
     "validation_summary",
 ]
@@ -239,3 +244,63 @@ def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
         ]
         lines.append("  ".join(cells).rstrip())
     return "\n".join(lines)
+
+
+# ---- training -----------------------------------------------------------------------------
+def train(
+    path: str | os.PathLike[str],
+    overrides: Sequence[str] = (),
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    seed: int | None = None,
+    on_start: Callable[[RunRecord], None] | None = None,
+    show_progress: bool | None = None,
+) -> list[TrainOutcome]:
+    """Create and train one run per seed of the spec (or only ``seed``), one after another.
+
+    The spec is validated (and checked to be supported) before anything is written.
+    Training stops after a run that did not complete (interrupted or failed).
+
+    Args:
+        on_start: called with each new run before it trains (the CLI prints its id).
+
+    Returns:
+        The outcome of each run started.
+    """
+    from softtrack.rl.factory import check_supported
+    from softtrack.rl.train import train_run
+
+    spec = load_spec(path, overrides)
+    check_supported(spec, str(path))
+    seeds = list(spec.seeds) if seed is None else [int(seed)]
+    if seed is not None and not 0 <= seed < 2**32:
+        raise SpecError("--seed", f"seed {seed} is out of range", "use 0 ≤ seed < 2**32")
+    store = RunStore(resolve_runs_dir(runs_dir))
+    outcomes = []
+    for s in seeds:
+        record = store.create_run(spec, s)
+        if on_start is not None:
+            on_start(record)
+        outcome = train_run(store, record, show_progress=show_progress)
+        outcomes.append(outcome)
+        if outcome.status != "completed":
+            break
+    return outcomes
+
+
+def resume(
+    run_id: str,
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    on_start: Callable[[RunRecord], None] | None = None,
+    show_progress: bool | None = None,
+) -> TrainOutcome:
+    """Continue an interrupted (or killed, or failed) run from its latest checkpoint."""
+    from softtrack.rl.train import check_resumable, train_run
+
+    store = RunStore(resolve_runs_dir(runs_dir))
+    record = store.get_run(run_id)
+    check_resumable(record)
+    if on_start is not None:
+        on_start(record)
+    return train_run(store, record, resume=True, show_progress=show_progress)

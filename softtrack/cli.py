@@ -135,6 +135,68 @@ def spec_command(
 
 
 @app.command()
+def train(
+    spec: Annotated[
+        str | None,
+        typer.Argument(
+            metavar="[SPEC]", help="Experiment spec (YAML): one run per seed.", show_default=False
+        ),
+    ] = None,
+    overrides: SetOption = None,
+    runs_dir: RunsDirOption = None,
+    seed: Annotated[
+        int | None,
+        typer.Option("--seed", metavar="N", help="Train only this seed.", show_default=False),
+    ] = None,
+    resume: Annotated[
+        str | None,
+        typer.Option(
+            "--resume",
+            metavar="RUN_ID",
+            help="Continue this run (id or unique prefix) from its latest checkpoint.",
+            show_default=False,
+        ),
+    ] = None,
+) -> None:
+    """Train one run per seed of SPEC (printing each run id), or resume a run.
+
+    Ctrl-C (SIGINT) or SIGTERM saves a checkpoint and marks the run interrupted (exit 130 /
+    143); `softtrack train --resume RUN_ID` continues it with the same id and step count.
+    """
+    if (spec is None) == (resume is None):
+        _fail(
+            "train: give either a SPEC file or --resume RUN_ID; e.g. `softtrack train "
+            "experiments/quickstart.yaml`"
+        )
+    if resume is not None and (overrides or seed is not None):
+        _fail("train: --set and --seed cannot be combined with --resume (a run keeps its spec)")
+
+    def started(record: object) -> None:
+        typer.echo(record.run_id)
+
+    with _user_errors():
+        if resume is not None:
+            outcomes = [api.resume(resume, runs_dir=runs_dir, on_start=started)]
+        else:
+            assert spec is not None
+            outcomes = api.train(
+                spec, overrides or [], runs_dir=runs_dir, seed=seed, on_start=started
+            )
+    for outcome in outcomes:
+        if outcome.status == "interrupted":
+            typer.echo(
+                f"interrupted: run {outcome.run_id} at step {outcome.global_step}; continue with "
+                f"`softtrack train --resume {outcome.run_id}`",
+                err=True,
+            )
+        elif outcome.status == "failed":
+            typer.echo(f"error: run {outcome.run_id} failed: {outcome.error}", err=True)
+    code = max((o.exit_code for o in outcomes), default=0)
+    if code:
+        raise typer.Exit(code)
+
+
+@app.command()
 def runs(
     runs_dir: RunsDirOption = None,
     output_format: Annotated[

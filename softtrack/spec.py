@@ -184,7 +184,7 @@ class PhysicsSpec(_Spec):
     dt: Float = _f(
         2.0e-4,
         "integration time step (Position Verlet); must not exceed the explicit stability "
-        "limit computed from n_elem, the material and the damping (about 2.3e-4 s at the "
+        "limit computed from n_elem, the material and the damping (about 2.32e-4 s at the "
         "defaults)",
         "s",
         gt=0,

@@ -1,0 +1,175 @@
+"""Deterministic evaluation episodes on the closed-form trajectories, and their tables.
+
+An evaluation drives both arms from the straight initial state for ``duration`` seconds while
+the target follows a circle, rectangle or figure-eight (SPEC §3), and records every control
+step. A centralized controller maps the 81-value observation to 24 actions; an independent
+controller is two single-arm policies, each fed its arm's 37 values plus the target's 7.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from softtrack.env.config import TrackingConfig
+from softtrack.env.core import TrackingCore
+from softtrack.metrics import AXES, moment_rms, tracking_metrics
+
+__all__ = [
+    "EVAL_TRAJECTORIES",
+    "STEADY_START",
+    "Episode",
+    "Policy",
+    "independent_policy",
+    "run_episode",
+    "trajectory_table",
+    "metrics_table",
+    "moments_table",
+]
+
+EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")
+STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
+
+# A policy maps one observation (obs_dim,) to one action (act_dim,).
+Policy = Callable[[np.ndarray], np.ndarray]
+
+_ARM_OBS = 37
+_TARGET_OBS = 7
+
+
+@dataclass(frozen=True)
+class Episode:
+    """The record of one evaluation episode (N control steps after the reset).
+
+    Attributes:
+        trajectory: target trajectory name.
+        t: (N,) time after each control step, s.
+        tips: (N, A, 3) tip positions, m.
+        target: (N, 3) target centre, m.
+        element_torques: (N, A, 2, n_elem) applied torques, N·m.
+        actions: (N, 12·A) the policy's actions (before clipping).
+        terminated: True if the state became non-finite (the episode then stops early).
+    """
+
+    trajectory: str
+    t: np.ndarray
+    tips: np.ndarray
+    target: np.ndarray
+    element_torques: np.ndarray
+    actions: np.ndarray
+    terminated: bool
+
+
+def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
+    """One dual-arm policy from one single-arm policy per arm.
+
+    Arm k's policy sees the dual-arm observation's arm-k block (37 values) followed by the
+    target block (7 values), the single-arm environment's layout, and returns 12 actions.
+    """
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        target = observation[-_TARGET_OBS:]
+        actions = []
+        for k, policy in enumerate(arm_policies):
+            arm_obs = np.concatenate([observation[_ARM_OBS * k:_ARM_OBS * (k + 1)], target])
+            actions.append(np.asarray(policy(arm_obs), dtype=np.float64).reshape(-1))
+        return np.concatenate(actions)
+
+    return act
+
+
+def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
+                duration: float = 10.0) -> Episode:
+    """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
+
+    Args:
+        policy: observation (obs_dim,) → action (act_dim,), deterministic.
+        config: the environment settings of the run (physics, reward, target parameters).
+        trajectory: ``circle``, ``rectangle``, ``figure8`` (or ``fixed``).
+        duration: episode length, s.
+    """
+    eval_config = dataclasses.replace(
+        config,
+        target=dataclasses.replace(config.target, name=trajectory),
+        episode_duration=float(duration),
+    )
+    core = TrackingCore(1, eval_config)
+    obs = core.reset([0], [np.random.default_rng(0)])[0]
+    n_steps = eval_config.max_episode_steps
+    tips = np.full((n_steps, core.n_arms, 3), np.nan)
+    target = np.full((n_steps, 3), np.nan)
+    torques = np.full((n_steps, core.n_arms, 2, eval_config.sim.n_elem), np.nan)
+    actions = np.full((n_steps, core.action_dim), np.nan)
+    terminated = False
+    done_steps = n_steps
+    for k in range(n_steps):
+        action = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
+        result = core.step(action[None])
+        actions[k] = action
+        tips[k] = core.engine.tip_position[0]
+        target[k] = core.targets.position[0]
+        torques[k] = core.engine.torques[0]
+        obs = result.observation[0]
+        if result.terminated[0]:
+            terminated, done_steps = True, k + 1
+            break
+    t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
+    return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
+                   actions[:done_steps], terminated)
+
+
+def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
+    """Rows (run_id, trajectory, step, t, arm, tip_x/y/z, target_x/y/z), one per step and arm."""
+    n, n_arms = episode.tips.shape[:2]
+    step = np.repeat(np.arange(1, n + 1), n_arms)
+    data = {
+        "run_id": run_id,
+        "trajectory": episode.trajectory,
+        "step": step,
+        "t": np.repeat(episode.t, n_arms),
+        "arm": np.tile(np.arange(n_arms), n),
+    }
+    for i, axis in enumerate(AXES):
+        data[f"tip_{axis}"] = episode.tips[:, :, i].reshape(-1)
+    for i, axis in enumerate(AXES):
+        data[f"target_{axis}"] = np.repeat(episode.target[:, i], n_arms)
+    return pd.DataFrame(data)
+
+
+def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
+    """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s."""
+    rows = []
+    steady = episode.t >= steady_start - 1e-9
+    for arm in range(episode.tips.shape[1]):
+        row: dict[str, object] = {"run_id": run_id, "trajectory": episode.trajectory, "arm": arm}
+        row.update(tracking_metrics(episode.tips[:, arm], episode.target))
+        if steady.any():
+            steady_metrics = tracking_metrics(episode.tips[steady, arm], episode.target[steady])
+            row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
+        row["terminated"] = episode.terminated
+        row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
+    """Rows per step, arm and direction (0 normal, 1 binormal): spatial RMS and largest
+    absolute element torque at that step (N·m), and the element torques themselves."""
+    torques = episode.element_torques  # (N, A, 2, n_elem)
+    n, n_arms, n_dirs, n_elem = torques.shape
+    flat = torques.reshape(n * n_arms * n_dirs, n_elem).astype(np.float32)
+    return pd.DataFrame({
+        "run_id": run_id,
+        "trajectory": episode.trajectory,
+        "step": np.repeat(np.arange(1, n + 1), n_arms * n_dirs),
+        "t": np.repeat(episode.t, n_arms * n_dirs),
+        "arm": np.tile(np.repeat(np.arange(n_arms), n_dirs), n),
+        "direction": np.tile(np.arange(n_dirs), n * n_arms),
+        "rms_moment": moment_rms(torques).reshape(-1),
+        "max_abs_moment": np.abs(torques).max(axis=-1).reshape(-1),
+        "element_torques": list(flat),
+    })

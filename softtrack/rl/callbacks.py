@@ -1,0 +1,275 @@
+"""Stable-Baselines3 callbacks of a training run: episode table, checkpoints, heartbeat, progress.
+
+* :class:`EpisodeLogger` collects finished episodes (``info["episode"]`` from ``VecMonitor``)
+  and appends them to ``tables/train_episodes.parquet`` in batches (every ``flush_interval``
+  seconds, at each checkpoint and at the end). Its episode counter continues across resumes.
+* :class:`Checkpointer` writes ``checkpoints/step-<global step>/`` atomically every
+  ``training.checkpoint_interval`` env steps: ``model.zip``, ``replay_buffer.pkl``
+  (off-policy, if ``training.save_replay_buffer``), ``vecnormalize.pkl`` (if normalising) and
+  ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
+  ``training.keep_checkpoints`` are deleted.
+* :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
+  latest episode return) on a terminal, and stops training when a stop was requested (signal).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from stable_baselines3.common.callbacks import BaseCallback
+
+from softtrack.store.atomic import atomic_dir, atomic_write_json
+from softtrack.store.runs import RunRecord, RunStore, utc_now
+from softtrack.store.tables import append_rows
+
+__all__ = ["Checkpointer", "EpisodeLogger", "ProgressMonitor", "TrainingClock"]
+
+
+class TrainingClock:
+    """Wall-clock seconds of training, continuing across resumes."""
+
+    def __init__(self, offset: float = 0.0) -> None:
+        self.offset = float(offset)
+        self.start = time.monotonic()
+
+    def elapsed(self) -> float:
+        return self.offset + time.monotonic() - self.start
+
+
+class EpisodeLogger(BaseCallback):
+    """Append finished training episodes to the run's ``train_episodes`` table.
+
+    Args:
+        record: the run.
+        clock: the run's training clock (``wall_time`` column, s).
+        next_episode: index of the next episode (the number already in the table).
+        flush_interval: seconds between table appends.
+    """
+
+    def __init__(
+        self,
+        record: RunRecord,
+        clock: TrainingClock,
+        next_episode: int = 0,
+        flush_interval: float = 5.0,
+    ) -> None:
+        super().__init__(verbose=0)
+        self.record = record
+        self.clock = clock
+        self.next_episode = int(next_episode)
+        self.flush_interval = flush_interval
+        self.pending: list[dict[str, Any]] = []
+        self.last_return: float | None = None
+        self._last_flush = time.monotonic()
+
+    @property
+    def path(self) -> Path:
+        return self.record.table_path("train_episodes")
+
+    def _on_step(self) -> bool:
+        infos = self.locals.get("infos") or []
+        for info in infos:
+            episode = info.get("episode") if isinstance(info, dict) else None
+            if episode is None:
+                continue
+            ret = float(episode["r"])
+            self.pending.append(
+                {
+                    "run_id": self.record.run_id,
+                    "episode": self.next_episode,
+                    "global_step": int(self.num_timesteps),
+                    "return": ret,
+                    "length": int(episode["l"]),
+                    "wall_time": float(self.clock.elapsed()),
+                }
+            )
+            self.next_episode += 1
+            self.last_return = ret
+        if self.pending and time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+        return True
+
+    def flush(self) -> None:
+        """Append the pending episodes to the table (atomic replace)."""
+        if self.pending:
+            append_rows(self.path, self.pending)
+            self.pending = []
+        self._last_flush = time.monotonic()
+
+
+def save_checkpoint(
+    model: Any,
+    record: RunRecord,
+    episodes: EpisodeLogger,
+    clock: TrainingClock,
+    *,
+    save_replay_buffer: bool,
+    keep: int,
+) -> Path | None:
+    """Flush the episodes and write ``checkpoints/step-<num_timesteps>/`` atomically.
+
+    Returns the checkpoint directory, or ``None`` if one for this step already exists.
+    """
+    episodes.flush()
+    step = int(model.num_timesteps)
+    target = record.checkpoint_dir(step)
+    if target.exists():
+        return None
+    with atomic_dir(target) as tmp:
+        model.save(tmp / "model.zip")
+        if save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
+            model.save_replay_buffer(tmp / "replay_buffer.pkl")
+        vec_normalize = model.get_vec_normalize_env()
+        if vec_normalize is not None:
+            vec_normalize.save(str(tmp / "vecnormalize.pkl"))
+        atomic_write_json(
+            tmp / "state.json",
+            {
+                "global_step": step,
+                "episodes": episodes.next_episode,
+                "wall_time": clock.elapsed(),
+                "saved": utc_now(),
+            },
+            fsync=False,
+        )
+    for old in record.list_checkpoints()[:-keep]:
+        shutil.rmtree(old, ignore_errors=True)
+    return target
+
+
+class Checkpointer(BaseCallback):
+    """Save a checkpoint whenever ``num_timesteps`` crosses a multiple of ``interval``."""
+
+    def __init__(
+        self,
+        record: RunRecord,
+        episodes: EpisodeLogger,
+        clock: TrainingClock,
+        interval: int,
+        keep: int,
+        save_replay_buffer: bool,
+    ) -> None:
+        super().__init__(verbose=0)
+        self.record = record
+        self.episodes = episodes
+        self.clock = clock
+        self.interval = int(interval)
+        self.keep = int(keep)
+        self.save_replay_buffer = save_replay_buffer
+        self._last_bucket: int | None = None
+
+    def _on_training_start(self) -> None:
+        if self.interval > 0:
+            self._last_bucket = self.num_timesteps // self.interval
+
+    def _on_step(self) -> bool:
+        if self.interval <= 0:
+            return True
+        bucket = self.num_timesteps // self.interval
+        if self._last_bucket is not None and bucket > self._last_bucket:
+            self._last_bucket = bucket
+            self.save()
+        return True
+
+    def save(self) -> Path | None:
+        return save_checkpoint(
+            self.model,
+            self.record,
+            self.episodes,
+            self.clock,
+            save_replay_buffer=self.save_replay_buffer,
+            keep=self.keep,
+        )
+
+
+def _progress_enabled() -> bool:
+    return sys.stderr.isatty() and not os.environ.get("CI")
+
+
+class ProgressMonitor(BaseCallback):
+    """Heartbeat into run.json, a progress bar, and a stop switch.
+
+    Args:
+        store, record: the run.
+        episodes: the episode logger (for the latest return).
+        total_timesteps: the budget (for the bar).
+        heartbeat_interval: seconds between run.json updates.
+        stop_requested: a callable; when it returns true, training stops after this step.
+        show: show a tqdm bar on stderr (default: when stderr is a terminal and ``CI`` is unset).
+    """
+
+    def __init__(
+        self,
+        store: RunStore,
+        record: RunRecord,
+        episodes: EpisodeLogger,
+        total_timesteps: int,
+        heartbeat_interval: float,
+        stop_requested: Any,
+        show: bool | None = None,
+    ) -> None:
+        super().__init__(verbose=0)
+        self.store = store
+        self.record = record
+        self.episodes = episodes
+        self.total_timesteps = int(total_timesteps)
+        self.heartbeat_interval = heartbeat_interval
+        self.stop_requested = stop_requested
+        self.show = _progress_enabled() if show is None else show
+        self._bar: Any = None
+        self._start_time = time.monotonic()
+        self._start_step = 0
+        self._last_beat = time.monotonic()
+        self._last_bar = 0.0
+
+    def steps_per_second(self) -> float | None:
+        dt = time.monotonic() - self._start_time
+        done = self.num_timesteps - self._start_step
+        return done / dt if dt > 0 and done > 0 else None
+
+    def _on_training_start(self) -> None:
+        self._start_time = time.monotonic()
+        self._start_step = int(self.num_timesteps)
+        if self.show:
+            from tqdm import tqdm
+
+            self._bar = tqdm(
+                total=self.total_timesteps,
+                initial=self._start_step,
+                unit="step",
+                desc=self.record.run_id[-8:],
+                file=sys.stderr,
+                dynamic_ncols=True,
+            )
+
+    def _on_step(self) -> bool:
+        now = time.monotonic()
+        if now - self._last_beat >= self.heartbeat_interval:
+            self._last_beat = now
+            self.store.heartbeat(self.record.run_id, self.num_timesteps, self.steps_per_second())
+        if self._bar is not None and now - self._last_bar >= 0.2:
+            self._last_bar = now
+            self._bar.n = min(self.num_timesteps, self.total_timesteps)
+            sps = self.steps_per_second()
+            ret = self.episodes.last_return
+            self._bar.set_postfix(
+                {
+                    "steps/s": "-" if sps is None else f"{sps:,.0f}",
+                    "return": "-" if ret is None or not math.isfinite(ret) else f"{ret:.2f}",
+                },
+                refresh=True,
+            )
+        return not self.stop_requested()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.n = min(self.num_timesteps, self.total_timesteps)
+            self._bar.refresh()
+            self._bar.close()
+            self._bar = None

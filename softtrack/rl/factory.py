@@ -1,0 +1,176 @@
+"""Build the Stable-Baselines3 algorithm, its environment and its exploration noise from a spec.
+
+The training environment is ``VecMonitor(TrackingVecEnv(n_envs, config))`` (plus
+``VecNormalize`` when ``algo.normalize`` is set): all ``n_envs`` environments advance in one
+engine call, and ``VecMonitor`` adds ``info["episode"] = {"r", "l", "t"}`` when an episode
+ends, which :mod:`softtrack.rl.callbacks` logs.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from softtrack.env.config import TrackingConfig, make_config
+from softtrack.env.reward import RewardConfig
+from softtrack.spec import ExperimentSpec, SpecError
+
+__all__ = [
+    "ALGO_NAMES",
+    "algo_class",
+    "build_model",
+    "check_supported",
+    "env_config",
+    "load_model",
+    "make_action_noise",
+    "make_vec_env",
+]
+
+ALGO_NAMES = ("td3", "ddpg", "sac", "ppo")
+
+
+def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
+    """Raise :class:`SpecError` for spec settings ``softtrack train`` cannot run yet."""
+    if spec.controller == "independent":
+        raise SpecError(
+            file,
+            "controller 'independent' is not yet supported by `softtrack train`",
+            "use controller: centralized for now",
+            field="controller",
+        )
+    if spec.algo.backend != "sb3":
+        raise SpecError(
+            file,
+            f"backend {spec.algo.backend!r} is not yet supported by `softtrack train`",
+            "use algo.backend: sb3",
+            field="algo.backend",
+        )
+
+
+def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
+    """The :class:`TrackingConfig` of the spec's training environment.
+
+    Args:
+        arm: ``None`` for the dual-arm scene; 0 or 1 for the single-arm scene of that arm
+            (its base from ``env.physics.base_positions``, the single-arm reward of SPEC §3
+            with the spec's ``nonfinite_reward``).
+    """
+    env = spec.env
+    sim = env.sim_kwargs()
+    target = env.target_kwargs()
+    name = target.pop("name")
+    if arm is None:
+        return make_config(
+            n_arms=2,
+            target=name,
+            episode_duration=env.episode_duration,
+            **sim,
+            **target,
+            **env.reward_kwargs(),
+        )
+    sim["base_positions"] = (tuple(sim["base_positions"][arm]),)
+    single = RewardConfig.single_arm()
+    reward = RewardConfig(
+        arm_weights=single.arm_weights,
+        bonus_thresholds=single.bonus_thresholds,
+        bonus_values=single.bonus_values,
+        cooperative_bonus=single.cooperative_bonus,
+        nonfinite_reward=env.reward.nonfinite_reward,
+    )
+    return make_config(
+        n_arms=1,
+        arm=arm,
+        target=name,
+        reward=reward,
+        episode_duration=env.episode_duration,
+        **sim,
+        **target,
+    )
+
+
+def make_vec_env(
+    spec: ExperimentSpec,
+    seed: int | None = None,
+    arm: int | None = None,
+    *,
+    normalize: bool | None = None,
+) -> Any:
+    """``VecMonitor(TrackingVecEnv(training.n_envs, env_config(spec, arm)))``, seeded.
+
+    With ``normalize`` (default ``algo.normalize``) the result is wrapped in a fresh
+    ``VecNormalize`` (observations, and rewards with ``algo.normalize_reward``); pass
+    ``normalize=False`` to wrap a saved one with ``VecNormalize.load`` instead.
+    """
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    from softtrack.env.vec_env import TrackingVecEnv
+
+    with warnings.catch_warnings():  # TrackingVecEnv has no render mode; SB3 warns about it
+        warnings.filterwarnings("ignore", message=".*render_mode.*")
+        venv: Any = VecMonitor(TrackingVecEnv(spec.training.n_envs, env_config(spec, arm)))
+    if seed is not None:
+        venv.seed(int(seed))
+    if spec.algo.normalize if normalize is None else normalize:
+        venv = VecNormalize(
+            venv, norm_obs=True, norm_reward=spec.algo.normalize_reward, gamma=spec.algo.gamma
+        )
+    return venv
+
+
+def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any:
+    """Exploration noise from ``algo.noise_type`` / ``algo.noise_std`` (off-policy only).
+
+    Returns ``None`` for PPO, ``noise_type: null`` or ``noise_std: 0``; otherwise a
+    ``VectorizedActionNoise`` over ``n_envs`` copies of ``NormalActionNoise`` or
+    ``OrnsteinUhlenbeckActionNoise`` with mean 0 and std ``noise_std`` on every action.
+    """
+    from stable_baselines3.common.noise import (
+        NormalActionNoise,
+        OrnsteinUhlenbeckActionNoise,
+        VectorizedActionNoise,
+    )
+
+    algo = spec.algo
+    if not algo.is_off_policy or algo.noise_type is None or algo.noise_std == 0:
+        return None
+    mean = np.zeros(action_dim)
+    sigma = algo.noise_std * np.ones(action_dim)
+    base: Any
+    if algo.noise_type == "normal":
+        base = NormalActionNoise(mean, sigma)
+    else:
+        base = OrnsteinUhlenbeckActionNoise(mean, sigma)
+    return VectorizedActionNoise(base, n_envs)
+
+
+def algo_class(name: str) -> Any:
+    """The SB3 class of an algorithm name (td3, ddpg, sac, ppo)."""
+    import stable_baselines3 as sb3
+
+    classes = {"td3": sb3.TD3, "ddpg": sb3.DDPG, "sac": sb3.SAC, "ppo": sb3.PPO}
+    return classes[name]
+
+
+def _set_threads(spec: ExperimentSpec) -> None:
+    import torch
+
+    torch.set_num_threads(spec.training.torch_threads)
+
+
+def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
+    """A fresh SB3 model for ``env`` with the spec's hyperparameters and ``seed``."""
+    _set_threads(spec)
+    kwargs = spec.algo.sb3_kwargs()
+    noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
+    if noise is not None:
+        kwargs["action_noise"] = noise
+    return algo_class(spec.algo.name)(env=env, seed=int(seed), verbose=0, **kwargs)
+
+
+def load_model(spec: ExperimentSpec, path: str | Path, env: Any) -> Any:
+    """Load a saved model (``model.zip``) onto ``env``; ``num_timesteps`` is restored."""
+    _set_threads(spec)
+    return algo_class(spec.algo.name).load(str(path), env=env, device=spec.algo.device)

@@ -1,0 +1,266 @@
+"""``softtrack train`` end to end with tiny budgets: tables, interrupt and resume, SIGKILL."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.store.runs import RunStore
+from softtrack.store.tables import read_table
+
+runner = CliRunner()
+
+EPISODE_STEPS = 50  # episode_duration 0.1 s / control step 2 ms
+
+
+def _spec(tmp_path: Path, algo: str = "td3", **training: Any) -> Path:
+    algo_section: dict[str, Any] = {
+        "name": algo,
+        "device": "cpu",
+        "batch_size": 16,
+        "policy_kwargs": {"net_arch": [16, 16]},
+    }
+    if algo == "ppo":
+        algo_section.update(n_steps=64, batch_size=32, n_epochs=2)
+    else:
+        algo_section.update(learning_starts=50, buffer_size=5000)
+    data = {
+        "name": f"tiny-{algo}",
+        "seeds": [0],
+        "env": {"episode_duration": 0.1},
+        "algo": algo_section,
+        "training": {
+            "total_timesteps": 400,
+            "n_envs": 2,
+            "checkpoint_interval": 200,
+            "heartbeat_interval": 0.5,
+            **training,
+        },
+    }
+    path = tmp_path / f"{algo}.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def _episodes(run_dir: Path) -> pd.DataFrame:
+    return read_table(run_dir / "tables" / "train_episodes.parquet")
+
+
+def _check_episodes(df: pd.DataFrame, run_id: str, final_step: int) -> None:
+    assert list(df["episode"]) == list(range(len(df)))  # no gaps, no duplicates
+    assert (np.diff(df["global_step"].to_numpy()) >= 0).all()
+    assert 0 < df["global_step"].min() and df["global_step"].max() <= final_step
+    assert np.isfinite(df["return"]).all()
+    assert (df["length"] == EPISODE_STEPS).all()
+    assert (df["run_id"] == run_id).all()
+    assert (np.diff(df["wall_time"].to_numpy()) >= 0).all()
+
+
+@pytest.mark.parametrize("algo", ["td3", "ddpg", "ppo"])
+def test_train_end_to_end(tmp_path: Path, algo: str) -> None:
+    spec = _spec(tmp_path, algo)
+    runs_dir = tmp_path / "runs"
+    result = runner.invoke(
+        app,
+        ["train", str(spec), "--runs-dir", str(runs_dir), "--set", "training.total_timesteps=256"],
+        env={"CI": "1"},
+    )
+    assert result.exit_code == 0, result.output
+    run_id = result.stdout.strip()
+    record = RunStore(runs_dir).get_run(run_id)
+    info = record.info
+    assert info.status == "completed" and info.error is None
+    assert info.global_step >= 256 and info.steps_per_second and info.steps_per_second > 0
+    assert record.model_path.is_file()
+    checkpoints = record.list_checkpoints()
+    assert len(checkpoints) == 1  # at step 200 (keep_checkpoints 2, only one interval crossed)
+    state = json.loads((checkpoints[0] / "state.json").read_text())
+    assert state["global_step"] == int(checkpoints[0].name.split("-")[1])
+    assert (checkpoints[0] / "model.zip").is_file()
+    assert (checkpoints[0] / "replay_buffer.pkl").is_file() == (algo != "ppo")
+    df = _episodes(record.path)
+    assert len(df) >= 2 * (256 // (2 * EPISODE_STEPS))
+    _check_episodes(df, run_id, info.global_step)
+
+    listing = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "--format", "json"])
+    rows = json.loads(listing.stdout)
+    assert [(r["run_id"], r["algo"], r["status"]) for r in rows] == [(run_id, algo, "completed")]
+
+
+def test_train_several_seeds_and_runs_listing(tmp_path: Path) -> None:
+    spec = _spec(tmp_path, "td3", total_timesteps=120, checkpoint_interval=0)
+    runs_dir = tmp_path / "runs"
+    result = runner.invoke(
+        app,
+        ["train", str(spec), "--runs-dir", str(runs_dir), "--set", "seeds=[3, 4]"],
+        env={"CI": "1"},
+    )
+    assert result.exit_code == 0, result.output
+    ids = result.stdout.split()
+    assert len(ids) == 2
+    result = runner.invoke(
+        app, ["train", str(spec), "--runs-dir", str(runs_dir), "--seed", "9"], env={"CI": "1"}
+    )
+    assert result.exit_code == 0, result.output
+    ids += result.stdout.split()
+    rows = json.loads(
+        runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "-f", "json"]).stdout
+    )
+    assert [(r["run_id"], r["seed"], r["status"]) for r in rows] == [
+        (ids[0], 3, "completed"),
+        (ids[1], 4, "completed"),
+        (ids[2], 9, "completed"),
+    ]
+    table = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir)]).stdout.splitlines()
+    assert len(table) == 4 and all("completed" in line for line in table[1:])
+    for run_id in ids:
+        assert not RunStore(runs_dir).get_run(run_id).list_checkpoints()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["train", "{tmp}/absent.yaml"],
+        ["train", "{spec}", "--set", "training.bogus=1"],
+        ["train", "{spec}", "--set", "controller=independent"],
+        ["train", "--resume", "01ABSENT"],
+        ["train"],
+        ["train", "{spec}", "--resume", "01ABSENT"],
+    ],
+)
+def test_train_user_errors(tmp_path: Path, args: list[str]) -> None:
+    spec = _spec(tmp_path)
+    runs_dir = tmp_path / "runs"
+    args = [a.format(tmp=tmp_path, spec=spec) for a in args]
+    result = runner.invoke(app, [*args, "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 2, result.output
+    assert result.stdout == ""
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert not runs_dir.exists() or not any(runs_dir.iterdir())
+
+
+def test_resume_completed_run_is_an_error(tmp_path: Path) -> None:
+    spec = _spec(tmp_path, total_timesteps=100, checkpoint_interval=0)
+    runs_dir = tmp_path / "runs"
+    run_id = runner.invoke(app, ["train", str(spec), "--runs-dir", str(runs_dir)]).stdout.strip()
+    result = runner.invoke(app, ["train", "--resume", run_id, "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 2 and "already completed" in result.stderr
+    assert result.stdout == ""
+
+
+# ---- interrupt and resume -------------------------------------------------------------------
+def _start(spec: Path, runs_dir: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "CI": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir", str(runs_dir)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def _wait_for_checkpoint(proc: subprocess.Popen[str], runs_dir: Path, timeout: float = 60) -> Path:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        records = RunStore(runs_dir).list_runs()
+        if records and records[0].list_checkpoints():
+            return records[0].path
+        time.sleep(0.02)
+    proc.kill()
+    raise AssertionError("no checkpoint appeared")
+
+
+def _latest_step(run_dir: Path) -> int:
+    steps = [
+        int(p.name.split("-")[1])
+        for p in (run_dir / "checkpoints").iterdir()
+        if p.name.startswith("step-")
+    ]
+    return max(steps)
+
+
+def _expected_episodes(split: int, total: int, n_envs: int) -> int:
+    """Episodes of n_envs synchronous envs trained to ``split``, then resumed (envs reset)."""
+    period = n_envs * EPISODE_STEPS
+    return n_envs * (split // period + (total - split) // period)
+
+
+def _resume_and_check(
+    runs_dir: Path, run_id: str, split: int, total: int, n_envs: int, chunk: int
+) -> None:
+    """Resume to completion; the run ends within one collection ``chunk`` past ``total``
+    (PPO collects whole rollouts of n_steps·n_envs)."""
+    result = runner.invoke(
+        app, ["train", "--resume", run_id[:10], "--runs-dir", str(runs_dir)], env={"CI": "1"}
+    )
+    assert result.exit_code == 0, result.output
+    assert result.stdout.strip() == run_id
+    record = RunStore(runs_dir).get_run(run_id)
+    final = record.info.global_step
+    assert record.info.status == "completed" and total <= final < total + chunk
+    df = _episodes(record.path)
+    _check_episodes(df, run_id, final)
+    assert len(df) == _expected_episodes(split, final, n_envs)
+    assert record.model_path.is_file()
+
+
+@pytest.mark.parametrize("algo", ["td3", "ppo"])
+def test_interrupt_and_resume(tmp_path: Path, algo: str) -> None:
+    total, n_envs = 2400, 4
+    spec = _spec(tmp_path, algo, total_timesteps=total, n_envs=n_envs, checkpoint_interval=200)
+    runs_dir = tmp_path / "runs"
+    proc = _start(spec, runs_dir)
+    run_dir = _wait_for_checkpoint(proc, runs_dir)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    run_id = out.strip()
+    assert run_id == run_dir.name
+    assert "--resume" in err and "Traceback" not in err
+    record = RunStore(runs_dir).get_run(run_id)
+    assert record.info.status == "interrupted"
+    split = _latest_step(run_dir)
+    assert 0 < split < total and record.info.global_step == split
+    assert record.list_checkpoints()
+    df = _episodes(run_dir) if (run_dir / "tables" / "train_episodes.parquet").exists() else None
+    if df is not None:
+        _check_episodes(df, run_id, split)
+    chunk = 64 * n_envs if algo == "ppo" else n_envs
+    _resume_and_check(runs_dir, run_id, split, total, n_envs, chunk)
+
+
+def test_sigkill_then_resume(tmp_path: Path) -> None:
+    total, n_envs = 2400, 4
+    spec = _spec(tmp_path, "td3", total_timesteps=total, n_envs=n_envs, checkpoint_interval=200)
+    runs_dir = tmp_path / "runs"
+    proc = _start(spec, runs_dir)
+    run_dir = _wait_for_checkpoint(proc, runs_dir)
+    time.sleep(0.3)
+    proc.kill()  # SIGKILL
+    proc.communicate(timeout=30)
+    record = RunStore(runs_dir).get_run(run_dir.name)
+    assert record.info.status == "running"  # nobody could mark it
+    for table in (run_dir / "tables").glob("*.parquet"):
+        pd.read_parquet(table)  # every finished table is readable
+    split = _latest_step(run_dir)
+    # a corrupt newer checkpoint is skipped: resume falls back to the last good one
+    bad = run_dir / "checkpoints" / f"step-{split + 4:012d}"
+    bad.mkdir()
+    (bad / "state.json").write_text("{not json")
+    (bad / "model.zip").write_bytes(b"garbage")
+    _resume_and_check(runs_dir, run_dir.name, split, total, n_envs, n_envs)
