@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 __all__ = [
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
+    "evaluate",
     "final_stage_return",
     "format_runs_table",
     "list_run_summaries",
@@ -304,3 +305,46 @@ def resume(
     if on_start is not None:
         on_start(record)
     return train_run(store, record, resume=True, show_progress=show_progress)
+
+
+def evaluate(
+    references: Sequence[str],
+    trajectories: Sequence[str] | None = None,
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    on_episode: Callable[..., None] | None = None,
+) -> pd.DataFrame:
+    """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories.
+
+    Every run is resolved and its spec checked before any episode runs, so a bad reference
+    fails without writing anything.
+
+    Args:
+        trajectories: subset of circle, rectangle, figure8 (default: all three).
+        on_episode: called with (record, episode, metrics) after each trajectory.
+
+    Returns:
+        The metrics rows written (one per run, trajectory and arm).
+    """
+    from softtrack.eval_runs import evaluate_run, resolve_run
+    from softtrack.evaluation import EVAL_TRAJECTORIES
+    from softtrack.rl.policy import model_paths
+
+    chosen = list(trajectories) if trajectories else list(EVAL_TRAJECTORIES)
+    unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
+    if unknown:
+        raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}",
+                        f"choose from {', '.join(EVAL_TRAJECTORIES)} or all")
+    if not references:
+        raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
+    records = [resolve_run(ref, runs_dir) for ref in references]
+    for record in records:
+        spec = record.load_spec()
+        missing = [p for p in model_paths(record, spec) if not p.is_file()]
+        if missing:
+            raise RunStoreError(
+                f"{missing[0]}: run {record.run_id} has no trained model (status "
+                f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
+            )
+    frames = [evaluate_run(record, chosen, on_episode) for record in records]
+    return pd.concat(frames, ignore_index=True)

@@ -224,5 +224,47 @@ def runs(
     typer.echo(api.format_runs_table(summaries))
 
 
+class TrajectoryChoice(str, enum.Enum):
+    circle = "circle"
+    rectangle = "rectangle"
+    figure8 = "figure8"
+    all = "all"
+
+
+@app.command()
+def evaluate(
+    references: Annotated[
+        list[str],
+        typer.Argument(metavar="RUN_ID_OR_DIR...", help="Run ids (or prefixes) or run directories.",
+                       show_default=False),
+    ],
+    trajectory: Annotated[
+        TrajectoryChoice,
+        typer.Option("--trajectory", "-t", help="Target trajectory to evaluate on.",
+                     case_sensitive=False),
+    ] = TrajectoryChoice.all,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Run each run's deterministic policy for 10 s on the circle, rectangle and figure-eight
+    targets and store the tracking tables (eval_trajectories, eval_metrics, eval_moments).
+
+    Prints the 3-D RMSE of each arm per run and trajectory (m).
+    """
+    chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
+
+    def report(record: object, episode: object, metrics: object) -> None:
+        rows = metrics.sort_values("arm")  # type: ignore[attr-defined]
+        rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
+        steady = " / ".join(f"{v:.4f}" for v in rows["rmse_3d_steady"])
+        note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
+        typer.echo(
+            f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]
+            f"(t ≥ 1 s: {steady} m){note}"
+        )
+
+    with _user_errors():
+        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=report)
+
+
 if __name__ == "__main__":  # python -m softtrack.cli
     app()

@@ -1,0 +1,102 @@
+"""Evaluate stored runs and write their evaluation tables.
+
+``evaluate_run`` loads a run's policy, runs one deterministic episode per trajectory and
+writes three tables into the run's ``tables/`` (atomically, replacing the rows of the
+trajectories it evaluated and keeping the others):
+
+* ``eval_trajectories.parquet``: tip and target positions at every control step;
+* ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s);
+* ``eval_moments.parquet``: spatial-RMS and peak element torques per step, arm and direction,
+  with the element torques themselves.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from softtrack.evaluation import (
+    EVAL_TRAJECTORIES,
+    Episode,
+    metrics_table,
+    moments_table,
+    run_episode,
+    trajectory_table,
+)
+from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
+from softtrack.store.tables import read_table, write_table
+
+__all__ = ["EVAL_TABLES", "evaluate_run", "resolve_run", "has_evaluation"]
+
+EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments")
+
+
+def resolve_run(reference: str, runs_dir: str | os.PathLike[str] | None = None) -> RunRecord:
+    """A run from an id (or unique prefix) in the runs directory, or from a run directory path
+    (any directory holding ``run.json`` and ``spec.yaml``, e.g. copied from another machine).
+
+    Raises:
+        RunNotFoundError: neither exists.
+    """
+    path = Path(reference)
+    if (path / "run.json").is_file():
+        path = path.resolve()
+        return RunStore(path.parent).get_run(path.name)
+    return RunStore(resolve_runs_dir(runs_dir)).get_run(reference)
+
+
+def has_evaluation(record: RunRecord, trajectories: Sequence[str] = EVAL_TRAJECTORIES) -> bool:
+    """True if the run's metrics table holds every listed trajectory."""
+    path = record.table_path("eval_metrics")
+    if not path.is_file():
+        return False
+    done = set(read_table(path, columns=["trajectory"])["trajectory"])
+    return set(trajectories) <= done
+
+
+def _replace_rows(path: Path, new: pd.DataFrame, trajectories: Sequence[str]) -> None:
+    if path.is_file():
+        old = read_table(path)
+        old = old[~old["trajectory"].isin(list(trajectories))]
+        new = pd.concat([old, new], ignore_index=True) if len(old) else new
+    write_table(path, new.reset_index(drop=True))
+
+
+def evaluate_run(
+    record: RunRecord,
+    trajectories: Sequence[str] = EVAL_TRAJECTORIES,
+    on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
+) -> pd.DataFrame:
+    """Evaluate one run on ``trajectories`` and write its tables.
+
+    Args:
+        on_episode: called after each trajectory with the run, the episode and its metrics.
+
+    Returns:
+        The metrics rows of this evaluation (one per trajectory and arm).
+
+    Raises:
+        RunStoreError: the run has no readable model; SpecError: its spec no longer validates.
+    """
+    from softtrack.rl.factory import env_config
+    from softtrack.rl.policy import load_policy
+
+    spec = record.load_spec()
+    policy = load_policy(record, spec)
+    config = env_config(spec)
+    duration = float(spec.training.eval_duration)
+    frames: dict[str, list[pd.DataFrame]] = {name: [] for name in EVAL_TABLES}
+    for trajectory in trajectories:
+        episode = run_episode(policy, config, trajectory, duration)
+        metrics = metrics_table(record.run_id, episode)
+        frames["eval_trajectories"].append(trajectory_table(record.run_id, episode))
+        frames["eval_metrics"].append(metrics)
+        frames["eval_moments"].append(moments_table(record.run_id, episode))
+        if on_episode is not None:
+            on_episode(record, episode, metrics)
+    for name, parts in frames.items():
+        _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True), trajectories)
+    return pd.concat(frames["eval_metrics"], ignore_index=True)
