@@ -1,9 +1,13 @@
-"""The Cosserat-rod engine: two clamped soft arms, PyElastica's discretisation, numba speed."""
+"""The Cosserat-rod engine: two clamped soft arms, PyElastica's discretisation, numba speed.
 
-from softtrack.sim.actuation import actions_to_element_torques, spline_matrix
-from softtrack.sim.engine import RodBatch
-from softtrack.sim.params import InvalidParameterError, SimParams
-from softtrack.sim.rollout import rollout
+Names are imported on first use, so ``softtrack.sim.params`` (used by the spec and the CLI)
+loads without numba and SciPy.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __all__ = [
     "InvalidParameterError",
@@ -13,3 +17,22 @@ __all__ = [
     "rollout",
     "spline_matrix",
 ]
+
+_HOME = {
+    "InvalidParameterError": "softtrack.sim.params",
+    "SimParams": "softtrack.sim.params",
+    "RodBatch": "softtrack.sim.engine",
+    "actions_to_element_torques": "softtrack.sim.actuation",
+    "spline_matrix": "softtrack.sim.actuation",
+    "rollout": "softtrack.sim.open_loop",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOME:
+        return getattr(importlib.import_module(_HOME[name]), name)
+    raise AttributeError(f"module 'softtrack.sim' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
