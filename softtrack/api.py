@@ -10,6 +10,7 @@ import json
 import os
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -37,6 +38,8 @@ __all__ = [
     "final_stage_return",
     "format_runs_table",
     "list_run_summaries",
+    "quickstart_spec_path",
+    "report",
     "resolved_spec_yaml",
     "resume",
     "run_summary",
@@ -113,6 +116,13 @@ def _training_value(raw: dict[str, Any], key: str, default: float) -> float:
     )
 
 
+def _final_mean(df: pd.DataFrame, threshold: float) -> tuple[float | None, int]:
+    """Mean finite ``return`` of the rows with ``global_step > threshold``, and their count."""
+    final = pd.to_numeric(df.loc[df["global_step"] > threshold, "return"], errors="coerce")
+    final = final[np.isfinite(final)]
+    return (float(final.mean()), int(final.size)) if not final.empty else (None, 0)
+
+
 def final_stage_return(
     record: RunRecord, fraction: float | None = None
 ) -> tuple[float | None, int, int]:
@@ -122,25 +132,38 @@ def final_stage_return(
     ``(1 - fraction) · total_timesteps``. ``fraction`` defaults to the run's
     ``training.final_stage_fraction`` (0.1).
 
+    An independent run's table has an ``arm`` column (0, 1) and counts ``global_step`` per arm:
+    each arm's final stage is the last ``fraction`` of its own budget (``arm_total_timesteps``),
+    and the result is the mean over the arms of their final-stage means (single-arm returns,
+    not comparable with dual-arm ones). Rows without an arm (column absent, null or negative)
+    are a centralized policy's.
+
     Returns:
         ``(mean return or None if no episode qualifies, number of such episodes,
-        largest global_step in the table or 0)``.
+        env steps the table reaches: its largest global_step, summed over the arms, or 0)``.
     """
     if fraction is None:
         fraction = _training_value(
             _raw_spec(record), "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION
         )
-    df = read_table(record.table_path("train_episodes"), ["global_step", "return"], missing_ok=True)
-    if df.empty:
+    df = read_table(record.table_path("train_episodes"), missing_ok=True)
+    if df.empty or not {"global_step", "return"} <= set(df.columns):
         return None, 0, 0
-    last_step = int(df["global_step"].max())
-    threshold = (1.0 - fraction) * record.info.total_timesteps
-    final = df.loc[df["global_step"] > threshold, "return"]
-    final = pd.to_numeric(final, errors="coerce")
-    final = final[np.isfinite(final)]
-    if final.empty:
-        return None, 0, last_step
-    return float(final.mean()), int(final.size), last_step
+    arms = pd.to_numeric(df["arm"], errors="coerce") if "arm" in df.columns else None
+    if arms is None or not (arms >= 0).any():
+        threshold = (1.0 - fraction) * record.info.total_timesteps
+        mean, count = _final_mean(df, threshold)
+        return mean, count, int(df["global_step"].max())
+    info = record.info
+    budget = info.arm_total_timesteps or info.total_timesteps // max(1, int(arms.max()) + 1)
+    means, count, last_step = [], 0, 0
+    for _, rows in df[arms >= 0].groupby(arms[arms >= 0]):
+        mean, n = _final_mean(rows, (1.0 - fraction) * budget)
+        last_step += int(rows["global_step"].max())
+        count += n
+        if mean is not None:
+            means.append(mean)
+    return (float(np.mean(means)) if means else None), count, last_step
 
 
 def _is_stale(record: RunRecord, heartbeat_interval: float, now: datetime) -> bool:
@@ -348,3 +371,41 @@ def evaluate(
             )
     frames = [evaluate_run(record, chosen, on_episode) for record in records]
     return pd.concat(frames, ignore_index=True)
+
+
+def report(
+    selection: Sequence[str],
+    out_dir: str | os.PathLike[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    command_line: Sequence[str] | None = None,
+    on_episode: Callable[..., None] | None = None,
+) -> Any:
+    """Build the report of the selected runs (experiment names, run ids or spec files).
+
+    Completed runs without evaluation tables are evaluated first; the report itself reads only
+    the stored tables. Returns the path of ``index.md``.
+    """
+    from softtrack.eval_runs import evaluate_run, has_evaluation
+    from softtrack.report import build_report, select_runs
+    from softtrack.rl.policy import model_paths
+
+    store = RunStore(resolve_runs_dir(runs_dir))
+    records = select_runs(store, selection)
+    for record in records:
+        spec = record.load_spec()
+        trained = all(p.is_file() for p in model_paths(record, spec))
+        if trained and not has_evaluation(record):
+            evaluate_run(record, on_episode=on_episode)
+    if command_line is None:
+        command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
+    return build_report(records, out_dir, command_line)
+
+
+def quickstart_spec_path() -> Path:
+    """``experiments/quickstart.yaml`` of this checkout."""
+    path = Path(__file__).resolve().parents[1] / "experiments" / "quickstart.yaml"
+    if not path.is_file():
+        raise SpecError(str(path), "the quickstart spec is missing",
+                        "run from a softtrack checkout (the file ships in experiments/)")
+    return path

@@ -162,6 +162,8 @@ def train(
 
     Ctrl-C (SIGINT) or SIGTERM saves a checkpoint and marks the run interrupted (exit 130 /
     143); `softtrack train --resume RUN_ID` continues it with the same id and step count.
+    With controller: independent, a run trains arm 0's single-arm policy, then arm 1's, each
+    for training.total_timesteps env steps (models/arm0/, models/arm1/ in the run directory).
     """
     if (spec is None) == (resume is None):
         _fail(
@@ -245,25 +247,78 @@ def evaluate(
     ] = TrajectoryChoice.all,
     runs_dir: RunsDirOption = None,
 ) -> None:
-    """Run each run's deterministic policy for 10 s on the circle, rectangle and figure-eight
-    targets and store the tracking tables (eval_trajectories, eval_metrics, eval_moments).
+    """Evaluate runs on the circle, rectangle and figure-eight targets.
 
-    Prints the 3-D RMSE of each arm per run and trajectory (m).
+    Runs each run's deterministic policy for 10 s per trajectory from the straight initial
+    state and stores the tables eval_trajectories, eval_metrics and eval_moments. Prints the 3-D RMSE of each arm per run and trajectory (m).
     """
     chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
 
-    def report(record: object, episode: object, metrics: object) -> None:
-        rows = metrics.sort_values("arm")  # type: ignore[attr-defined]
-        rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
-        steady = " / ".join(f"{v:.4f}" for v in rows["rmse_3d_steady"])
-        note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
-        typer.echo(
-            f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]
-            f"(t ≥ 1 s: {steady} m){note}"
-        )
+    with _user_errors():
+        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode)
+
+
+def _print_episode(record: object, episode: object, metrics: object) -> None:
+    rows = metrics.sort_values("arm")  # type: ignore[attr-defined]
+    rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
+    steady = " / ".join(f"{v:.4f}" for v in rows["rmse_3d_steady"])
+    note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
+    typer.echo(
+        f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]
+        f"(t ≥ 1 s: {steady} m){note}"
+    )
+
+
+@app.command()
+def report(
+    selection: Annotated[
+        list[str],
+        typer.Argument(metavar="SELECTION...", show_default=False,
+                       help="Experiment names, run ids (or prefixes) or spec files."),
+    ],
+    out: Annotated[
+        str, typer.Option("--out", "-o", metavar="DIR", help="Output directory of the report.")
+    ] = "reports/latest",
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Build a report (PNG figures, index.md, index.html) from the selected runs.
+
+    Reads only the stored tables; completed runs without an evaluation are evaluated first.
+    """
+    import sys
 
     with _user_errors():
-        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=report)
+        index = api.report(selection, out, runs_dir=runs_dir,
+                           command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode)
+    typer.echo(f"report: {index}")
+
+
+@app.command()
+def quickstart(
+    runs_dir: RunsDirOption = None,
+    out: Annotated[
+        str, typer.Option("--out", "-o", metavar="DIR", help="Output directory of the report.")
+    ] = "reports/quickstart",
+) -> None:
+    """Train, evaluate and report the quickstart experiment (a few minutes).
+
+    TD3 for 1e5 env steps (experiments/quickstart.yaml), then `softtrack evaluate` on the three
+    trajectories and `softtrack report` into --out.
+    """
+    with _user_errors():
+        spec_path = api.quickstart_spec_path()
+        typer.echo(f"1/3 training {spec_path} (progress on stderr)")
+        outcomes = api.train(spec_path, runs_dir=runs_dir,
+                             on_start=lambda record: typer.echo(f"    run {record.run_id}"))
+        if not outcomes or outcomes[-1].status != "completed":
+            raise typer.Exit(max((o.exit_code for o in outcomes), default=1))
+        run_ids = [o.run_id for o in outcomes]
+        typer.echo("2/3 evaluating on circle, rectangle, figure8")
+        api.evaluate(run_ids, runs_dir=runs_dir, on_episode=_print_episode)
+        typer.echo("3/3 building the report")
+        index = api.report(run_ids, out, runs_dir=runs_dir,
+                           command_line=["softtrack", "quickstart", "--out", out])
+    typer.echo(f"report: {index}")
 
 
 if __name__ == "__main__":  # python -m softtrack.cli

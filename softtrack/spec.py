@@ -580,7 +580,8 @@ class TrainingSpec(_Spec):
 
     total_timesteps: Int = _f(
         10_000_000,
-        "training budget, summed over all parallel envs (rl-zoo: n_timesteps)",
+        "training budget, summed over all parallel envs (rl-zoo: n_timesteps); per arm for "
+        "controller: independent",
         "env steps",
         gt=0,
     )
@@ -616,7 +617,8 @@ class TrainingSpec(_Spec):
     eval_duration: Float = _f(10.0, "length of each evaluation episode", "s", gt=0)
     final_stage_fraction: Float = _f(
         0.1,
-        "the final-stage return averages episodes in this last fraction of total_timesteps",
+        "the final-stage return averages episodes in this last fraction of total_timesteps "
+        "(independent: of each arm's budget, then over the arms)",
         "-",
         gt=0,
         le=1,
@@ -660,7 +662,10 @@ class ExperimentSpec(_Spec):
     )
     controller: Literal["centralized", "independent"] = _f(
         "centralized",
-        "centralized: one policy drives both arms; independent: one single-arm policy per arm",
+        "centralized: one policy drives both arms; independent: one single-arm policy per arm "
+        "(SPEC §3), trained one after the other (arm 0, then arm 1) in the single-arm "
+        "environment of its arm, each with the algo settings and training.total_timesteps env "
+        "steps, so an independent run takes twice the env steps of a centralized one",
         "-",
     )
 

@@ -98,7 +98,7 @@ def test_runs_json(runs_dir: Path) -> None:
     ]
     assert [r["final_return"] for r in rows] == [9.0, None, None]
     assert [r["global_step"] for r in rows] == [1000, 300, 0]  # the table's steps count too
-    assert [r["total_timesteps"] for r in rows] == [1000, 1000, 2000]
+    assert [r["total_timesteps"] for r in rows] == [1000, 1000, 4000]  # independent: 2 arms
     assert rows[0]["started"] and rows[0]["ended"] and rows[1]["ended"] is None
     assert rows[0]["steps_per_second"] == 500.0
     assert rows[0]["run_id"] < rows[1]["run_id"] < rows[2]["run_id"]
@@ -116,7 +116,7 @@ def test_runs_table(runs_dir: Path) -> None:
         assert line.startswith(run_id)
     assert "completed" in lines[1] and "1000/1000" in lines[1] and "9.00" in lines[1]
     assert "running" in lines[2] and "300/1000" in lines[2]
-    assert "queued" in lines[3] and "0/2000" in lines[3] and "independent" in lines[3]
+    assert "queued" in lines[3] and "0/4000" in lines[3] and "independent" in lines[3]
     today = datetime.now(UTC).strftime("%Y-%m-%d")
     assert today in lines[1]
 

@@ -135,7 +135,7 @@ def test_train_several_seeds_and_runs_listing(tmp_path: Path) -> None:
     [
         ["train", "{tmp}/absent.yaml"],
         ["train", "{spec}", "--set", "training.bogus=1"],
-        ["train", "{spec}", "--set", "controller=independent"],
+        ["train", "{spec}", "--set", "algo.backend=sbx"],
         ["train", "--resume", "01ABSENT"],
         ["train"],
         ["train", "{spec}", "--resume", "01ABSENT"],

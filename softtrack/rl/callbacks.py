@@ -3,7 +3,10 @@
 * :class:`EpisodeLogger` collects finished episodes (``info["episode"]`` from ``VecMonitor``)
   and appends them to ``tables/train_episodes.parquet`` in batches (every ``flush_interval``
   seconds, at each checkpoint and at the end). Its episode counter continues across resumes.
-* :class:`Checkpointer` writes ``checkpoints/step-<global step>/`` atomically every
+  Rows of an independent run's arm carry an extra integer column ``arm``; their ``episode``
+  and ``global_step`` count that arm's episodes and env steps.
+* :class:`Checkpointer` writes ``checkpoints/step-<global step>/`` of the policy's directory
+  (:class:`~softtrack.store.layout.PolicyDir`) atomically every
   ``training.checkpoint_interval`` env steps: ``model.zip``, ``replay_buffer.pkl``
   (off-policy, if ``training.save_replay_buffer``), ``vecnormalize.pkl`` (if normalising) and
   ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
@@ -19,16 +22,18 @@ import os
 import shutil
 import sys
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
 from softtrack.store.atomic import atomic_dir, atomic_write_json
+from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore, utc_now
 from softtrack.store.tables import append_rows
 
-__all__ = ["Checkpointer", "EpisodeLogger", "ProgressMonitor", "TrainingClock"]
+__all__ = ["Checkpointer", "EpisodeLogger", "ProgressMonitor", "TrainingClock", "save_checkpoint"]
 
 
 class TrainingClock:
@@ -39,6 +44,7 @@ class TrainingClock:
         self.start = time.monotonic()
 
     def elapsed(self) -> float:
+        """Seconds since the clock's start plus its offset."""
         return self.offset + time.monotonic() - self.start
 
 
@@ -50,6 +56,7 @@ class EpisodeLogger(BaseCallback):
         clock: the run's training clock (``wall_time`` column, s).
         next_episode: index of the next episode (the number already in the table).
         flush_interval: seconds between table appends.
+        columns: extra constant columns of every row, e.g. ``{"arm": 1}``.
     """
 
     def __init__(
@@ -58,10 +65,12 @@ class EpisodeLogger(BaseCallback):
         clock: TrainingClock,
         next_episode: int = 0,
         flush_interval: float = 5.0,
+        columns: Mapping[str, Any] | None = None,
     ) -> None:
         super().__init__(verbose=0)
         self.record = record
         self.clock = clock
+        self.columns = dict(columns or {})
         self.next_episode = int(next_episode)
         self.flush_interval = flush_interval
         self.pending: list[dict[str, Any]] = []
@@ -70,6 +79,7 @@ class EpisodeLogger(BaseCallback):
 
     @property
     def path(self) -> Path:
+        """The episode table."""
         return self.record.table_path("train_episodes")
 
     def _on_step(self) -> bool:
@@ -87,6 +97,7 @@ class EpisodeLogger(BaseCallback):
                     "return": ret,
                     "length": int(episode["l"]),
                     "wall_time": float(self.clock.elapsed()),
+                    **self.columns,
                 }
             )
             self.next_episode += 1
@@ -105,20 +116,20 @@ class EpisodeLogger(BaseCallback):
 
 def save_checkpoint(
     model: Any,
-    record: RunRecord,
+    policy: PolicyDir,
     episodes: EpisodeLogger,
     clock: TrainingClock,
     *,
     save_replay_buffer: bool,
     keep: int,
 ) -> Path | None:
-    """Flush the episodes and write ``checkpoints/step-<num_timesteps>/`` atomically.
+    """Flush the episodes and write the policy's ``checkpoints/step-<num_timesteps>/`` atomically.
 
     Returns the checkpoint directory, or ``None`` if one for this step already exists.
     """
     episodes.flush()
     step = int(model.num_timesteps)
-    target = record.checkpoint_dir(step)
+    target = policy.checkpoint_dir(step)
     if target.exists():
         return None
     with atomic_dir(target) as tmp:
@@ -138,7 +149,7 @@ def save_checkpoint(
             },
             fsync=False,
         )
-    for old in record.list_checkpoints()[:-keep]:
+    for old in policy.list_checkpoints()[:-keep]:
         shutil.rmtree(old, ignore_errors=True)
     return target
 
@@ -148,7 +159,7 @@ class Checkpointer(BaseCallback):
 
     def __init__(
         self,
-        record: RunRecord,
+        policy: PolicyDir,
         episodes: EpisodeLogger,
         clock: TrainingClock,
         interval: int,
@@ -156,7 +167,7 @@ class Checkpointer(BaseCallback):
         save_replay_buffer: bool,
     ) -> None:
         super().__init__(verbose=0)
-        self.record = record
+        self.policy = policy
         self.episodes = episodes
         self.clock = clock
         self.interval = int(interval)
@@ -178,9 +189,10 @@ class Checkpointer(BaseCallback):
         return True
 
     def save(self) -> Path | None:
+        """Write a checkpoint now (see :func:`save_checkpoint`)."""
         return save_checkpoint(
             self.model,
-            self.record,
+            self.policy,
             self.episodes,
             self.clock,
             save_replay_buffer=self.save_replay_buffer,
@@ -202,6 +214,9 @@ class ProgressMonitor(BaseCallback):
         heartbeat_interval: seconds between run.json updates.
         stop_requested: a callable; when it returns true, training stops after this step.
         show: show a tqdm bar on stderr (default: when stderr is a terminal and ``CI`` is unset).
+        run_fields: maps the model's step count to the run.json progress fields (default
+            ``{"global_step": step}``; an independent run adds the other arm's steps).
+        label: shown after the run id in the bar, e.g. ``arm1``.
     """
 
     def __init__(
@@ -213,6 +228,8 @@ class ProgressMonitor(BaseCallback):
         heartbeat_interval: float,
         stop_requested: Any,
         show: bool | None = None,
+        run_fields: Callable[[int], dict[str, Any]] | None = None,
+        label: str = "",
     ) -> None:
         super().__init__(verbose=0)
         self.store = store
@@ -222,6 +239,8 @@ class ProgressMonitor(BaseCallback):
         self.heartbeat_interval = heartbeat_interval
         self.stop_requested = stop_requested
         self.show = _progress_enabled() if show is None else show
+        self.run_fields = run_fields or (lambda step: {"global_step": step})
+        self.label = label
         self._bar: Any = None
         self._start_time = time.monotonic()
         self._start_step = 0
@@ -229,6 +248,7 @@ class ProgressMonitor(BaseCallback):
         self._last_bar = 0.0
 
     def steps_per_second(self) -> float | None:
+        """Env steps per second of this session (``None`` before the first step)."""
         dt = time.monotonic() - self._start_time
         done = self.num_timesteps - self._start_step
         return done / dt if dt > 0 and done > 0 else None
@@ -243,7 +263,7 @@ class ProgressMonitor(BaseCallback):
                 total=self.total_timesteps,
                 initial=self._start_step,
                 unit="step",
-                desc=self.record.run_id[-8:],
+                desc=f"{self.record.run_id[-8:]} {self.label}".rstrip(),
                 file=sys.stderr,
                 dynamic_ncols=True,
             )
@@ -252,7 +272,10 @@ class ProgressMonitor(BaseCallback):
         now = time.monotonic()
         if now - self._last_beat >= self.heartbeat_interval:
             self._last_beat = now
-            self.store.heartbeat(self.record.run_id, self.num_timesteps, self.steps_per_second())
+            fields = self.run_fields(int(self.num_timesteps))
+            self.store.heartbeat(
+                self.record.run_id, steps_per_second=self.steps_per_second(), **fields
+            )
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
@@ -268,6 +291,7 @@ class ProgressMonitor(BaseCallback):
         return not self.stop_requested()
 
     def close(self) -> None:
+        """Close the progress bar (if shown)."""
         if self._bar is not None:
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
             self._bar.refresh()

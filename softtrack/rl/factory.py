@@ -34,13 +34,6 @@ ALGO_NAMES = ("td3", "ddpg", "sac", "ppo")
 
 def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
     """Raise :class:`SpecError` for spec settings ``softtrack train`` cannot run yet."""
-    if spec.controller == "independent":
-        raise SpecError(
-            file,
-            "controller 'independent' is not yet supported by `softtrack train`",
-            "use controller: centralized for now",
-            field="controller",
-        )
     if spec.algo.backend != "sb3":
         raise SpecError(
             file,

@@ -6,6 +6,8 @@ Layout of one run (``<runs dir>/<run id>/``)::
     run.json              status, times, seed, spec hash, git commit, versions, command, progress
     model.zip             the final model (written atomically by the trainer)
     checkpoints/          step-<global step>/ directories (model, replay buffer, normalisation)
+    models/arm<k>/        independent runs: arm k's model.zip, vecnormalize.pkl, state.json
+                          and checkpoints/ (instead of the three entries above)
     tables/*.parquet      e.g. train_episodes.parquet, appended as episodes finish
 
 Every file is written atomically (temporary file in the same directory + fsync + rename), so
@@ -22,6 +24,7 @@ from softtrack.store.atomic import (
     remove_temp_files,
 )
 from softtrack.store.ids import create_unique_dir, id_timestamp, is_valid_id, new_id
+from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import (
     RUN_STATUSES,
     RunInfo,
@@ -42,6 +45,7 @@ from softtrack.store.tables import (
 
 __all__ = [
     "RUN_STATUSES",
+    "PolicyDir",
     "RunInfo",
     "RunNotFoundError",
     "RunRecord",

@@ -14,13 +14,9 @@ runs the run); every update is an atomic read-modify-write of the whole file.
 
 from __future__ import annotations
 
-import functools
-import importlib.metadata
 import os
-import platform
 import shutil
 import socket
-import subprocess
 import sys
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -32,6 +28,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from softtrack.spec import ExperimentSpec, load_spec, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text, is_temp_file
 from softtrack.store.ids import create_unique_dir
+from softtrack.store.layout import PolicyDir
+from softtrack.store.provenance import git_info, library_versions
 
 __all__ = [
     "RUNS_DIR_ENV",
@@ -51,20 +49,6 @@ __all__ = [
 RUNS_DIR_ENV = "SOFTTRACK_RUNS_DIR"
 RUN_STATUSES = ("queued", "running", "completed", "failed", "interrupted")
 RunStatus = Literal["queued", "running", "completed", "failed", "interrupted"]
-_TRACKED_LIBRARIES = (
-    "softtrack",
-    "numpy",
-    "scipy",
-    "numba",
-    "torch",
-    "stable_baselines3",
-    "sbx-rl",
-    "jax",
-    "gymnasium",
-    "pyelastica",
-    "pydantic",
-    "pyarrow",
-)
 
 
 class RunStoreError(Exception):
@@ -95,54 +79,6 @@ def parse_time(text: str | None) -> datetime | None:
     return datetime.fromisoformat(text)
 
 
-@functools.cache
-def git_info(directory: str | None = None) -> tuple[str | None, bool | None]:
-    """``(commit, dirty)`` of the git checkout containing ``directory`` (default: the
-    softtrack package), or ``(None, None)`` outside git or without a git executable.
-
-    ``dirty`` is true when tracked files differ from the commit or untracked (non-ignored)
-    files exist. Read-only: ``--no-optional-locks`` keeps ``git status`` from touching the index.
-    """
-    cwd = directory or str(Path(__file__).resolve().parents[1])
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            check=False,
-            cwd=cwd,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-        if commit.returncode != 0:
-            return None, None
-        status = subprocess.run(
-            ["git", "--no-optional-locks", "status", "--porcelain"],
-            check=False,
-            cwd=cwd,
-            capture_output=True,
-            text=True,
-            timeout=30,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None, None
-    dirty = bool(status.stdout.strip()) if status.returncode == 0 else None
-    return commit.stdout.strip() or None, dirty
-
-
-def library_versions() -> dict[str, str]:
-    """Versions of Python and the installed libraries that matter for results.
-
-    Uses package metadata only (no imports, so torch is not loaded); absent ones are left out.
-    """
-    versions = {"python": platform.python_version()}
-    for name in _TRACKED_LIBRARIES:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            continue
-    return versions
-
-
 class RunInfo(BaseModel):
     """The content of ``run.json``. Unknown keys written by newer code are kept."""
 
@@ -161,8 +97,19 @@ class RunInfo(BaseModel):
     started: str | None = Field(None, description="time training (last) started, ISO 8601 UTC")
     ended: str | None = Field(None, description="time the run ended, ISO 8601 UTC")
     heartbeat: str | None = Field(None, description="last sign of life of the training process")
-    total_timesteps: int = Field(description="training budget, env steps (spec.training)")
-    global_step: int = Field(0, description="env steps done so far")
+    total_timesteps: int = Field(
+        description="training budget of the run, env steps: spec training.total_timesteps, "
+        "times 2 for an independent run (that budget per arm)"
+    )
+    global_step: int = Field(0, description="env steps done so far (independent: over both arms)")
+    arm_total_timesteps: int | None = Field(
+        None,
+        description="independent runs: budget per arm, env steps (spec training.total_timesteps); "
+        "the arms are trained one after the other, arm 0 first",
+    )
+    arm_steps: list[int] | None = Field(
+        None, description="independent runs: env steps done per arm (global_step is their sum)"
+    )
     steps_per_second: float | None = Field(None, description="training throughput, env steps/s")
     spec_hash: str = Field(description="softtrack.spec.spec_hash of the spec (seed-independent)")
     git_commit: str | None = Field(None, description="commit of the softtrack code, if in git")
@@ -201,23 +148,21 @@ class RunRecord:
         """The final model (SB3 zip)."""
         return self.path / "model.zip"
 
+    def policy_dir(self, arm: int | None = None) -> PolicyDir:
+        """The files of the centralized policy (``arm=None``) or of arm ``arm``'s policy."""
+        return PolicyDir.of_run(self.path, arm)
+
     @property
     def checkpoints_dir(self) -> Path:
         return self.path / "checkpoints"
 
     def checkpoint_dir(self, global_step: int) -> Path:
         """``checkpoints/step-<12-digit step>/`` (sorts by step); write it with ``atomic_dir``."""
-        return self.checkpoints_dir / f"step-{int(global_step):012d}"
+        return self.policy_dir().checkpoint_dir(global_step)
 
     def list_checkpoints(self) -> list[Path]:
-        """Complete checkpoint directories, oldest first (temporary ones skipped)."""
-        if not self.checkpoints_dir.is_dir():
-            return []
-        return sorted(
-            p
-            for p in self.checkpoints_dir.iterdir()
-            if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
-        )
+        """Complete checkpoint directories of the centralized policy, oldest first."""
+        return self.policy_dir().list_checkpoints()
 
     @property
     def tables_dir(self) -> Path:
@@ -277,6 +222,8 @@ class RunStore:
             status: initial status.
         """
         run_spec = spec.with_seed(seed)
+        budget = int(spec.training.total_timesteps)
+        independent = spec.controller == "independent"
         run_id, path = create_unique_dir(self.root)
         try:
             header = f"# fully resolved spec of run {run_id} (seed {int(seed)})\n"
@@ -292,7 +239,9 @@ class RunStore:
                 seed=int(seed),
                 status=status,
                 created=utc_now(),
-                total_timesteps=spec.training.total_timesteps,
+                total_timesteps=2 * budget if independent else budget,
+                arm_total_timesteps=budget if independent else None,
+                arm_steps=[0, 0] if independent else None,
                 spec_hash=spec_hash(spec),
                 git_commit=commit,
                 git_dirty=dirty,
@@ -405,10 +354,18 @@ class RunStore:
         )
 
     def heartbeat(
-        self, run_id: str, global_step: int, steps_per_second: float | None = None
+        self,
+        run_id: str,
+        global_step: int,
+        steps_per_second: float | None = None,
+        **extra: Any,
     ) -> RunRecord:
-        """Record progress and the time of this sign of life."""
-        fields: dict[str, Any] = {"heartbeat": utc_now(), "global_step": int(global_step)}
+        """Record progress (and any other ``extra`` fields) and the time of this sign of life."""
+        fields: dict[str, Any] = {
+            **extra,
+            "heartbeat": utc_now(),
+            "global_step": int(global_step),
+        }
         if steps_per_second is not None:
             fields["steps_per_second"] = float(steps_per_second)
         return self.update_run(run_id, **fields)

@@ -46,6 +46,10 @@ __all__ = [
 #: Columns of ``tables/train_episodes.parquet``: the run id, the episode index (0-based, in
 #: completion order over all envs), the global env step at the episode's end, the undiscounted
 #: return, the length in control steps, and the wall-clock seconds since training started.
+#: An independent run's rows have one more column, ``arm`` (int 0 or 1): its rows are arm 0's
+#: episodes, then arm 1's, and ``episode`` and ``global_step`` count per arm (the arm's episodes
+#: and env steps). A centralized run's table has no ``arm`` column; readers treat an absent,
+#: null or negative ``arm`` as "the centralized policy".
 TRAIN_EPISODES_COLUMNS = ("run_id", "episode", "global_step", "return", "length", "wall_time")
 
 

@@ -1,0 +1,82 @@
+"""Resolve a report selection (experiment names, run ids or id prefixes, spec files) to runs."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from softtrack.spec import load_spec, spec_hash
+from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore, RunStoreError
+
+__all__ = ["EmptySelectionError", "select_runs"]
+
+_SPEC_SUFFIXES = (".yaml", ".yml")
+
+
+class EmptySelectionError(RunStoreError):
+    """The selection names no run; the message is one line with the fix."""
+
+
+def _looks_like_spec(item: str) -> bool:
+    return item.lower().endswith(_SPEC_SUFFIXES) or Path(item).is_file()
+
+
+def select_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
+    """The runs a report covers, in selection order, each once.
+
+    Each item of ``selection`` is, in this order of precedence:
+
+    * a spec file (``*.yaml``/``*.yml`` or an existing file): every run whose ``spec_hash``
+      equals the hash of that spec (:func:`softtrack.spec.spec_hash`, seed-independent);
+    * an experiment name (``run.json`` ``name``): every run of that experiment;
+    * a run id or a unique, case-insensitive prefix of one.
+
+    Runs of one item are ordered by (experiment name, seed, id).
+
+    Raises:
+        EmptySelectionError: ``selection`` is empty, or an item matches no run.
+        RunNotFoundError: an id prefix is ambiguous.
+        SpecError: a spec file is missing or invalid.
+    """
+    items = [str(item).strip() for item in selection if str(item).strip()]
+    if not items:
+        raise EmptySelectionError(
+            "nothing to report: give one or more experiment names, run ids or spec files "
+            f"(list the runs with `softtrack runs --runs-dir {store.root}`)"
+        )
+    records = store.list_runs()
+    names = sorted({r.info.name for r in records})
+    chosen: dict[str, RunRecord] = {}
+    for item in items:
+        found = _match(store, records, names, item)
+        for record in sorted(found, key=lambda r: (r.info.name, r.info.seed, r.run_id)):
+            chosen.setdefault(record.run_id, record)
+    return list(chosen.values())
+
+
+def _match(
+    store: RunStore, records: list[RunRecord], names: list[str], item: str
+) -> list[RunRecord]:
+    if _looks_like_spec(item):
+        spec = load_spec(item)
+        digest = spec_hash(spec)
+        found = [r for r in records if r.info.spec_hash == digest]
+        if not found:
+            raise EmptySelectionError(
+                f"{item}: no run in {store.root} has this spec (hash {digest[:12]}); "
+                f"train it with `softtrack train {item}` or select runs by name or id"
+            )
+        return found
+    by_name = [r for r in records if r.info.name == item]
+    if by_name:
+        return by_name
+    try:
+        return [store.get_run(item)]
+    except RunNotFoundError as exc:
+        if "matches" in str(exc):  # an ambiguous prefix: its message already says what to do
+            raise
+        known = ", ".join(names) if names else "none"
+        raise EmptySelectionError(
+            f"{store.root}: {item!r} is neither an experiment name (known: {known}), a run id "
+            f"nor a spec file; list the runs with `softtrack runs --runs-dir {store.root}`"
+        ) from None

@@ -1,0 +1,82 @@
+"""Where one trained policy of a run keeps its files.
+
+A centralized run has one policy, stored in the run directory itself; an independent run
+(SPEC §3, "Independent baseline") has one per arm, each in ``models/arm<k>/``::
+
+    <run>/model.zip, <run>/vecnormalize.pkl, <run>/checkpoints/step-…/     centralized
+    <run>/models/arm<k>/model.zip, …/vecnormalize.pkl, …/checkpoints/step-…/   independent
+
+An arm directory also holds ``state.json`` (the arm's final step count, episode count and
+training wall time), written just before ``model.zip``: an arm is finished exactly when its
+``model.zip`` exists.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from softtrack.store.atomic import is_temp_file
+
+__all__ = ["PolicyDir", "arm_dir"]
+
+
+def arm_dir(run_path: Path, arm: int) -> Path:
+    """``<run>/models/arm<arm>/``: the directory of arm ``arm``'s policy in an independent run."""
+    return run_path / "models" / f"arm{int(arm)}"
+
+
+@dataclass(frozen=True)
+class PolicyDir:
+    """The files of one policy of a run.
+
+    Attributes:
+        path: the run directory (centralized) or ``models/arm<k>/`` (independent).
+        arm: ``None`` for the centralized policy, else the arm index (0 or 1).
+    """
+
+    path: Path
+    arm: int | None = None
+
+    @classmethod
+    def of_run(cls, run_path: Path, arm: int | None = None) -> PolicyDir:
+        """The policy directory of ``arm`` (``None``: the centralized policy) in a run."""
+        return cls(run_path if arm is None else arm_dir(run_path, arm), arm)
+
+    @property
+    def model_path(self) -> Path:
+        """The final model (SB3 zip); it exists once this policy's training is finished."""
+        return self.path / "model.zip"
+
+    @property
+    def vecnormalize_path(self) -> Path:
+        """The final observation/reward normalisation statistics (``algo.normalize``)."""
+        return self.path / "vecnormalize.pkl"
+
+    @property
+    def state_path(self) -> Path:
+        """``state.json`` of a finished arm (not written for the centralized policy)."""
+        return self.path / "state.json"
+
+    @property
+    def checkpoints_dir(self) -> Path:
+        return self.path / "checkpoints"
+
+    def checkpoint_dir(self, step: int) -> Path:
+        """``checkpoints/step-<12-digit step>/`` (sorts by step); write it with ``atomic_dir``."""
+        return self.checkpoints_dir / f"step-{int(step):012d}"
+
+    def list_checkpoints(self) -> list[Path]:
+        """Complete checkpoint directories, oldest first (temporary ones skipped)."""
+        if not self.checkpoints_dir.is_dir():
+            return []
+        return sorted(
+            p
+            for p in self.checkpoints_dir.iterdir()
+            if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
+        )
+
+    @property
+    def label(self) -> str:
+        """``arm0``/``arm1``, or ``""`` for the centralized policy."""
+        return "" if self.arm is None else f"arm{self.arm}"

@@ -1,0 +1,338 @@
+"""``softtrack.report``: a report built from small fake runs holds every figure and table,
+the study's values, and the provenance; missing data gives "no data" figures; an empty
+selection is a clear error."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from softtrack.api import final_stage_return
+from softtrack.env import make_config
+from softtrack.evaluation import (
+    EVAL_TRAJECTORIES,
+    metrics_table,
+    moments_table,
+    run_episode,
+    trajectory_table,
+)
+from softtrack.report import EmptySelectionError, build_report, select_runs
+from softtrack.report.data import (
+    final_stage_table,
+    group_runs,
+    load_runs,
+    metrics_summary,
+    moment_peaks,
+    training_curves,
+)
+from softtrack.spec import parse_spec, spec_to_yaml
+from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
+from softtrack.store.tables import write_table
+
+BUDGET = 2000
+EVAL_DURATION = 0.2  # s: 100 control steps per trajectory keeps the fixture fast
+COMMAND = "softtrack report td3 ddpg independent-td3 --out reports/test"
+
+
+def _spec(name: str, algo: str = "td3", controller: str = "centralized"):
+    return parse_spec(
+        {
+            "name": name,
+            "controller": controller,
+            "seeds": [0, 1],
+            "algo": {"name": algo, "learning_starts": 100},
+            "training": {"total_timesteps": BUDGET, "eval_duration": EVAL_DURATION},
+        }
+    )
+
+
+def _train_rows(record: RunRecord, level: float, arm: int | None = None) -> list[dict]:
+    """Episodes of 100 steps whose return rises from ``level`` − 50 towards ``level``."""
+    rng = np.random.default_rng(record.info.seed)
+    rows = []
+    for i in range(BUDGET // 100):
+        row = {
+            "run_id": record.run_id,
+            "episode": i,
+            "global_step": 100 * (i + 1),
+            "return": float(level - 50.0 * np.exp(-i / 5) + rng.normal(0, 2)),
+            "length": 100,
+            "wall_time": 0.1 * i,
+        }
+        if arm is not None:
+            row["arm"] = arm
+        rows.append(row)
+    return rows
+
+
+def _write_eval(record: RunRecord, value: float) -> None:
+    """Eval tables from real evaluation episodes of a constant policy."""
+    config = make_config()
+    trajs, metrics, moments = [], [], []
+    for trajectory in EVAL_TRAJECTORIES:
+        episode = run_episode(
+            lambda obs: np.full(24, value), config, trajectory, duration=EVAL_DURATION
+        )
+        trajs.append(trajectory_table(record.run_id, episode))
+        metrics.append(metrics_table(record.run_id, episode))
+        moments.append(moments_table(record.run_id, episode))
+    write_table(record.table_path("eval_trajectories"), pd.concat(trajs, ignore_index=True))
+    write_table(record.table_path("eval_metrics"), pd.concat(metrics, ignore_index=True))
+    write_table(record.table_path("eval_moments"), pd.concat(moments, ignore_index=True))
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory: pytest.TempPathFactory) -> RunStore:
+    """td3 and ddpg × seeds 0, 1 (complete), one independent td3 run (per-arm episodes), and a
+    ppo run with training episodes but no eval tables."""
+    store = RunStore(tmp_path_factory.mktemp("report") / "runs")
+    for algo, level, action in (("td3", 100.0, 0.02), ("ddpg", 60.0, -0.02)):
+        spec = _spec(algo, algo)
+        for seed in (0, 1):
+            record = store.create_run(spec, seed, ["softtrack", "train", f"{algo}.yaml"])
+            write_table(record.table_path("train_episodes"), _train_rows(record, level))
+            _write_eval(record, action + 0.01 * seed)
+            store.mark_finished(record.run_id, "completed", global_step=BUDGET)
+    independent = store.create_run(
+        _spec("independent-td3", "td3", "independent"),
+        0,
+        ["softtrack", "train", "independent-td3.yaml"],
+    )
+    write_table(
+        independent.table_path("train_episodes"),
+        _train_rows(independent, 40.0, arm=0) + _train_rows(independent, 30.0, arm=1),
+    )
+    _write_eval(independent, 0.0)
+    ppo_spec = parse_spec(
+        {
+            "name": "ppo",
+            "algo": {"name": "ppo", "n_steps": 64, "batch_size": 32},
+            "training": {"total_timesteps": BUDGET},
+        }
+    )
+    ppo = store.create_run(ppo_spec, 0, ["softtrack", "train", "ppo.yaml"])
+    write_table(ppo.table_path("train_episodes"), _train_rows(ppo, 20.0))
+    return store
+
+
+@pytest.fixture(scope="module")
+def report(store: RunStore, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    records = select_runs(store, ["td3", "ddpg", "independent-td3"])
+    out = tmp_path_factory.mktemp("out") / "reports" / "test"
+    return build_report(records, out, COMMAND)
+
+
+# ---- selection ------------------------------------------------------------------------------
+def test_select_by_name_id_prefix_and_spec(store: RunStore, tmp_path: Path) -> None:
+    td3 = select_runs(store, ["td3"])
+    assert [r.info.seed for r in td3] == [0, 1] and {r.info.algo for r in td3} == {"td3"}
+    one = select_runs(store, [td3[1].run_id[:20], "td3"])  # prefix, then a duplicate by name
+    assert [r.run_id for r in one] == [td3[1].run_id, td3[0].run_id]
+    spec_file = tmp_path / "ddpg.yaml"
+    spec_file.write_text(spec_to_yaml(_spec("ddpg", "ddpg")))
+    by_spec = select_runs(store, [str(spec_file)])
+    assert {r.info.name for r in by_spec} == {"ddpg"} and len(by_spec) == 2
+
+
+def test_empty_selection_is_a_clear_error(store: RunStore, tmp_path: Path) -> None:
+    with pytest.raises(EmptySelectionError, match="nothing to report"):
+        select_runs(store, [])
+    with pytest.raises(EmptySelectionError, match="neither an experiment name.*known: ddpg"):
+        select_runs(store, ["sac-nonexistent"])
+    other = tmp_path / "other.yaml"
+    other.write_text("name: other\n")
+    with pytest.raises(EmptySelectionError, match="no run .* has this spec"):
+        select_runs(store, [str(other)])
+    with pytest.raises(EmptySelectionError, match="no runs"):
+        build_report([], tmp_path / "out", COMMAND)
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(RunNotFoundError, match="matches"):
+        select_runs(store, ["0"])  # every ULID of this decade starts with 0: ambiguous
+
+
+# ---- aggregation ----------------------------------------------------------------------------
+def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
+    groups = group_runs(load_runs(select_runs(store, ["td3", "independent-td3"])))
+    table = final_stage_table(groups)
+    td3 = table[table["group"] == "TD3"].iloc[0]
+    per_run = [final_stage_return(r.record)[0] for r in groups[0].runs]
+    assert td3["values"] == pytest.approx(dict(zip((0, 1), per_run)))
+    assert td3["mean"] == pytest.approx(np.mean(per_run))
+    assert td3["std"] == pytest.approx(np.std(per_run, ddof=1))
+    independent = table[table["group"] == "TD3 (independent)"]
+    assert list(independent["arm"]) == [0, 1]  # one row per arm policy
+    assert np.isnan(independent["std"]).all()  # one seed: no std
+    # `softtrack runs` shows the mean over the arms of the same per-arm final stages
+    run = groups[-1].runs[0]
+    assert final_stage_return(run.record)[0] == pytest.approx(independent["mean"].mean())
+
+
+def test_curves_metrics_and_peaks(store: RunStore) -> None:
+    groups = group_runs(load_runs(select_runs(store, ["td3", "ddpg", "independent-td3"])))
+    assert [g.label for g in groups] == ["TD3", "DDPG", "TD3 (independent)"]
+    curves, smoothing = training_curves(groups)
+    assert [c.label for c in curves] == [
+        "TD3",
+        "DDPG",
+        "TD3 (independent), arm 1 policy",
+        "TD3 (independent), arm 2 policy",
+    ]
+    assert smoothing.window == pytest.approx(0.05 * BUDGET)
+    assert np.isfinite(curves[0].std[10:]).all() and np.isnan(curves[2].std).all()
+    assert curves[0].mean[-1] > curves[1].mean[-1]  # td3's fake returns are higher
+    summary = metrics_summary(groups)
+    assert len(summary) == 3 * 3 * 2
+    td3 = groups[0]
+    rmse = [
+        float(r.metrics.query("trajectory == 'circle' and arm == 0")["rmse_3d"].iloc[0])
+        for r in td3.runs
+    ]
+    row = summary.query("group == 'TD3' and trajectory == 'circle' and arm == 0").iloc[0]
+    assert row["rmse_3d_mean"] == pytest.approx(np.mean(rmse))
+    peaks = moment_peaks(groups)
+    both = peaks.query("group == 'TD3' and trajectory == 'figure8' and arm == -1")
+    assert set(both["direction"]) == {"normal", "binormal"}
+    arm_max = peaks.query(
+        "group == 'TD3' and trajectory == 'figure8' and arm >= 0 and direction == 'normal'"
+    )["mean"].max()
+    assert both.query("direction == 'normal'")["mean"].iloc[0] >= arm_max - 1e-9
+
+
+# ---- the report -----------------------------------------------------------------------------
+EXPECTED_FIGURES = [
+    "training_curves.png",
+    "final_returns.png",
+    "rmse_comparison.png",
+    *[
+        f"{kind}_{slug}_{t}.png"
+        for kind in ("trajectory", "errors")
+        for slug in ("td3", "ddpg", "td3-independent")
+        for t in EVAL_TRAJECTORIES
+    ],
+    "moments_td3.png",
+    "moments_ddpg.png",
+    "moments_td3-independent.png",
+]
+
+
+def test_report_has_every_figure_and_table(report: Path, store: RunStore) -> None:
+    out = report.parent
+    md = report.read_text(encoding="utf-8")
+    page = (out / "index.html").read_text(encoding="utf-8")
+    for name in EXPECTED_FIGURES:
+        png = out / "figures" / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+        assert f"](figures/{name})" in md, name
+        assert f'src="figures/{name}"' in page, name
+    for heading in (
+        "Training curves (study Fig. 3)",
+        "Final-stage return (study Table 3)",
+        "Tracking error (study Table 4)",
+        "Centralized against independent controllers",
+        "Trajectories and errors over time (study Figs. 4–9)",
+        "Actuation moments (study Fig. 10)",
+        "Peak element moments",
+    ):
+        assert f"## {heading}" in md or f"### {heading}" in md, heading
+        assert heading in page
+    manifest = json.loads((out / "report.json").read_text())
+    assert sorted(manifest["files"]) == sorted(
+        ["index.md", "index.html", *[f"figures/{n}" for n in EXPECTED_FIGURES]]
+    )
+    assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
+
+
+def _table_after(md: str, heading: str) -> list[str]:
+    """The Markdown table rows that follow ``heading``."""
+    block = md.split(heading, 1)[1].lstrip("\n").split("\n\n", 1)[0]
+    return [line for line in block.splitlines() if line.startswith("|")]
+
+
+def test_report_tables_show_the_study_values(report: Path) -> None:
+    md = report.read_text(encoding="utf-8")
+    td3 = _table_after(md, "### TD3\n")
+    assert "study 3-D RMSE (m)" in td3[0]
+    circle1 = next(r for r in td3 if r.startswith("| circle | arm 1 |"))
+    assert "| 0.065 |" in circle1 and " ± " in circle1
+    assert "| 0.053 |" in next(r for r in td3 if r.startswith("| figure-eight | arm 2 |"))
+    ddpg = _table_after(md, "### DDPG\n")
+    assert "| — |" in next(r for r in ddpg if r.startswith("| circle | arm 1 |"))
+    independent = _table_after(md, "### TD3 (independent)\n")
+    assert "| 0.059 |" in next(r for r in independent if r.startswith("| circle | arm 2 |"))
+    side = _table_after(md, "### Centralized against independent controllers\n")
+    assert "TD3 (independent) 3-D RMSE (m)" in side[0] and "study independent TD3" in side[0]
+    assert "| 0.065 | 0.054 |" in next(r for r in side if r.startswith("| circle | arm 1 |"))
+    peaks = _table_after(md, "### Peak element moments\n")
+    assert any(
+        r.startswith("| TD3 | figure-eight | normal |") and r.endswith("| 138.9 |") for r in peaks
+    )
+    assert any(
+        r.startswith("| TD3 | figure-eight | binormal |") and r.endswith("| 121.7 |") for r in peaks
+    )
+    final = _table_after(md, "## Final-stage return (study Table 3)\n")
+    assert "| 2,000 env steps per run | 10,000,000 env steps per run |" in final[2]
+    assert "| 2,000 env steps per arm |" in final[-1]
+
+
+def test_every_table_has_provenance(report: Path, store: RunStore) -> None:
+    md = report.read_text(encoding="utf-8")
+    blocks = md.split("\n\n")
+    tables = [i for i, b in enumerate(blocks) if b.startswith("|")]
+    assert len(tables) == 1 + 1 + 3 + 1 + 1  # runs, final, 3 error tables, side by side, peaks
+    for i in tables:
+        after = "\n\n".join(blocks[i + 1 : i + 3])
+        assert "*Behind these numbers*" in after, blocks[i][:80]
+    provenance = next(b for b in blocks if b.startswith("*Behind these numbers*"))
+    record = select_runs(store, ["td3"])[0]
+    for text in (
+        f"`{COMMAND}`",
+        "experiment `td3`",
+        record.info.spec_hash[:12],
+        "seeds 0, 1",
+        "budget 2,000 env steps per run",
+        "`softtrack train td3.yaml`",
+        "Study: 10,000,000 env steps per run (8.5 h",
+    ):
+        assert text in provenance, text
+    if record.info.git_commit:
+        assert record.info.git_commit[:12] in provenance
+
+
+def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Path) -> None:
+    out = tmp_path / "ppo-report"
+    (out / "figures").mkdir(parents=True)
+    (out / "notes.txt").write_text("mine")  # someone else's file: must survive
+    index = build_report(select_runs(store, ["ppo"]), out, "softtrack report ppo --out x")
+    md = index.read_text(encoding="utf-8")
+    for t in EVAL_TRAJECTORIES:
+        assert (out / "figures" / f"trajectory_ppo_{t}.png").is_file()
+        assert (out / "figures" / f"errors_ppo_{t}.png").is_file()
+    assert (out / "figures" / "moments_ppo.png").is_file()
+    assert "No data for PPO on the circle" in md
+    assert "No data for PPO: no stored evaluation moments" in md
+    assert re.search(r"\| PPO \| both arms \| 1 of 1 \| -?\d+\.\d\d \|", md)
+    # a rebuild with fewer figures removes only this report's stale figures
+    (out / "figures" / "unrelated.png").write_bytes(b"x")
+    records = select_runs(store, ["ppo"])
+    build_report(records, out, "again")
+    assert (out / "notes.txt").read_text() == "mine"
+    assert (out / "figures" / "unrelated.png").exists()
+
+
+def test_missing_training_and_eval_tables(store: RunStore, tmp_path: Path) -> None:
+    bare = store.create_run(_spec("bare"), 0)
+    try:
+        index = build_report([bare], tmp_path / "bare", "softtrack report bare")
+        md = index.read_text(encoding="utf-8")
+        assert "No data: no selected run has stored training episodes." in md
+        assert "| TD3 | both arms | 0 of 1 | no data |" in md
+        assert (tmp_path / "bare" / "figures" / "training_curves.png").is_file()
+    finally:
+        import shutil
+
+        shutil.rmtree(bare.path)
