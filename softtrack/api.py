@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import (
@@ -99,15 +98,6 @@ def resolved_spec_yaml(path: str | os.PathLike[str], overrides: Sequence[str] = 
 
 
 # ---- runs ---------------------------------------------------------------------------------
-def _raw_spec(record: RunRecord) -> dict[str, Any]:
-    """The run's spec.yaml as plain data (not validated, so old runs always list)."""
-    try:
-        data = yaml.safe_load(record.spec_path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
 def _training_value(raw: dict[str, Any], key: str, default: float) -> float:
     training = raw.get("training")
     value = training.get(key) if isinstance(training, dict) else None
@@ -144,7 +134,7 @@ def final_stage_return(
     """
     if fraction is None:
         fraction = _training_value(
-            _raw_spec(record), "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION
+            record.raw_spec(), "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION
         )
     df = read_table(record.table_path("train_episodes"), missing_ok=True)
     if df.empty or not {"global_step", "return"} <= set(df.columns):
@@ -177,7 +167,7 @@ def _is_stale(record: RunRecord, heartbeat_interval: float, now: datetime) -> bo
 
 def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
     """One row of ``softtrack runs`` (JSON-serialisable)."""
-    raw = _raw_spec(record)
+    raw = record.raw_spec()
     info = record.info
     try:
         final, n_final, last_step = final_stage_return(

@@ -29,7 +29,7 @@ from softtrack.evaluation import (
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
 
-__all__ = ["EVAL_TABLES", "evaluate_run", "resolve_run", "has_evaluation"]
+__all__ = ["EVAL_TABLES", "evaluate_run", "has_evaluation", "resolve_run"]
 
 EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments")
 

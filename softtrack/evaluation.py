@@ -9,8 +9,8 @@ controller is two single-arm policies, each fed its arm's 37 values plus the tar
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -25,10 +25,10 @@ __all__ = [
     "Episode",
     "Policy",
     "independent_policy",
-    "run_episode",
-    "trajectory_table",
     "metrics_table",
     "moments_table",
+    "run_episode",
+    "trajectory_table",
 ]
 
 EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")

@@ -14,10 +14,10 @@ import numpy as np
 
 __all__ = [
     "AXES",
+    "moment_peak",
+    "moment_rms",
     "tracking_errors",
     "tracking_metrics",
-    "moment_rms",
-    "moment_peak",
 ]
 
 AXES = ("x", "y", "z")

@@ -37,7 +37,7 @@ class TrackingConfig:
     @property
     def max_episode_steps(self) -> int:
         """Control steps in one episode (5000 at the defaults)."""
-        return int(round(self.episode_duration / self.sim.control_dt))
+        return round(self.episode_duration / self.sim.control_dt)
 
     def validate(self) -> None:
         """Raise :class:`InvalidParameterError` naming the first invalid setting."""
@@ -90,7 +90,7 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
         valid = sorted(_SIM_FIELDS | _TARGET_FIELDS | _REWARD_FIELDS
                        | {"target", "reward", "episode_duration"})
         raise InvalidParameterError(
-            f"unknown environment parameter {sorted(kwargs)[0]!r}; valid names: {', '.join(valid)}"
+            f"unknown environment parameter {min(kwargs)!r}; valid names: {', '.join(valid)}"
         )
     if n_arms == 1:
         if "base_positions" not in sim_kw:

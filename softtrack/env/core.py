@@ -8,8 +8,9 @@ compute the same transitions by construction.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from softtrack.env.targets import BatchedTargets
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
 
-__all__ = ["StepResult", "TrackingCore", "NonFiniteActionError"]
+__all__ = ["NonFiniteActionError", "StepResult", "TrackingCore"]
 
 
 class NonFiniteActionError(ValueError):

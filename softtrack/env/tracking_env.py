@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -16,7 +16,7 @@ __all__ = ["DualArmTrackingEnv", "SingleArmTrackingEnv"]
 class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
     """A single-environment view of :class:`TrackingCore` (shared by both envs)."""
 
-    metadata: dict[str, Any] = {"render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(self, config: TrackingConfig) -> None:
         super().__init__()

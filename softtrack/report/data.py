@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.store.runs import RunRecord
@@ -122,14 +121,6 @@ class RunData:
         return f"{self.total_timesteps:,} env steps per run"
 
 
-def _raw_spec(record: RunRecord) -> dict[str, object]:
-    try:
-        data = yaml.safe_load(record.spec_path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
 def _fraction(raw: dict[str, object]) -> float:
     training = raw.get("training")
     value = training.get("final_stage_fraction") if isinstance(training, dict) else None
@@ -162,7 +153,7 @@ def load_run(record: RunRecord) -> RunData:
     problems: list[str] = []
     return RunData(
         record=record,
-        final_stage_fraction=_fraction(_raw_spec(record)),
+        final_stage_fraction=_fraction(record.raw_spec()),
         train=_read(record, "train_episodes", problems),
         trajectories=_read(record, "eval_trajectories", problems),
         metrics=_read(record, "eval_metrics", problems),

@@ -35,7 +35,7 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
         )
     try:
         model: Any = algo_class(spec.algo.name).load(str(path), device="cpu")
-    except Exception as exc:  # a truncated or foreign zip
+    except Exception as exc:  # noqa: BLE001 - any failure to load means an unusable model file
         raise RunStoreError(f"{path}: unreadable model ({type(exc).__name__}: {exc})") from None
     normalizer = None
     stats = path.parent / "vecnormalize.pkl"

@@ -13,7 +13,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-__all__ = ["N_CONTROL_POINTS", "spline_matrix", "actions_to_element_torques"]
+__all__ = ["N_CONTROL_POINTS", "actions_to_element_torques", "spline_matrix"]
 
 N_CONTROL_POINTS = 6
 

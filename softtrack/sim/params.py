@@ -16,7 +16,7 @@ import numpy as np
 
 from softtrack.sim.stability import stable_time_step_limit
 
-__all__ = ["InvalidParameterError", "SimParams", "RodConstants", "STANDARD_GRAVITY"]
+__all__ = ["STANDARD_GRAVITY", "InvalidParameterError", "RodConstants", "SimParams"]
 
 STANDARD_GRAVITY = 9.81  # m/s², along −y when gravity is switched on
 
@@ -64,7 +64,7 @@ class SimParams:
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
     @classmethod
-    def from_overrides(cls, **overrides: Any) -> "SimParams":
+    def from_overrides(cls, **overrides: Any) -> SimParams:
         """Defaults with ``overrides`` applied, validated.
 
         Raises:
@@ -206,7 +206,7 @@ class RodConstants:
     rest_position: np.ndarray = field(repr=False)  # (A, 3, N+1) m, the straight rest shape
 
     @classmethod
-    def build(cls, p: SimParams) -> "RodConstants":
+    def build(cls, p: SimParams) -> RodConstants:
         n = p.n_elem
         dl = np.full(n, p.length / n)
         area = p.area

@@ -30,8 +30,8 @@ import numpy as np
 from numba import njit
 
 from softtrack.sim.actuation import actions_to_element_torques
-from softtrack.sim.params import InvalidParameterError, SimParams
 from softtrack.sim.open_loop import validate_open_loop_input
+from softtrack.sim.params import InvalidParameterError, SimParams
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
     from types import ModuleType

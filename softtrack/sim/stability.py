@@ -27,7 +27,7 @@ import numpy as np
 if TYPE_CHECKING:
     from softtrack.sim.params import SimParams
 
-__all__ = ["stable_time_step_limit", "mode_is_stable", "rod_modes"]
+__all__ = ["mode_is_stable", "rod_modes", "stable_time_step_limit"]
 
 
 def _step_matrix(stiffness: np.ndarray, damping: np.ndarray, dt: float) -> np.ndarray:
@@ -60,7 +60,7 @@ def _critical_dt(stiffness: np.ndarray, damping: np.ndarray) -> float:
     return lo
 
 
-def rod_modes(params: "SimParams") -> list[tuple[np.ndarray, np.ndarray]]:
+def rod_modes(params: SimParams) -> list[tuple[np.ndarray, np.ndarray]]:
     """(A, D) pairs of the axial, coupled bending and twist zig-zag modes (module docstring)."""
     dl = params.length / params.n_elem
     rho, e_mod, g_mod = params.density, params.youngs_modulus, params.shear_modulus
@@ -78,6 +78,6 @@ def rod_modes(params: "SimParams") -> list[tuple[np.ndarray, np.ndarray]]:
     ]
 
 
-def stable_time_step_limit(params: "SimParams") -> float:
+def stable_time_step_limit(params: SimParams) -> float:
     """The largest stable time step (s) for ``params``' material, discretisation and damping."""
     return min(_critical_dt(a, d) for a, d in rod_modes(params))

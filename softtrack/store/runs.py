@@ -177,6 +177,17 @@ class RunRecord:
         """Text log of the training process."""
         return self.path / "train.log"
 
+    def raw_spec(self) -> dict[str, Any]:
+        """``spec.yaml`` as plain data, not validated (so runs of older versions still list);
+        ``{}`` if it is missing or unreadable."""
+        import yaml
+
+        try:
+            data = yaml.safe_load(self.spec_path.read_text(encoding="utf-8"))
+        except (OSError, yaml.YAMLError, UnicodeDecodeError):
+            return {}
+        return data if isinstance(data, dict) else {}
+
     def load_spec(self) -> ExperimentSpec:
         """The run's fully resolved spec (raises ``SpecError`` if it no longer validates)."""
         return load_spec(self.spec_path)
