@@ -141,7 +141,8 @@ def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 
 def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
-    """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s."""
+    """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s
+    (NaN when the episode is shorter than that)."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
     for arm in range(episode.tips.shape[1]):
@@ -149,7 +150,10 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
         row.update(tracking_metrics(episode.tips[:, arm], episode.target))
         if steady.any():
             steady_metrics = tracking_metrics(episode.tips[steady, arm], episode.target[steady])
-            row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
+        else:  # an episode shorter than the approach: no steady window
+            steady_metrics = dict.fromkeys(tracking_metrics(episode.tips[:, arm], episode.target),
+                                           float("nan"))
+        row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
         row["terminated"] = episode.terminated
         row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
         rows.append(row)
