@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -26,9 +27,10 @@ runner = CliRunner()
 EPISODE_STEPS = 50  # episode_duration 0.1 s / control step 2 ms
 
 
-def _spec(tmp_path: Path, algo: str = "td3", **training: Any) -> Path:
+def _spec(tmp_path: Path, algo: str = "td3", backend: str = "sb3", **training: Any) -> Path:
     algo_section: dict[str, Any] = {
         "name": algo,
+        "backend": backend,
         "device": "cpu",
         "batch_size": 16,
         "policy_kwargs": {"net_arch": [16, 16]},
@@ -69,9 +71,15 @@ def _check_episodes(df: pd.DataFrame, run_id: str, final_step: int) -> None:
     assert (np.diff(df["wall_time"].to_numpy()) >= 0).all()
 
 
-@pytest.mark.parametrize("algo", ["td3", "ddpg", "ppo"])
-def test_train_end_to_end(tmp_path: Path, algo: str) -> None:
-    spec = _spec(tmp_path, algo)
+SBX_TD3 = pytest.param("td3", "sbx", marks=pytest.mark.skipif(
+    importlib.util.find_spec("sbx") is None, reason="sbx-rl (JAX) not installed"))
+
+
+@pytest.mark.parametrize(
+    "algo, backend", [("td3", "sb3"), ("ddpg", "sb3"), ("ppo", "sb3"), SBX_TD3]
+)
+def test_train_end_to_end(tmp_path: Path, algo: str, backend: str) -> None:
+    spec = _spec(tmp_path, algo, backend)
     runs_dir = tmp_path / "runs"
     result = runner.invoke(
         app,
@@ -135,7 +143,7 @@ def test_train_several_seeds_and_runs_listing(tmp_path: Path) -> None:
     [
         ["train", "{tmp}/absent.yaml"],
         ["train", "{spec}", "--set", "training.bogus=1"],
-        ["train", "{spec}", "--set", "algo.backend=sbx"],
+        ["train", "{spec}", "--set", "algo.name=dqn"],
         ["train", "--resume", "01ABSENT"],
         ["train"],
         ["train", "{spec}", "--resume", "01ABSENT"],
@@ -219,10 +227,11 @@ def _resume_and_check(
     assert record.model_path.is_file()
 
 
-@pytest.mark.parametrize("algo", ["td3", "ppo"])
-def test_interrupt_and_resume(tmp_path: Path, algo: str) -> None:
+@pytest.mark.parametrize("algo, backend", [("td3", "sb3"), ("ppo", "sb3"), SBX_TD3])
+def test_interrupt_and_resume(tmp_path: Path, algo: str, backend: str) -> None:
     total, n_envs = 2400, 4
-    spec = _spec(tmp_path, algo, total_timesteps=total, n_envs=n_envs, checkpoint_interval=200)
+    spec = _spec(tmp_path, algo, backend, total_timesteps=total, n_envs=n_envs,
+                 checkpoint_interval=200)
     runs_dir = tmp_path / "runs"
     proc = _start(spec, runs_dir)
     run_dir = _wait_for_checkpoint(proc, runs_dir)

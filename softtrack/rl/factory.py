@@ -33,14 +33,17 @@ ALGO_NAMES = ("td3", "ddpg", "sac", "ppo")
 
 
 def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
-    """Raise :class:`SpecError` for spec settings ``softtrack train`` cannot run yet."""
-    if spec.algo.backend != "sb3":
-        raise SpecError(
-            file,
-            f"backend {spec.algo.backend!r} is not yet supported by `softtrack train`",
-            "use algo.backend: sb3",
-            field="algo.backend",
-        )
+    """Raise :class:`SpecError` for spec settings ``softtrack train`` cannot run here."""
+    if spec.algo.backend == "sbx":
+        try:
+            import sbx  # noqa: F401
+        except ImportError:
+            raise SpecError(
+                file,
+                "algo.backend 'sbx' needs the JAX backend, which is not installed",
+                "pip install -c constraints.txt -e '.[sbx]' or use algo.backend: sb3",
+                field="algo.backend",
+            ) from None
 
 
 def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
@@ -139,12 +142,13 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
     return VectorizedActionNoise(base, n_envs)
 
 
-def algo_class(name: str) -> Any:
-    """The SB3 class of an algorithm name (td3, ddpg, sac, ppo)."""
-    import stable_baselines3 as sb3
-
-    classes = {"td3": sb3.TD3, "ddpg": sb3.DDPG, "sac": sb3.SAC, "ppo": sb3.PPO}
-    return classes[name]
+def algo_class(name: str, backend: str = "sb3") -> Any:
+    """The algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx)."""
+    if backend == "sbx":
+        import sbx as library
+    else:
+        import stable_baselines3 as library
+    return {"td3": library.TD3, "ddpg": library.DDPG, "sac": library.SAC, "ppo": library.PPO}[name]
 
 
 def _set_threads(spec: ExperimentSpec) -> None:
@@ -160,10 +164,13 @@ def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise
-    return algo_class(spec.algo.name)(env=env, seed=int(seed), verbose=0, **kwargs)
+    return algo_class(spec.algo.name, spec.algo.backend)(
+        env=env, seed=int(seed), verbose=0, **kwargs
+    )
 
 
 def load_model(spec: ExperimentSpec, path: str | Path, env: Any) -> Any:
     """Load a saved model (``model.zip``) onto ``env``; ``num_timesteps`` is restored."""
     _set_threads(spec)
-    return algo_class(spec.algo.name).load(str(path), env=env, device=spec.algo.device)
+    device = spec.algo.device if spec.algo.backend == "sb3" else "auto"
+    return algo_class(spec.algo.name, spec.algo.backend).load(str(path), env=env, device=device)

@@ -34,7 +34,8 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
             "finish it with `softtrack train --resume RUN_ID`"
         )
     try:
-        model: Any = algo_class(spec.algo.name).load(str(path), device="cpu")
+        device = "cpu" if spec.algo.backend == "sb3" else "auto"
+        model: Any = algo_class(spec.algo.name, spec.algo.backend).load(str(path), device=device)
     except Exception as exc:  # noqa: BLE001 - any failure to load means an unusable model file
         raise RunStoreError(f"{path}: unreadable model ({type(exc).__name__}: {exc})") from None
     normalizer = None
