@@ -11,6 +11,12 @@ dilatation factors, the Lagrangian-transport and unsteady-dilatation couples, an
 PyElastica-0.1 explicit damping of SPEC §1.
 
 Speed: the loops run over elements with unit stride and no branches, so LLVM vectorises them.
+Each rod is copied into work arrays padded to ``n_pad`` elements (the next multiple of 8 above
+N, a compile-time constant of the kernel built for it), so every loop has a constant trip count
+that is a whole number of 8-wide AVX-512 vectors: no scalar remainder iterations, and the tip
+node and last element need no special cases. The padding is exactly inert (zero stiffness,
+damping and weight, unit masses and rest lengths, zero velocities; padded curvatures are
+masked to 0 before the log map so they cannot produce NaN).
 Small rotations (all of them, in practice) use Taylor series instead of sin/cos/acos; a rod
 with a large rotation in a step falls back to the trigonometric formulas for that step.
 
@@ -88,20 +94,23 @@ def _rotate_frames(directors, omega, scale, n_elem, coefficients):
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
 def _drift(position, velocity, directors, omega, drift_dt, base_position, base_directors,
-           n_elem):
-    """Kinematic step x += h·v, Q ← exp(−h[ω]ₓ)Q with h = drift_dt, then re-apply the clamp."""
+           n_pad):
+    """Kinematic step x += h·v, Q ← exp(−h[ω]ₓ)Q with h = drift_dt, then re-apply the clamp.
+
+    Runs over the ``n_pad`` padded nodes/elements; padded entries have v = ω = 0 and stay put.
+    """
     for i in range(3):
-        for k in range(n_elem + 1):
+        for k in range(n_pad):
             position[i, k] += drift_dt * velocity[i, k]
     largest = 0.0
-    for k in range(n_elem):
+    for k in range(n_pad):
         theta_sq = drift_dt * drift_dt * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k]
                                         + omega[2, k] * omega[2, k])
         largest = max(largest, theta_sq)
     if largest < _ROTATION_SERIES_MAX:
-        _rotate_frames(directors, omega, drift_dt, n_elem, _rotation_coefficients_series)
+        _rotate_frames(directors, omega, drift_dt, n_pad, _rotation_coefficients_series)
     else:
-        _rotate_frames(directors, omega, drift_dt, n_elem, _rotation_coefficients_trig)
+        _rotate_frames(directors, omega, drift_dt, n_pad, _rotation_coefficients_trig)
     for i in range(3):
         position[i, 0] = base_position[i]
         for j in range(3):
@@ -136,14 +145,17 @@ def _log_map_factor_trig(sin_sq, cos_theta):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _curvatures(directors, inv_rest_voronoi, kappa, cosines, n_elem, log_map_factor):
-    """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the N−1 Voronoi points, local frame, 1/m.
+def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad,
+                log_map_factor):
+    """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the Voronoi points, local frame, 1/m.
 
-    Also stores cos θ_j of the angle between neighbouring frames in ``cosines`` (N−1,), so
-    the caller can see whether the series (valid for cos θ ≥ _CURVATURE_SERIES_MIN_COS) held.
-    ``log_map_factor`` is one of the ``_log_map_factor_*`` functions.
+    Also stores cos θ_j of the angle between neighbouring frames in ``cosines``, so the caller
+    can see whether the series (valid for cos θ ≥ _CURVATURE_SERIES_MIN_COS) held.
+    ``log_map_factor`` is one of the ``_log_map_factor_*`` functions. Runs over ``n_pad``
+    points; where ``voronoi_mask`` is 0 (padding) the angle is replaced by 0 before the log
+    map (so no NaN even for θ = π), giving κ = 0 and cos θ = 1; where it is 1 nothing changes.
     """
-    for j in range(n_elem - 1):
+    for j in range(n_pad):
         m01 = 0.0
         m10 = 0.0
         m02 = 0.0
@@ -165,11 +177,12 @@ def _curvatures(directors, inv_rest_voronoi, kappa, cosines, n_elem, log_map_fac
             m12 += a1 * b2
             m21 += a2 * b1
             trace += a0 * b0 + a1 * b1 + a2 * b2
-        v0 = m21 - m12
-        v1 = m02 - m20
-        v2 = m10 - m01
+        mask = voronoi_mask[j]
+        v0 = (m21 - m12) * mask
+        v1 = (m02 - m20) * mask
+        v2 = (m10 - m01) * mask
         sin_sq = 0.25 * (v0 * v0 + v1 * v1 + v2 * v2)
-        cos_theta = 0.5 * trace - 0.5
+        cos_theta = (0.5 * trace - 0.5) * mask + (1.0 - mask)
         cosines[j] = cos_theta
         mag = -0.5 * log_map_factor(sin_sq, cos_theta) * inv_rest_voronoi[j]
         kappa[0, j] = mag * v0
@@ -177,7 +190,249 @@ def _curvatures(directors, inv_rest_voronoi, kappa, cosines, n_elem, log_map_fac
         kappa[2, j] = mag * v2
 
 
-@njit(cache=True, fastmath=_FLAGS, error_model="numpy")
+def _build_advance(n_pad):
+    """The integrator for rods padded to ``n_pad`` elements (a multiple of 8, > n_elem).
+
+    ``n_pad`` is a closure constant, so every element/node loop has a compile-time trip count
+    that is a multiple of the vector width: no scalar remainder iterations.
+    """
+    width = n_pad + 8  # room for the node/element just past the padded range (index n_pad)
+
+    @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
+    def advance_padded(position, velocity, directors, omega, torques, n_steps, dt, damping,
+                       gravity, rest_lengths, rest_voronoi, inv_mass, mass, inertia,
+                       inv_inertia, shear, bend, base_position, base_directors, finite):
+        n_env = position.shape[0]
+        n_arm = position.shape[1]
+        n_elem = rest_lengths.shape[0]
+        n_node = n_elem + 1
+        # Every array the loops touch is allocated here, so LLVM knows none of them alias and
+        # vectorises the loops without runtime overlap checks; each rod's state is copied
+        # into these padded work arrays, integrated, and its real entries copied back.
+        # Padding (elements n_elem.., nodes n_elem+1.., Voronoi points n_elem−1..) is inert:
+        # zero stiffness, damping and gravity, unit rest lengths, masses and inertias, zero
+        # velocities, so it exerts no force or couple on the real rod and never moves.
+        lengths = np.ones(width)
+        inv_lengths = np.ones(width)
+        cosines = np.ones(width)
+        dil_rate = np.zeros(width)
+        f_elem = np.zeros((3, width))
+        n_local = np.zeros((3, width))
+        qt = np.zeros((3, width))
+        damp_f = np.zeros((3, width))
+        couple = np.zeros((3, width))
+        kxc = np.zeros((3, width))
+        kappa = np.zeros((3, width))
+        rest_len = np.ones(width)
+        inv_rest_len = np.ones(width)
+        rest_vor = np.ones(width)
+        inv_rest_vor = np.ones(width)
+        vor_mask = np.zeros(width)
+        damp_coef = np.zeros(width)
+        inv_m = np.ones(width)
+        weight_m = np.zeros(width)
+        inert = np.ones((3, width))
+        inv_inert = np.ones((3, width))
+        shear_k = np.zeros((3, width))
+        bend_k = np.zeros((3, width))
+        for k in range(n_elem):
+            rest_len[k] = rest_lengths[k]
+            inv_rest_len[k] = 1.0 / rest_lengths[k]
+            damp_coef[k] = -0.25 * damping
+            for i in range(3):
+                inert[i, k] = inertia[i, k]
+                inv_inert[i, k] = inv_inertia[i, k]
+                shear_k[i, k] = shear[i, k]
+        for j in range(n_elem - 1):
+            rest_vor[j] = rest_voronoi[j]
+            inv_rest_vor[j] = 1.0 / rest_voronoi[j]
+            vor_mask[j] = 1.0
+            for i in range(3):
+                bend_k[i, j] = bend[i, j]
+        for k in range(n_node):
+            inv_m[k] = inv_mass[k]
+            weight_m[k] = mass[k]
+        pos = np.zeros((3, width))
+        vel = np.zeros((3, width))
+        dirs = np.zeros((3, 3, width))
+        om = np.zeros((3, width))
+        tq = np.zeros((2, width))
+        base_pos = np.empty(3)
+        base_dirs = np.empty((3, 3))
+        half_dt = 0.5 * dt
+        for env in range(n_env):
+            finite[env] = True
+            for arm in range(n_arm):
+                for i in range(3):
+                    for k in range(n_node):
+                        pos[i, k] = position[env, arm, i, k]
+                        vel[i, k] = velocity[env, arm, i, k]
+                    # padded nodes continue the last element's line beyond the tip, at rest
+                    step_out = pos[i, n_elem] - pos[i, n_elem - 1]
+                    for k in range(n_node, n_pad + 1):
+                        pos[i, k] = pos[i, n_elem] + (k - n_elem) * step_out
+                        vel[i, k] = 0.0
+                    for k in range(n_elem):
+                        om[i, k] = omega[env, arm, i, k]
+                    for k in range(n_elem, n_pad + 1):
+                        om[i, k] = 0.0
+                    for j in range(3):
+                        for k in range(n_elem):
+                            dirs[i, j, k] = directors[env, arm, i, j, k]
+                        for k in range(n_elem, n_pad + 1):
+                            dirs[i, j, k] = dirs[i, j, n_elem - 1]
+                    base_pos[i] = base_position[arm, i]
+                    for j in range(3):
+                        base_dirs[i, j] = base_directors[arm, i, j]
+                for i in range(2):
+                    for k in range(n_elem):
+                        tq[i, k] = torques[env, arm, i, k]
+                # The closing half drift of one step and the opening half drift of the next are
+                # one drift of dt (same velocities, same rotation axis), so they are fused.
+                _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_pad)
+                for step in range(n_steps):
+
+                    # --- elements: geometry, strains, stresses (short loops that vectorise)
+                    for k in range(n_pad):
+                        dx = pos[0, k + 1] - pos[0, k]
+                        dy = pos[1, k + 1] - pos[1, k]
+                        dz = pos[2, k + 1] - pos[2, k]
+                        length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
+                        lengths[k] = length
+                        inv_lengths[k] = 1.0 / length
+                    for k in range(n_pad):
+                        inv_length = inv_lengths[k]
+                        tx = (pos[0, k + 1] - pos[0, k]) * inv_length
+                        ty = (pos[1, k + 1] - pos[1, k]) * inv_length
+                        tz = (pos[2, k + 1] - pos[2, k]) * inv_length
+                        e = lengths[k] * inv_rest_len[k]
+                        q0 = dirs[0, 0, k] * tx + dirs[0, 1, k] * ty + dirs[0, 2, k] * tz
+                        q1 = dirs[1, 0, k] * tx + dirs[1, 1, k] * ty + dirs[1, 2, k] * tz
+                        q2 = dirs[2, 0, k] * tx + dirs[2, 1, k] * ty + dirs[2, 2, k] * tz
+                        qt[0, k] = q0
+                        qt[1, k] = q1
+                        qt[2, k] = q2
+                        n_local[0, k] = shear_k[0, k] * (e * q0)
+                        n_local[1, k] = shear_k[1, k] * (e * q1)
+                        n_local[2, k] = shear_k[2, k] * (e * q2 - 1.0)
+                    for k in range(n_pad):
+                        inv_e = rest_len[k] * inv_lengths[k]
+                        n0 = n_local[0, k] * inv_e
+                        n1 = n_local[1, k] * inv_e
+                        n2 = n_local[2, k] * inv_e
+                        f_elem[0, k] = dirs[0, 0, k] * n0 + dirs[1, 0, k] * n1 + dirs[2, 0, k] * n2
+                        f_elem[1, k] = dirs[0, 1, k] * n0 + dirs[1, 1, k] * n1 + dirs[2, 1, k] * n2
+                        f_elem[2, k] = dirs[0, 2, k] * n0 + dirs[1, 2, k] * n1 + dirs[2, 2, k] * n2
+                    for k in range(n_pad):
+                        dx = pos[0, k + 1] - pos[0, k]
+                        dy = pos[1, k + 1] - pos[1, k]
+                        dz = pos[2, k + 1] - pos[2, k]
+                        dvx = vel[0, k + 1] - vel[0, k]
+                        dvy = vel[1, k + 1] - vel[1, k]
+                        dvz = vel[2, k + 1] - vel[2, k]
+                        dil_rate[k] = ((dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k]
+                                       * inv_rest_len[k])
+                    for k in range(n_pad):
+                        c = damp_coef[k] * lengths[k]
+                        damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
+                        damp_f[1, k] = c * (vel[1, k] + vel[1, k + 1])
+                        damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
+
+                    # --- Voronoi points: curvature and bend/twist couple
+                    _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad,
+                                _log_map_factor_halving)
+                    smallest_cos = 1.0
+                    for j in range(n_pad):
+                        smallest_cos = min(smallest_cos, cosines[j])
+                    if smallest_cos < _CURVATURE_SERIES_MIN_COS:
+                        _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad,
+                                    _log_map_factor_trig)
+                    for j in range(n_pad):
+                        vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_vor[j]
+                        inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
+                        k0 = kappa[0, j]
+                        k1 = kappa[1, j]
+                        k2 = kappa[2, j]
+                        c0 = bend_k[0, j] * k0
+                        c1 = bend_k[1, j] * k1
+                        c2 = bend_k[2, j] * k2
+                        couple[0, j] = c0 * inv3
+                        couple[1, j] = c1 * inv3
+                        couple[2, j] = c2 * inv3
+                        w = 0.5 * rest_vor[j] * inv3
+                        kxc[0, j] = (k1 * c2 - k2 * c1) * w
+                        kxc[1, j] = (k2 * c0 - k0 * c2) * w
+                        kxc[2, j] = (k0 * c1 - k1 * c0) * w
+
+                    # --- nodes: forces → velocities (node 0 is clamped)
+                    for i in range(3):
+                        g = -gravity if i == 1 else 0.0
+                        for k in range(1, n_pad + 1):
+                            f = (f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1]
+                                 + g * weight_m[k])
+                            vel[i, k] += dt * (f * inv_m[k])
+                        vel[i, 0] = 0.0
+
+                    # --- elements: couples → angular velocities (element 0 is clamped)
+                    for k in range(1, n_pad + 1):
+                        ti0 = couple[0, k] - couple[0, k - 1] + kxc[0, k] + kxc[0, k - 1]
+                        ti1 = couple[1, k] - couple[1, k - 1] + kxc[1, k] + kxc[1, k - 1]
+                        ti2 = couple[2, k] - couple[2, k - 1] + kxc[2, k] + kxc[2, k - 1]
+                        e = lengths[k] * inv_rest_len[k]
+                        inv_e = rest_len[k] * inv_lengths[k]
+                        w0 = om[0, k]
+                        w1 = om[1, k]
+                        w2 = om[2, k]
+                        jw0 = inert[0, k] * w0 * inv_e
+                        jw1 = inert[1, k] * w1 * inv_e
+                        jw2 = inert[2, k] * w2 * inv_e
+                        unsteady = dil_rate[k] * inv_e
+                        q0 = qt[0, k]
+                        q1 = qt[1, k]
+                        q2 = qt[2, k]
+                        n0 = n_local[0, k]
+                        n1 = n_local[1, k]
+                        n2 = n_local[2, k]
+                        dl = rest_len[k]
+                        damp = damping * lengths[k]
+                        t0 = (ti0 + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
+                              + jw0 * unsteady + tq[0, k] - damp * w0)
+                        t1 = (ti1 + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
+                              + jw1 * unsteady + tq[1, k] - damp * w1)
+                        t2 = (ti2 + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
+                              + jw2 * unsteady - damp * w2)
+                        om[0, k] = w0 + dt * (inv_inert[0, k] * t0 * e)
+                        om[1, k] = w1 + dt * (inv_inert[1, k] * t1 * e)
+                        om[2, k] = w2 + dt * (inv_inert[2, k] * t2 * e)
+                    for i in range(3):
+                        om[i, 0] = 0.0
+
+                    drift_dt = half_dt if step == n_steps - 1 else dt
+                    _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_pad)
+                # Copy the real entries back; NaN and inf propagate through a sum, so one
+                # reduction over them checks the whole state.
+                checksum = 0.0
+                for i in range(3):
+                    for k in range(n_node):
+                        position[env, arm, i, k] = pos[i, k]
+                        velocity[env, arm, i, k] = vel[i, k]
+                        checksum += pos[i, k] + vel[i, k]
+                    for k in range(n_elem):
+                        omega[env, arm, i, k] = om[i, k]
+                        checksum += om[i, k]
+                    for j in range(3):
+                        for k in range(n_elem):
+                            directors[env, arm, i, j, k] = dirs[i, j, k]
+                            checksum += dirs[i, j, k]
+                if not math.isfinite(checksum):
+                    finite[env] = False
+
+    return advance_padded
+
+
+_KERNELS = {}
+
+
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
             rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
             base_position, base_directors, finite):
@@ -195,180 +450,10 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
         base_position (A, 3) m; base_directors (A, 3, 3).
         finite: (E,) bool output: False where any state value of the environment is NaN/inf.
     """
-    n_env = position.shape[0]
-    n_arm = position.shape[1]
-    n_elem = rest_lengths.shape[0]
-    lengths = np.zeros(n_elem)
-    inv_lengths = np.zeros(n_elem)
-    cosines = np.zeros(n_elem - 1)
-    dil_rate = np.zeros(n_elem)
-    f_elem = np.zeros((3, n_elem))
-    n_local = np.zeros((3, n_elem))
-    qt = np.zeros((3, n_elem))
-    damp_f = np.zeros((3, n_elem))
-    torque_int = np.zeros((3, n_elem))
-    couple = np.zeros((3, n_elem - 1))
-    kxc = np.zeros((3, n_elem - 1))
-    kappa = np.zeros((3, n_elem - 1))
-    # Every array the loops touch is allocated here, so LLVM knows none of them alias and
-    # vectorises the element loops without runtime overlap checks; each rod's state is copied
-    # in, integrated, and copied back.
-    inv_rest_lengths = 1.0 / rest_lengths
-    inv_rest_voronoi = 1.0 / rest_voronoi
-    rest_lengths = rest_lengths.copy()
-    rest_voronoi = rest_voronoi.copy()
-    inv_mass = inv_mass.copy()
-    mass = mass.copy()
-    inertia = inertia.copy()
-    inv_inertia = inv_inertia.copy()
-    shear = shear.copy()
-    bend = bend.copy()
-    pos = np.empty((3, n_elem + 1))
-    vel = np.empty((3, n_elem + 1))
-    dirs = np.empty((3, 3, n_elem))
-    om = np.empty((3, n_elem))
-    tq = np.empty((2, n_elem))
-    base_pos = np.empty(3)
-    base_dirs = np.empty((3, 3))
-    for env in range(n_env):
-        finite[env] = True
-        for arm in range(n_arm):
-            pos[:] = position[env, arm]
-            vel[:] = velocity[env, arm]
-            dirs[:] = directors[env, arm]
-            om[:] = omega[env, arm]
-            tq[:] = torques[env, arm]
-            base_pos[:] = base_position[arm]
-            base_dirs[:] = base_directors[arm]
-            half_dt = 0.5 * dt
-            # The closing half drift of one step and the opening half drift of the next are one
-            # drift of dt (same velocities, same rotation axis), so they are fused.
-            _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_elem)
-            for step in range(n_steps):
-
-                # --- elements: geometry, strains, stresses (split into short loops that vectorise)
-                for k in range(n_elem):
-                    dx = pos[0, k + 1] - pos[0, k]
-                    dy = pos[1, k + 1] - pos[1, k]
-                    dz = pos[2, k + 1] - pos[2, k]
-                    length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
-                    lengths[k] = length
-                    inv_lengths[k] = 1.0 / length
-                for k in range(n_elem):
-                    inv_length = inv_lengths[k]
-                    tx = (pos[0, k + 1] - pos[0, k]) * inv_length
-                    ty = (pos[1, k + 1] - pos[1, k]) * inv_length
-                    tz = (pos[2, k + 1] - pos[2, k]) * inv_length
-                    e = lengths[k] * inv_rest_lengths[k]
-                    q0 = dirs[0, 0, k] * tx + dirs[0, 1, k] * ty + dirs[0, 2, k] * tz
-                    q1 = dirs[1, 0, k] * tx + dirs[1, 1, k] * ty + dirs[1, 2, k] * tz
-                    q2 = dirs[2, 0, k] * tx + dirs[2, 1, k] * ty + dirs[2, 2, k] * tz
-                    qt[0, k] = q0
-                    qt[1, k] = q1
-                    qt[2, k] = q2
-                    n_local[0, k] = shear[0, k] * (e * q0)
-                    n_local[1, k] = shear[1, k] * (e * q1)
-                    n_local[2, k] = shear[2, k] * (e * q2 - 1.0)
-                for k in range(n_elem):
-                    inv_e = rest_lengths[k] * inv_lengths[k]
-                    n0 = n_local[0, k] * inv_e
-                    n1 = n_local[1, k] * inv_e
-                    n2 = n_local[2, k] * inv_e
-                    f_elem[0, k] = dirs[0, 0, k] * n0 + dirs[1, 0, k] * n1 + dirs[2, 0, k] * n2
-                    f_elem[1, k] = dirs[0, 1, k] * n0 + dirs[1, 1, k] * n1 + dirs[2, 1, k] * n2
-                    f_elem[2, k] = dirs[0, 2, k] * n0 + dirs[1, 2, k] * n1 + dirs[2, 2, k] * n2
-                for k in range(n_elem):
-                    dx = pos[0, k + 1] - pos[0, k]
-                    dy = pos[1, k + 1] - pos[1, k]
-                    dz = pos[2, k + 1] - pos[2, k]
-                    dvx = vel[0, k + 1] - vel[0, k]
-                    dvy = vel[1, k + 1] - vel[1, k]
-                    dvz = vel[2, k + 1] - vel[2, k]
-                    dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k] * inv_rest_lengths[k]
-                for k in range(n_elem):
-                    c = -0.25 * damping * lengths[k]
-                    damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
-                    damp_f[1, k] = c * (vel[1, k] + vel[1, k + 1])
-                    damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
-
-                # --- Voronoi points: curvature and bend/twist couple
-                _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_halving)
-                smallest_cos = 1.0
-                for j in range(n_elem - 1):
-                    smallest_cos = min(smallest_cos, cosines[j])
-                if smallest_cos < _CURVATURE_SERIES_MIN_COS:
-                    _curvatures(dirs, inv_rest_voronoi, kappa, cosines, n_elem, _log_map_factor_trig)
-                for j in range(n_elem - 1):
-                    vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_voronoi[j]
-                    inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
-                    k0 = kappa[0, j]
-                    k1 = kappa[1, j]
-                    k2 = kappa[2, j]
-                    c0 = bend[0, j] * k0
-                    c1 = bend[1, j] * k1
-                    c2 = bend[2, j] * k2
-                    couple[0, j] = c0 * inv3
-                    couple[1, j] = c1 * inv3
-                    couple[2, j] = c2 * inv3
-                    w = 0.5 * rest_voronoi[j] * inv3
-                    kxc[0, j] = (k1 * c2 - k2 * c1) * w
-                    kxc[1, j] = (k2 * c0 - k0 * c2) * w
-                    kxc[2, j] = (k0 * c1 - k1 * c0) * w
-
-                # --- nodes: forces → velocities (node 0 is clamped)
-                last = n_elem
-                for i in range(3):
-                    g = -gravity if i == 1 else 0.0
-                    for k in range(1, last):
-                        f = f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1] + g * mass[k]
-                        vel[i, k] += dt * (f * inv_mass[k])
-                    f = -f_elem[i, last - 1] + damp_f[i, last - 1] + g * mass[last]
-                    vel[i, last] += dt * (f * inv_mass[last])
-                    vel[i, 0] = 0.0
-
-                # --- elements: couples → angular velocities (element 0 is clamped)
-                for i in range(3):
-                    torque_int[i, 0] = couple[i, 0] + kxc[i, 0]
-                    for k in range(1, n_elem - 1):
-                        torque_int[i, k] = couple[i, k] - couple[i, k - 1] + kxc[i, k] + kxc[i, k - 1]
-                    torque_int[i, n_elem - 1] = -couple[i, n_elem - 2] + kxc[i, n_elem - 2]
-                for k in range(1, n_elem):
-                    e = lengths[k] * inv_rest_lengths[k]
-                    inv_e = rest_lengths[k] * inv_lengths[k]
-                    w0 = om[0, k]
-                    w1 = om[1, k]
-                    w2 = om[2, k]
-                    jw0 = inertia[0, k] * w0 * inv_e
-                    jw1 = inertia[1, k] * w1 * inv_e
-                    jw2 = inertia[2, k] * w2 * inv_e
-                    unsteady = dil_rate[k] * inv_e
-                    q0 = qt[0, k]
-                    q1 = qt[1, k]
-                    q2 = qt[2, k]
-                    n0 = n_local[0, k]
-                    n1 = n_local[1, k]
-                    n2 = n_local[2, k]
-                    dl = rest_lengths[k]
-                    damp = damping * lengths[k]
-                    t0 = (torque_int[0, k] + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
-                          + jw0 * unsteady + tq[0, k] - damp * w0)
-                    t1 = (torque_int[1, k] + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
-                          + jw1 * unsteady + tq[1, k] - damp * w1)
-                    t2 = (torque_int[2, k] + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
-                          + jw2 * unsteady - damp * w2)
-                    om[0, k] = w0 + dt * (inv_inertia[0, k] * t0 * e)
-                    om[1, k] = w1 + dt * (inv_inertia[1, k] * t1 * e)
-                    om[2, k] = w2 + dt * (inv_inertia[2, k] * t2 * e)
-                for i in range(3):
-                    om[i, 0] = 0.0
-
-                drift_dt = half_dt if step == n_steps - 1 else dt
-                _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_elem)
-            position[env, arm] = pos
-            velocity[env, arm] = vel
-            directors[env, arm] = dirs
-            omega[env, arm] = om
-            # NaN and inf propagate through a sum, so one reduction checks the whole state.
-            checksum = pos.sum() + vel.sum() + dirs.sum() + om.sum()
-            if not math.isfinite(checksum):
-                finite[env] = False
+    n_pad = (rest_lengths.shape[0] // 8 + 1) * 8  # multiple of 8, > N: room for the tip node
+    kernel = _KERNELS.get(n_pad)
+    if kernel is None:
+        kernel = _KERNELS[n_pad] = _build_advance(n_pad)
+    kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
+           rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
+           base_position, base_directors, finite)
