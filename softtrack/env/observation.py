@@ -13,7 +13,10 @@ Directions are zeros where the speed is exactly 0.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 __all__ = ["build_observation", "observation_labels", "observation_size"]
 
@@ -51,15 +54,6 @@ def observation_labels(n_arms: int, n_nodes: int = 21) -> list[str]:
     labels.append("target.speed")
     labels += [f"target.dir.{axis}" for axis in "xyz"]
     return labels
-
-
-def _speed_and_direction(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """‖v‖ (...,) and v/‖v‖ (..., 3) (zeros where ‖v‖ = 0) of velocities v (..., 3)."""
-    x, y, z = v[..., 0], v[..., 1], v[..., 2]
-    speed = np.sqrt(x * x + y * y + z * z)
-    direction = np.zeros_like(v)
-    np.divide(v, speed[..., None], out=direction, where=speed[..., None] > 0)
-    return speed, direction
 
 
 def build_observation(
@@ -103,15 +97,45 @@ def build_observation(
         out = np.empty((n, size), dtype=np.float32)
     elif out.shape != (n, size) or out.dtype != np.float32:
         raise ValueError(f"out must be a float32 array of shape {(n, size)}")
-    speed, direction = _speed_and_direction(tip_velocity)
-    for a in range(n_arms):  # A ≤ 2: a loop over arms, not over environments
-        base = a * per_arm
-        out[:, base : base + 3 * m] = nodes[:, a, :, ::2].reshape(n, 3 * m)
-        out[:, base + 3 * m] = speed[:, a]
-        out[:, base + 3 * m + 1 : base + per_arm] = direction[:, a]
-    tail = out[:, n_arms * per_arm :]
-    tail[:, 0:3] = target_position
-    speed, direction = _speed_and_direction(target_velocity)
-    tail[:, 3] = speed
-    tail[:, 4:7] = direction
+    _fill_observation(
+        np.ascontiguousarray(nodes, dtype=np.float64), np.ascontiguousarray(tip_velocity),
+        np.ascontiguousarray(target_position, dtype=np.float64),
+        np.ascontiguousarray(target_velocity), out,
+    )
     return out
+
+
+@njit(cache=True)
+def _speed_direction_into(vx: float, vy: float, vz: float, out: np.ndarray, i: int, j: int) -> None:
+    """Write ‖v‖ and v/‖v‖ (zeros when ‖v‖ = 0) into out[i, j:j+4]."""
+    speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+    out[i, j] = speed
+    if speed > 0.0:
+        out[i, j + 1] = vx / speed
+        out[i, j + 2] = vy / speed
+        out[i, j + 3] = vz / speed
+    else:
+        out[i, j + 1] = 0.0
+        out[i, j + 2] = 0.0
+        out[i, j + 3] = 0.0
+
+
+@njit(cache=True)
+def _fill_observation(nodes, tip_velocity, target_position, target_velocity, out):
+    """The layout of the module docstring, written into ``out`` (n, A·37+7) in one pass."""
+    n, n_arms, _, n_nodes = nodes.shape
+    m = (n_nodes + 1) // 2
+    per_arm = 3 * m + 4
+    for i in range(n):
+        for a in range(n_arms):
+            base = a * per_arm
+            for c in range(3):
+                for k in range(m):
+                    out[i, base + c * m + k] = nodes[i, a, c, 2 * k]
+            _speed_direction_into(tip_velocity[i, a, 0], tip_velocity[i, a, 1],
+                                  tip_velocity[i, a, 2], out, i, base + 3 * m)
+        tail = n_arms * per_arm
+        for c in range(3):
+            out[i, tail + c] = target_position[i, c]
+        _speed_direction_into(target_velocity[i, 0], target_velocity[i, 1],
+                              target_velocity[i, 2], out, i, tail + 3)

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 __all__ = ["RewardConfig", "collision_penalty", "tip_distances", "tracking_reward"]
 
@@ -131,12 +132,35 @@ def tracking_reward(distances: np.ndarray, config: RewardConfig) -> np.ndarray:
             f"distances must have shape (n, {len(config.arm_weights)}) to match arm_weights, "
             f"got {d.shape}"
         )
-    reward = -((d * d) @ np.asarray(config.arm_weights, dtype=float))
-    for threshold, value in zip(config.bonus_thresholds, config.bonus_values, strict=True):
-        reward += value * np.count_nonzero(d <= threshold, axis=1)
-    if d.shape[1] >= 2 and config.cooperative_bonus != 0:
-        reward += config.cooperative_bonus * np.all(d <= config.cooperative_threshold, axis=1)
-    return np.where(np.isfinite(reward), reward, config.nonfinite_reward)
+    cooperative = config.cooperative_bonus if d.shape[1] >= 2 else 0.0
+    return _tracking_reward(
+        np.ascontiguousarray(d), np.asarray(config.arm_weights, dtype=np.float64),
+        np.asarray(config.bonus_thresholds, dtype=np.float64),
+        np.asarray(config.bonus_values, dtype=np.float64), float(config.cooperative_threshold),
+        float(cooperative), float(config.nonfinite_reward),
+    )
+
+
+@njit(cache=True)
+def _tracking_reward(d, weights, thresholds, values, coop_threshold, coop_bonus, nonfinite):
+    """The reward of the module docstring for distances d (n, A), one pass per environment."""
+    n, n_arms = d.shape
+    reward = np.empty(n)
+    for i in range(n):
+        r = 0.0
+        all_close = True
+        for a in range(n_arms):
+            di = d[i, a]
+            r -= weights[a] * di * di
+            for k in range(thresholds.shape[0]):
+                if di <= thresholds[k]:
+                    r += values[k]
+            if not di <= coop_threshold:
+                all_close = False
+        if coop_bonus != 0.0 and all_close:
+            r += coop_bonus
+        reward[i] = r if math.isfinite(r) else nonfinite
+    return reward
 
 
 def collision_penalty(nodes: np.ndarray, config: RewardConfig) -> np.ndarray:
