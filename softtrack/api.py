@@ -33,17 +33,22 @@ if TYPE_CHECKING:
 __all__ = [
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
+    "effective_status",
     "evaluate",
     "final_stage_return",
+    "format_failures",
     "format_runs_table",
+    "is_lost",
     "list_run_summaries",
     "quickstart_spec_path",
     "report",
     "resolved_spec_yaml",
     "resume",
+    "resume_runs",
     "run_summary",
     "spec_defaults_yaml",
     "spec_schema_json",
+    "sweep",
     "train",
     "validate_spec",
     "validation_summary",
@@ -156,13 +161,45 @@ def final_stage_return(
     return (float(np.mean(means)) if means else None), count, last_step
 
 
+def stale_after_s(heartbeat_interval: float) -> float:
+    """A running run's heartbeat older than this is stale: max(120 s, 10 heartbeat intervals)."""
+    return max(120.0, 10.0 * heartbeat_interval)
+
+
 def _is_stale(record: RunRecord, heartbeat_interval: float, now: datetime) -> bool:
     if record.info.status != "running":
         return False
     beat = parse_time(record.info.heartbeat or record.info.started or record.info.created)
     if beat is None:
         return False
-    return (now - beat).total_seconds() > max(120.0, 10.0 * heartbeat_interval)
+    return (now - beat).total_seconds() > stale_after_s(heartbeat_interval)
+
+
+def _heartbeat_interval(record: RunRecord) -> float:
+    return _training_value(record.raw_spec(), "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S)
+
+
+def is_lost(record: RunRecord, *, now: datetime | None = None, stale: bool | None = None) -> bool:
+    """A ``running`` run whose process is gone: nobody holds its ``run.lock``, and its
+    heartbeat is stale or (on this host) its pid is not alive."""
+    import socket
+
+    from softtrack.store.runs import lock_held, pid_alive
+
+    info = record.info
+    if info.status != "running" or lock_held(record) is True:
+        return False
+    if stale is None:
+        stale = _is_stale(record, _heartbeat_interval(record), now or datetime.now(UTC))
+    if stale:
+        return True
+    return info.host == socket.gethostname() and not pid_alive(info.pid)
+
+
+def effective_status(record: RunRecord, *, now: datetime | None = None) -> str:
+    """run.json's status, or ``lost`` for a running run whose process is gone (:func:`is_lost`);
+    run.json itself is never changed by this."""
+    return "lost" if is_lost(record, now=now) else record.info.status
 
 
 def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
@@ -176,16 +213,19 @@ def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, 
     except TableError:
         final, n_final, last_step = None, 0, 0
     now = now or datetime.now(UTC)
+    stale = _is_stale(
+        record, _training_value(raw, "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S), now
+    )
     return {
         "run_id": info.run_id,
         "name": info.name,
         "algo": info.algo,
         "controller": info.controller,
         "seed": info.seed,
-        "status": info.status,
-        "stale": _is_stale(
-            record, _training_value(raw, "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S), now
-        ),
+        "status": "lost" if is_lost(record, now=now, stale=stale) else info.status,
+        "stored_status": info.status,
+        "stale": stale,
+        "sweep": (info.notes or {}).get("sweep"),
         "global_step": max(info.global_step, last_step),
         "total_timesteps": info.total_timesteps,
         "final_return": final,
@@ -198,15 +238,31 @@ def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, 
         "git_commit": info.git_commit,
         "git_dirty": info.git_dirty,
         "error": info.error,
+        "traceback": info.traceback,
         "path": str(record.path),
     }
 
 
-def list_run_summaries(runs_dir: str | os.PathLike[str] | None = None) -> list[dict[str, Any]]:
-    """Summaries of every run under ``runs_dir`` (resolved with ``resolve_runs_dir``), oldest first."""
+def list_run_summaries(
+    runs_dir: str | os.PathLike[str] | None = None, *, failed: bool = False
+) -> list[dict[str, Any]]:
+    """Summaries of every run under ``runs_dir`` (resolved with ``resolve_runs_dir``), oldest
+    first; with ``failed=True`` only the failed runs."""
     store = RunStore(resolve_runs_dir(runs_dir))
     now = datetime.now(UTC)
-    return [run_summary(record, now=now) for record in store.list_runs()]
+    rows = [run_summary(record, now=now) for record in store.list_runs()]
+    return [r for r in rows if r["status"] == "failed"] if failed else rows
+
+
+def format_failures(summaries: Sequence[dict[str, Any]]) -> str:
+    """Each failed run's id, experiment, seed, error and stored traceback."""
+    blocks = []
+    for s in summaries:
+        head = f"== {s['run_id']}  {s['name']}  seed {s['seed']}: {s.get('error') or '(no error)'}"
+        body = (s.get("traceback") or "").rstrip()
+        blocks.append(head + ("\n" + "\n".join("   " + line for line in body.splitlines())
+                              if body else ""))
+    return "\n".join(blocks)
 
 
 RUN_TABLE_COLUMNS = (
@@ -232,7 +288,7 @@ def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
     """A plain, aligned text table of run summaries (one line per run, with a header)."""
     rows = [list(RUN_TABLE_COLUMNS)]
     for s in summaries:
-        status = s["status"] + (" (stale)" if s.get("stale") else "")
+        status = s["status"] + (" (stale)" if s.get("stale") and s["status"] != "lost" else "")
         final = s.get("final_return")
         rows.append(
             [
@@ -399,3 +455,81 @@ def quickstart_spec_path() -> Path:
         raise SpecError(str(path), "the quickstart spec is missing",
                         "run from a softtrack checkout (the file ships in experiments/)")
     return path
+
+
+# ---- sweeps -------------------------------------------------------------------------------
+def sweep(
+    paths: Sequence[str],
+    grid: Sequence[str] = (),
+    overrides: Sequence[str] = (),
+    *,
+    seeds: str | None = None,
+    runs_dir: str | os.PathLike[str] | None = None,
+    options: Any = None,
+    on_created: Callable[[str, list[RunRecord]], None] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> Any:
+    """Expand the grid over the spec files, create every run, and run them on an executor.
+
+    Every grid point is validated before any run is written. Returns an
+    :class:`~softtrack.executors.dispatch.Outcome` (statuses, what is missing, exit code).
+
+    Args:
+        grid: ``key=v1,v2`` axes (any spec field).
+        seeds: ``"0,1,2"`` or ``"0-4"``: replaces each spec's seeds.
+        options: :class:`~softtrack.executors.dispatch.ExecOptions` (default: local pool).
+        on_created: called with the sweep id and the new runs before they start.
+        on_progress: called with a progress line whenever it changes.
+    """
+    import sys
+
+    from softtrack.executors import dispatch
+    from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
+
+    options = options or dispatch.ExecOptions()
+    if options.executor not in dispatch.EXECUTORS:
+        raise SpecError("--executor", f"unknown executor {options.executor!r}",
+                        "use local or slurm")
+    points = expand_grid(paths, parse_grid(grid), seeds=parse_seeds(seeds), overrides=overrides)
+    store = RunStore(resolve_runs_dir(runs_dir))
+    sweep_id = dispatch.new_sweep_id()
+    records = []
+    for point in points:
+        for s in point.spec.seeds:
+            notes = {"sweep": sweep_id, "grid": point.grid}
+            records.append(store.create_run(point.spec, s, list(sys.argv), notes=notes))
+    if on_created is not None:
+        on_created(sweep_id, records)
+    ids = [r.run_id for r in records]
+    return dispatch.execute(store, ids, options, sweep_id, cluster=points[0].spec.cluster,
+                            on_progress=on_progress)
+
+
+def resume_runs(
+    selection: Sequence[str] = (),
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    options: Any = None,
+    on_selected: Callable[[str, list[RunRecord]], None] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> Any:
+    """Resubmit interrupted, queued, failed-by-signal and lost runs (experiment names, sweep
+    ids or run ids; none: all of them) from their checkpoints through an executor.
+
+    Returns an :class:`~softtrack.executors.dispatch.Outcome`, or ``None`` if nothing matched
+    is resumable.
+    """
+    from softtrack.executors import dispatch
+
+    options = options or dispatch.ExecOptions()
+    store = RunStore(resolve_runs_dir(runs_dir))
+    records = dispatch.select_runs(store, selection)
+    if not records:
+        return None
+    resume_id = dispatch.new_sweep_id()
+    if on_selected is not None:
+        on_selected(resume_id, records)
+    ids = [r.run_id for r in records]
+    return dispatch.execute(store, ids, options, resume_id,
+                            cluster=dispatch.cluster_of(store, ids), on_progress=on_progress,
+                            label=f"resume {resume_id}")

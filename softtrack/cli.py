@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import enum
 import json
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Annotated, NoReturn
@@ -199,21 +200,192 @@ def train(
         raise typer.Exit(code)
 
 
+class ExecutorChoice(str, enum.Enum):
+    local = "local"
+    slurm = "slurm"
+
+
+ExecutorOption = Annotated[
+    ExecutorChoice,
+    typer.Option("--executor", "-e", case_sensitive=False,
+                 help="local: a process pool on this machine; slurm: a SLURM job array "
+                 "(needs `pip install 'softtrack[cluster]'`)."),
+]
+WorkersOption = Annotated[
+    int | None,
+    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
+                 help="Runs at once (local: worker processes, default the number of cores; "
+                 "slurm: array parallelism, default no limit)."),
+]
+DetachOption = Annotated[
+    bool, typer.Option("--detach", help="Return once the runs are submitted (follow them "
+                       "with `softtrack runs`).")
+]
+PartitionOption = Annotated[
+    str | None, typer.Option("--partition", metavar="NAME", show_default=False,
+                             help="slurm: partition [default: spec cluster.partition].")
+]
+TimeOption = Annotated[
+    int | None, typer.Option("--time", metavar="MIN", min=1, show_default=False,
+                             help="slurm: time limit per job, min; longer runs are requeued "
+                             "and resume [default: spec cluster.time_min, 240].")
+]
+CpusOption = Annotated[
+    int | None, typer.Option("--cpus", metavar="N", min=1, show_default=False,
+                             help="slurm: cores per job [default: spec cluster.cpus_per_task, 1].")
+]
+MemOption = Annotated[
+    float | None, typer.Option("--mem", metavar="GB", min=0.001, show_default=False,
+                               help="slurm: memory per job, GB [default: spec cluster.mem_gb, 4].")
+]
+
+
+def _exec_options(executor: ExecutorChoice, workers: int | None, detach: bool,
+                  partition: str | None, time_min: int | None, cpus: int | None,
+                  mem: float | None) -> object:
+    from softtrack.executors.dispatch import ExecOptions
+
+    return ExecOptions(executor=executor.value, workers=workers, detach=detach,
+                       partition=partition, time_min=time_min, cpus_per_task=cpus, mem_gb=mem)
+
+
+def _progress(line: str) -> None:
+    typer.echo(line, err=True)
+
+
+def _finish(outcome: object, what: str) -> None:
+    """Print what is complete and what is missing; exit with the outcome's code."""
+    o = outcome  # an executors.dispatch.Outcome
+    if o.detached:  # type: ignore[attr-defined]
+        typer.echo(f"{what} {o.sweep_id}: {len(o.run_ids)} runs submitted; follow them with "  # type: ignore[attr-defined]
+                   f"`softtrack runs` (log: {o.log})", err=True)  # type: ignore[attr-defined]
+        return
+    missing = o.missing  # type: ignore[attr-defined]
+    done = len(o.run_ids) - len(missing)  # type: ignore[attr-defined]
+    typer.echo(f"{what} {o.sweep_id}: {done}/{len(o.run_ids)} runs completed", err=True)  # type: ignore[attr-defined]
+    for run_id, status in missing:
+        typer.echo(f"  missing: {run_id} ({status})", err=True)
+    if missing:
+        typer.echo(f"  continue with `softtrack resume {o.sweep_id}`; failures: "  # type: ignore[attr-defined]
+                   "`softtrack runs --failed`", err=True)
+    if o.exit_code:  # type: ignore[attr-defined]
+        raise typer.Exit(o.exit_code)  # type: ignore[attr-defined]
+
+
+@app.command()
+def sweep(
+    specs: Annotated[
+        list[str],
+        typer.Argument(metavar="SPEC...", help="Experiment specs (YAML): one run per seed and "
+                       "grid point.", show_default=False),
+    ],
+    grid: Annotated[
+        list[str] | None,
+        typer.Option("--grid", "-g", metavar="KEY=V1,V2", show_default=False,
+                     help="A grid axis over any spec field, e.g. --grid algo.name=td3,ddpg,ppo "
+                     "(values are YAML; commas inside [...] are kept). Repeatable: the grid is "
+                     "the product of the axes."),
+    ] = None,
+    seeds: Annotated[
+        str | None,
+        typer.Option("--seeds", metavar="LIST", show_default=False,
+                     help="Seeds of every grid point, e.g. 0,1,2 or 0-4 [default: the spec's]."),
+    ] = None,
+    overrides: SetOption = None,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: WorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Run a grid of experiments: create every run, then train them in parallel.
+
+    Prints each new run id, shows progress on stderr (runs completed/running/failed and the
+    total steps/s), and returns when all have ended, with what is missing. Every job runs in
+    its own process with one torch thread; a failing job never stops the others (its
+    traceback: `softtrack runs --failed`). Ctrl-C/SIGTERM checkpoints the running jobs;
+    `softtrack resume SWEEP_ID` finishes the sweep. Exit 0 when every run completed.
+    """
+
+    def created(sweep_id: str, records: list) -> None:  # type: ignore[type-arg]
+        typer.echo(f"sweep {sweep_id}: {len(records)} runs", err=True)
+        for record in records:
+            typer.echo(record.run_id)
+
+    with _user_errors():
+        outcome = api.sweep(
+            specs, grid or [], overrides or [], seeds=seeds, runs_dir=runs_dir,
+            options=_exec_options(executor, workers, detach, partition, time_min, cpus, mem),
+            on_created=created, on_progress=_progress,
+        )
+    _finish(outcome, "sweep")
+
+
+@app.command("resume")
+def resume_command(
+    selection: Annotated[
+        list[str] | None,
+        typer.Argument(metavar="[EXPERIMENT|SWEEP_ID|RUN_ID]...", show_default=False,
+                       help="Experiment names, sweep ids or run ids [default: every resumable "
+                       "run]."),
+    ] = None,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: WorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Resume interrupted, never-started, failed-by-signal and lost runs from their checkpoints.
+
+    Experiment names and sweep ids select their resumable runs; a run id selects that run
+    (unless completed or still training). The runs go through the same executors as
+    `softtrack sweep`.
+    """
+
+    def selected(resume_id: str, records: list) -> None:  # type: ignore[type-arg]
+        typer.echo(f"resume {resume_id}: {len(records)} runs", err=True)
+        for record in records:
+            typer.echo(record.run_id)
+
+    with _user_errors():
+        outcome = api.resume_runs(
+            selection or [], runs_dir=runs_dir,
+            options=_exec_options(executor, workers, detach, partition, time_min, cpus, mem),
+            on_selected=selected, on_progress=_progress,
+        )
+    if outcome is None:
+        typer.echo("nothing to resume: no interrupted, queued, failed-by-signal or lost run "
+                   "matches", err=True)
+        return
+    _finish(outcome, "resume")
+
+
 @app.command()
 def runs(
     runs_dir: RunsDirOption = None,
     output_format: Annotated[
         OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
     ] = OutputFormat.table,
+    failed: Annotated[
+        bool, typer.Option("--failed", help="Only failed runs, each with its stored traceback.")
+    ] = False,
 ) -> None:
     """List the runs with their status, progress and final-stage return.
 
     Columns: id, name, algorithm, controller, seed, status, env steps done / budget, final-stage
     return (mean training-episode return over the last 10 % of the budget; blank until such
-    episodes exist), start and end times (UTC).
+    episodes exist), start and end times (UTC). A running run whose process is gone (its
+    heartbeat is stale, or its pid is dead on this host) shows as `lost`; `softtrack resume`
+    continues it.
     """
     with _user_errors():
-        summaries = api.list_run_summaries(runs_dir)
+        summaries = api.list_run_summaries(runs_dir, failed=failed)
     if output_format is OutputFormat.json:
         typer.echo(json.dumps(summaries, indent=2, ensure_ascii=False))
         return
@@ -222,7 +394,10 @@ def runs(
 
         root = resolve_runs_dir(runs_dir)
         note = "" if root.is_dir() else " (the directory does not exist)"
-        typer.echo(f"no runs in {root}{note}", err=True)
+        typer.echo(f"no {'failed ' if failed else ''}runs in {root}{note}", err=True)
+        return
+    if failed:
+        typer.echo(api.format_failures(summaries))
         return
     typer.echo(api.format_runs_table(summaries))
 
@@ -262,7 +437,7 @@ def evaluate(
 def _print_episode(record: object, episode: object, metrics: object) -> None:
     rows = metrics.sort_values("arm")  # type: ignore[attr-defined]
     rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
-    steady = " / ".join(f"{v:.4f}" for v in rows["rmse_3d_steady"])
+    steady = " / ".join("n/a" if math.isnan(v) else f"{v:.4f}" for v in rows["rmse_3d_steady"])
     note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
     typer.echo(
         f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]

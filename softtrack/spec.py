@@ -48,6 +48,7 @@ from softtrack.sim.params import STANDARD_GRAVITY, InvalidParameterError, SimPar
 __all__ = [
     "OFF_POLICY_ALGOS",
     "AlgoSpec",
+    "ClusterSpec",
     "EnvSpec",
     "ExperimentSpec",
     "PhysicsSpec",
@@ -633,6 +634,28 @@ class TrainingSpec(_Spec):
 
 
 # ------------------------------------------------------------------------------------------
+# cluster
+# ------------------------------------------------------------------------------------------
+class ClusterSpec(_Spec):
+    """SLURM resources of each run's job (``softtrack sweep --executor slurm``); options of the
+    command override them. Not part of the experiment: excluded from :func:`spec_hash`."""
+
+    partition: str | None = _f(None, "SLURM partition (None: the cluster's default)", "-")
+    time_min: Int = _f(
+        240,
+        "time limit of one job; a run that needs longer is requeued and resumes from its "
+        "last checkpoint",
+        "min",
+        ge=1,
+    )
+    cpus_per_task: Int = _f(1, "CPU cores per job", "cores", ge=1)
+    mem_gb: Float = _f(4.0, "memory per job", "GB", gt=0)
+    max_requeues: Int = _f(
+        10, "how often a job may be requeued after preemption or time-out", "-", ge=0
+    )
+
+
+# ------------------------------------------------------------------------------------------
 # experiment
 # ------------------------------------------------------------------------------------------
 Seed = Annotated[int, BeforeValidator(_reject_bool), Field(ge=0, lt=2**32)]
@@ -655,6 +678,9 @@ class ExperimentSpec(_Spec):
         AlgoSpec, "the RL algorithm and its hyperparameters (rl-zoo key names)"
     )
     training: TrainingSpec = _section(TrainingSpec, "budget, parallelism, checkpoints, logging")
+    cluster: ClusterSpec = _section(
+        ClusterSpec, "SLURM resources per run for `softtrack sweep --executor slurm`"
+    )
     seeds: list[Seed] = Field(
         [0, 1, 2],
         description="random seeds, one training run per seed; an int or a list [-]",
@@ -1146,9 +1172,9 @@ def spec_hash(spec: ExperimentSpec) -> str:
     """SHA-256 (hex) of the canonical JSON of the spec *without* ``seeds``.
 
     The runs of one experiment therefore share the hash across seeds; any other change
-    (including ``name``) changes it.
+    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what).
     """
-    data = spec.model_dump(mode="json", exclude={"seeds"})
+    data = spec.model_dump(mode="json", exclude={"seeds", "cluster"})
     canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 

@@ -133,8 +133,12 @@ def test_stale_running_run(runs_dir: Path) -> None:
     store.update_run(running.run_id, heartbeat=datetime.now(UTC) - timedelta(hours=1))
     rows = list_run_summaries(runs_dir)
     assert [r["stale"] for r in rows] == [False, True, False]
+    # a stale heartbeat and nobody holding the run's lock: shown as lost, run.json unchanged
+    assert [r["status"] for r in rows] == ["completed", "lost", "queued"]
+    assert rows[1]["stored_status"] == "running"
+    assert store.get_run(running.run_id).info.status == "running"
     result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir)])
-    assert "running (stale)" in result.stdout
+    assert " lost " in result.stdout
 
 
 def test_no_runs(tmp_path: Path) -> None:

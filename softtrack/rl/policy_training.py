@@ -16,8 +16,10 @@ from __future__ import annotations
 import contextlib
 import json
 import shutil
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -158,6 +160,14 @@ def _truncate_episodes(
     return int((mine & keep).sum())
 
 
+def _warn_fallback(failed: tuple[Path, str], fallback: Path | None) -> None:
+    """Say on stderr (the run's ``train.log`` under an executor) that a checkpoint is corrupt."""
+    path, reason = failed
+    then = f"falling back to {fallback.name}" if fallback else "no older checkpoint: starting over"
+    print(f"warning: {path}: corrupt checkpoint ({reason[:300]}); {then}", file=sys.stderr,
+          flush=True)
+
+
 class PolicyTrainer:
     """Train one :class:`PolicyJob` of a run; the attributes are for the caller's cleanup.
 
@@ -198,7 +208,10 @@ class PolicyTrainer:
         from stable_baselines3.common.vec_env import VecNormalize
 
         spec, job = self.spec, self.job
+        failed: list[tuple[Path, str]] = []
         for checkpoint in reversed(job.policy.list_checkpoints()):
+            if failed:
+                _warn_fallback(failed[-1], checkpoint)
             env = None
             try:
                 state = json.loads((checkpoint / "state.json").read_text(encoding="utf-8"))
@@ -214,10 +227,13 @@ class PolicyTrainer:
                     raise ValueError("model and state.json disagree on the step count")
                 self.model, self.env = model, env
                 return dict(state)
-            except Exception:  # noqa: BLE001 (a corrupt checkpoint: fall back to the previous one)
+            except Exception as exc:  # noqa: BLE001 (a corrupt checkpoint: fall back)
                 if env is not None:
                     env.close()
+                failed.append((checkpoint, " ".join(f"{type(exc).__name__}: {exc}".split())))
                 continue
+        if failed:
+            _warn_fallback(failed[-1], None)
         return None
 
     def run(

@@ -6,7 +6,8 @@ with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
 * ``completed``: every policy's budget is done and its final model saved;
 * ``interrupted``: SIGINT or SIGTERM arrived; the current step finished, a checkpoint was
   saved and the pending episodes written (exit code 128 + signal: 130 for SIGINT);
-* ``failed``: an exception; its traceback (one line) is in run.json's ``error``.
+* ``failed``: an exception; run.json's ``error`` has its one-line summary and ``traceback``
+  the full traceback.
 
 A **centralized** run has one policy (``model.zip`` and ``checkpoints/`` in the run directory).
 An **independent** run (SPEC §3) trains one single-arm policy per arm, one after the other
@@ -19,7 +20,8 @@ run.json's ``global_step`` is the sum over the arms and ``arm_steps`` the steps 
 Resuming continues each unfinished policy from its newest checkpoint that loads (falling back
 to older ones if one is corrupt, starting the policy over if none loads) and skips finished
 arms (those with a ``model.zip``). A run killed with SIGKILL (status still ``running``)
-resumes the same way.
+resumes the same way. While it trains, the process holds the run's ``run.lock``
+(:func:`~softtrack.store.runs.run_lock`), so two processes never train one run at once.
 """
 
 from __future__ import annotations
@@ -42,7 +44,14 @@ from softtrack.rl.policy_training import (
 )
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import remove_temp_files
-from softtrack.store.runs import RunRecord, RunStore, RunStoreError
+from softtrack.store.runs import (
+    RunRecord,
+    RunStore,
+    RunStoreError,
+    lock_held,
+    pid_alive,
+    run_lock,
+)
 
 __all__ = ["TrainOutcome", "check_resumable", "policy_jobs", "train_run"]
 
@@ -110,13 +119,12 @@ def check_resumable(record: RunRecord) -> None:
     if info.status == "running" and info.pid and info.pid != os.getpid():
         import socket
 
-        if info.host == socket.gethostname():
-            try:
-                os.kill(info.pid, 0)
-            except ProcessLookupError:
+        held = lock_held(record)
+        if held is False:  # the lock is free: nobody trains the run (pid may be reused)
+            return
+        if held or info.host == socket.gethostname():
+            if not held and not pid_alive(info.pid):
                 return
-            except PermissionError:
-                pass
             raise RunStoreError(
                 f"run {record.run_id} is still running (pid {info.pid}); stop it first "
                 "(Ctrl-C or kill -TERM) and resume it then"
@@ -176,7 +184,22 @@ def train_run(
     check_supported(spec, str(record.spec_path))
     if resume:
         check_resumable(record)
-        remove_temp_files(record.path)
+    with run_lock(record):  # no other process can train this run while we hold it
+        if resume:
+            record = store.get_run(record.run_id)  # as it is now that we own it
+            if record.info.status == "completed":
+                check_resumable(record)
+            remove_temp_files(record.path)
+        return _train_locked(store, record, spec, resume, show_progress)
+
+
+def _train_locked(
+    store: RunStore,
+    record: RunRecord,
+    spec: ExperimentSpec,
+    resume: bool,
+    show_progress: bool | None,
+) -> TrainOutcome:
     jobs = policy_jobs(spec, record)
     progress = _Progress(len(jobs), spec.controller == "independent")
     flag = _StopFlag()
@@ -224,8 +247,10 @@ def train_run(
         raise
     except Exception as exc:  # noqa: BLE001 (recorded in run.json as a failed run)
         text = "".join(traceback.format_exception(exc))
-        fields = _finish_abruptly(store, record, trainer, progress, k, "failed", text)
-        line = f"{type(exc).__name__}: {exc}"
+        line = " ".join(f"{type(exc).__name__}: {exc}".split())
+        fields = _finish_abruptly(
+            store, record, trainer, progress, k, "failed", line, traceback=text
+        )
         step = int(fields.get("global_step", record.info.global_step))
         return TrainOutcome(record.run_id, "failed", step, None, 1, " ".join(line.split()))
     finally:
@@ -241,6 +266,7 @@ def _finish_abruptly(
     k: int,
     status: Any,
     error: str | None,
+    **extra: Any,
 ) -> dict[str, Any]:
     """Keep what can be kept and record ``status``; returns the progress fields written."""
     if trainer is not None:
@@ -248,5 +274,5 @@ def _finish_abruptly(
         if trainer.step is not None:
             progress.set(k, trainer.step)
     fields = progress.fields() if progress.known else {}
-    store.mark_finished(record.run_id, status, error=error, **fields)
+    store.mark_finished(record.run_id, status, error=error, **extra, **fields)
     return fields

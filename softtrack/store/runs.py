@@ -18,6 +18,8 @@ import os
 import shutil
 import socket
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -35,6 +37,7 @@ __all__ = [
     "RUNS_DIR_ENV",
     "RUN_STATUSES",
     "RunInfo",
+    "RunLockedError",
     "RunNotFoundError",
     "RunRecord",
     "RunStatus",
@@ -42,11 +45,15 @@ __all__ = [
     "RunStoreError",
     "git_info",
     "library_versions",
+    "lock_held",
+    "pid_alive",
     "resolve_runs_dir",
+    "run_lock",
     "utc_now",
 ]
 
 RUNS_DIR_ENV = "SOFTTRACK_RUNS_DIR"
+LOCK_NAME = "run.lock"
 RUN_STATUSES = ("queued", "running", "completed", "failed", "interrupted")
 RunStatus = Literal["queued", "running", "completed", "failed", "interrupted"]
 
@@ -121,6 +128,9 @@ class RunInfo(BaseModel):
     host: str | None = Field(None, description="host name of the (last) running process")
     pid: int | None = Field(None, description="process id of the (last) running process")
     error: str | None = Field(None, description="one-line error of a failed run")
+    traceback: str | None = Field(
+        None, description="full traceback of a failed run (shown by `softtrack runs --failed`)"
+    )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
 
 
@@ -163,6 +173,11 @@ class RunRecord:
     def list_checkpoints(self) -> list[Path]:
         """Complete checkpoint directories of the centralized policy, oldest first."""
         return self.policy_dir().list_checkpoints()
+
+    @property
+    def lock_path(self) -> Path:
+        """``run.lock``: held (``flock``) by the process training the run, see :func:`run_lock`."""
+        return self.path / LOCK_NAME
 
     @property
     def tables_dir(self) -> Path:
@@ -222,6 +237,7 @@ class RunStore:
         command: list[str] | None = None,
         *,
         status: RunStatus = "queued",
+        notes: dict[str, Any] | None = None,
     ) -> RunRecord:
         """Create a run directory with ``spec.yaml`` (``spec`` with ``seeds: [seed]``) and
         ``run.json``. The directory name is a fresh ULID obtained with an atomic ``mkdir``.
@@ -231,6 +247,7 @@ class RunStore:
             seed: this run's seed (normally one of ``spec.seeds``).
             command: the command line to record (default ``sys.argv``).
             status: initial status.
+            notes: free-form additions to run.json (e.g. the sweep that created the run).
         """
         run_spec = spec.with_seed(seed)
         budget = int(spec.training.total_timesteps)
@@ -259,6 +276,7 @@ class RunStore:
                 versions=library_versions(),
                 command=list(sys.argv if command is None else command),
                 host=socket.gethostname(),
+                notes=dict(notes or {}),
             )
             self._write(path, info)  # last: a directory with run.json is a complete run
         except BaseException:
@@ -360,6 +378,7 @@ class RunStore:
             heartbeat=now,
             ended=None,
             error=None,
+            traceback=None,
             host=socket.gethostname(),
             pid=os.getpid(),
         )
@@ -396,3 +415,66 @@ class RunStore:
         return self.update_run(
             run_id, status=status, ended=now, heartbeat=now, error=error, **fields
         )
+
+
+# ---- liveness -------------------------------------------------------------------------------
+class RunLockedError(RunStoreError):
+    """Another process holds the run's lock: it is training the run right now."""
+
+
+@contextmanager
+def run_lock(record: RunRecord) -> Iterator[None]:
+    """Hold ``run.lock`` (an exclusive, non-blocking ``flock``) while the body runs.
+
+    The kernel releases the lock when the process dies, even by SIGKILL, so a held lock means
+    a live process is training the run; two sweeps or resumes can never train one run at once.
+
+    Raises:
+        RunLockedError: another process holds the lock.
+    """
+    import fcntl
+
+    fd = os.open(record.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise RunLockedError(
+                f"run {record.run_id} is being trained by another process (pid "
+                f"{record.info.pid} on {record.info.host}); wait for it or stop it first"
+            ) from None
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def lock_held(record: RunRecord) -> bool | None:
+    """Whether some process holds the run's lock (``None``: the run has no lock file)."""
+    import fcntl
+
+    try:
+        fd = os.open(record.lock_path, os.O_RDWR)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:
+        return None
+    finally:
+        os.close(fd)  # closing also drops the lock we may just have taken
+    return False
+
+
+def pid_alive(pid: int | None) -> bool:
+    """Whether process ``pid`` exists on this host."""
+    if not pid:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

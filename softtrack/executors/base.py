@@ -1,0 +1,123 @@
+"""A job (one run of the store), the worker command that trains it, and its bookkeeping."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from softtrack.store.runs import RunLockedError, RunStore, RunStoreError, lock_held
+
+__all__ = [
+    "EXIT_LOCKED",
+    "Job",
+    "failed_by_signal",
+    "record_worker_exit",
+    "run_job",
+    "worker_env",
+]
+
+#: exit code of a worker whose run is already being trained by another process
+EXIT_LOCKED = 3
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run to train: ``runs_dir`` and ``run_id``."""
+
+    runs_dir: str
+    run_id: str
+
+    @property
+    def command(self) -> list[str]:
+        """The worker command line (``sys.executable -m softtrack.executors.worker ...``)."""
+        return [
+            sys.executable, "-m", "softtrack.executors.worker",
+            "--runs-dir", str(self.runs_dir), self.run_id,
+        ]
+
+    def log_path(self) -> Path:
+        """``<run>/train.log``: the worker's stdout and stderr (appended per session)."""
+        return Path(self.runs_dir) / self.run_id / "train.log"
+
+
+def worker_env(threads: int = 1) -> dict[str, str]:
+    """The environment of a worker process: one thread for torch, BLAS and numba, no bars."""
+    env = dict(os.environ)
+    for key in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        env[key] = str(threads)
+    env["CI"] = env.get("CI") or "1"
+    return env
+
+
+def run_job(runs_dir: str | os.PathLike[str], run_id: str, *, threads: int = 1) -> int:
+    """Train run ``run_id`` in this process (resuming it if it started before); its exit code.
+
+    0 completed (or already completed), 128 + signal interrupted, 1 failed (the traceback is
+    in run.json), :data:`EXIT_LOCKED` another process is training the run, 2 no such run.
+    An error before training starts (an invalid stored spec, say) is recorded as failed too.
+    """
+    import torch
+
+    torch.set_num_threads(threads)
+    from softtrack.rl.train import train_run
+
+    store = RunStore(runs_dir)
+    try:
+        record = store.get_run(run_id)
+    except RunStoreError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if record.info.status == "completed":
+        print(f"{record.run_id}: already completed", file=sys.stderr)
+        return 0
+    started = record.info.status != "queued" or bool(record.info.global_step)
+    try:
+        outcome = train_run(store, record, resume=started, show_progress=False)
+    except RunLockedError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_LOCKED
+    except Exception as exc:  # noqa: BLE001 (recorded as a failed run; siblings go on)
+        text = "".join(traceback.format_exception(exc))
+        print(text, file=sys.stderr)
+        line = " ".join(f"{type(exc).__name__}: {exc}".split())
+        if lock_held(record) is not True:
+            store.mark_finished(record.run_id, "failed", error=line, traceback=text)
+        return 1
+    print(f"{outcome.run_id}: {outcome.status} at step {outcome.global_step}", file=sys.stderr)
+    return outcome.exit_code
+
+
+def record_worker_exit(runs_dir: str | os.PathLike[str], run_id: str, returncode: int) -> str:
+    """After a worker process ended: if it died without recording an outcome (killed by a
+    signal, e.g. SIGKILL or the OOM killer), mark the run failed-by-signal; its status now."""
+    store = RunStore(runs_dir)
+    try:
+        record = store.get_run(run_id)
+    except RunStoreError:
+        return "missing"
+    info = record.info
+    if info.status != "running" or lock_held(record) is True or returncode == EXIT_LOCKED:
+        return info.status
+    if returncode < 0:
+        signum = -returncode
+        try:
+            name = signal.Signals(signum).name
+        except ValueError:
+            name = f"signal {signum}"
+        error = f"worker process killed by {name} ({signum}); resume it with `softtrack resume`"
+    else:
+        signum = None
+        error = f"worker process exited with code {returncode} without recording an outcome"
+    notes: dict[str, Any] = {**info.notes, "killed_by_signal": signum}
+    store.mark_finished(run_id, "failed", error=error, notes=notes)
+    return "failed"
+
+
+def failed_by_signal(info: Any) -> bool:
+    """Whether a failed run failed because its worker was killed (so it can be resumed)."""
+    return info.status == "failed" and (info.notes or {}).get("killed_by_signal") is not None

@@ -1,0 +1,141 @@
+"""A pool of worker processes on this machine (``softtrack sweep --executor local``).
+
+Each job runs in its own process (:class:`~softtrack.executors.base.Job`'s worker command, in
+a new session, output appended to the run's ``train.log``), at most ``workers`` at a time, so a
+crash or ``kill -9`` of one never touches the others. SIGINT/SIGTERM to the pool stop it:
+no new job starts, every running worker gets SIGTERM (it saves a checkpoint and marks its run
+``interrupted``), and :meth:`LocalPool.run` returns once they have exited.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+from softtrack.executors.base import Job, record_worker_exit, worker_env
+
+__all__ = ["LocalPool", "default_workers"]
+
+POLL_S = 0.2
+
+
+def default_workers() -> int:
+    """The number of cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover (not Linux)
+        return max(1, os.cpu_count() or 1)
+
+
+@contextmanager
+def _stop_on_signals(stop: list[int]) -> Iterator[None]:
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, _frame: Any) -> None:
+        stop.append(signum)
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+class LocalPool:
+    """Run jobs as worker processes, ``workers`` at a time.
+
+    Args:
+        workers: most workers at once (default: the number of cores).
+        threads: torch/BLAS/numba threads per worker.
+    """
+
+    def __init__(self, workers: int | None = None, threads: int = 1) -> None:
+        self.workers = max(1, int(workers or default_workers()))
+        self.threads = int(threads)
+        self.stop_signal: int | None = None
+
+    def _start(self, job: Job) -> subprocess.Popen[bytes]:
+        log = open(job.log_path(), "ab")  # noqa: SIM115 (the child keeps it)
+        try:
+            return subprocess.Popen(
+                job.command,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=worker_env(self.threads),
+                start_new_session=True,  # a Ctrl-C of the terminal reaches the pool only
+            )
+        finally:
+            log.close()
+
+    def run(
+        self, jobs: Sequence[Job], on_tick: Callable[[], None] | None = None,
+        tick_s: float = 2.0,
+    ) -> dict[str, int]:
+        """Run ``jobs``; returns each started job's worker exit code by run id.
+
+        ``on_tick`` is called about every ``tick_s`` seconds (progress display). After a stop
+        signal (``stop_signal`` is set) the jobs not yet started are left as they are.
+        """
+        pending = list(jobs)
+        running: dict[str, tuple[Job, subprocess.Popen[bytes]]] = {}
+        codes: dict[str, int] = {}
+        stop: list[int] = []
+        last_tick = 0.0
+        with _stop_on_signals(stop):
+            while pending or running:
+                if stop and self.stop_signal is None:
+                    self.stop_signal = stop[0]
+                    pending.clear()
+                    for _job, proc in running.values():
+                        if proc.poll() is None:
+                            proc.send_signal(signal.SIGTERM)
+                while pending and len(running) < self.workers:
+                    job = pending.pop(0)
+                    running[job.run_id] = (job, self._start(job))
+                for run_id, (job, proc) in list(running.items()):
+                    code = proc.poll()
+                    if code is not None:
+                        del running[run_id]
+                        codes[run_id] = code
+                        record_worker_exit(job.runs_dir, job.run_id, code)
+                now = time.monotonic()
+                if on_tick is not None and now - last_tick >= tick_s:
+                    last_tick = now
+                    on_tick()
+                time.sleep(POLL_S)
+        if on_tick is not None:
+            on_tick()
+        return codes
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m softtrack.executors.local --runs-dir D --workers N RUN_ID...``: a detached
+    pool (``softtrack sweep --detach``)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m softtrack.executors.local")
+    parser.add_argument("--runs-dir", required=True)
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("run_ids", nargs="+")
+    args = parser.parse_args(argv)
+    pool = LocalPool(args.workers)
+    codes = pool.run([Job(args.runs_dir, r) for r in args.run_ids])
+    if pool.stop_signal is not None:
+        return 128 + pool.stop_signal
+    return 0 if all(c == 0 for c in codes.values()) else 1
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())
