@@ -1,0 +1,157 @@
+"""The public spec functions: parse, load, dump, hash, schema."""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import re
+import textwrap
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import (
+    BaseModel,
+    ValidationError,
+)
+
+from softtrack.spec.models import ExperimentSpec, SpecError
+from softtrack.spec.parsing import _apply_override, _convert, _parse_override, _parse_yaml
+
+
+# ------------------------------------------------------------------------------------------
+# Public functions
+# ------------------------------------------------------------------------------------------
+def parse_spec(
+    data: Any,
+    overrides: Sequence[str] = (),
+    *,
+    source: str = "<spec>",
+    default_name: str | None = None,
+    _lines: dict[tuple[Any, ...], int] | None = None,
+) -> ExperimentSpec:
+    """Validate already-parsed spec data (a mapping) with ``overrides`` applied.
+
+    Raises:
+        SpecError: one line naming ``source``, the field path and the fix.
+    """
+    if data is None or not isinstance(data, dict):
+        got = "an empty document" if data is None else f"a {type(data).__name__}"
+        raise SpecError(
+            source,
+            f"the top level must be a mapping of sections, got {got}",
+            "start from `softtrack spec --defaults` (keys: "
+            + ", ".join(ExperimentSpec.model_fields)
+            + ")",
+            line=1 if data is not None else None,
+        )
+    data = copy.deepcopy(data)
+    applied: dict[tuple[str, ...], str] = {}
+    for text in overrides:
+        parts, value = _parse_override(text)
+        _apply_override(data, parts, value, f"--set {text}")
+        applied[parts] = text
+    if "name" not in data and default_name is not None:
+        stem = re.sub(r"[^A-Za-z0-9_.-]", "_", default_name)[:64].lstrip("._-")
+        data["name"] = stem or "experiment"
+    try:
+        return ExperimentSpec.model_validate(data)
+    except ValidationError as exc:
+        raise _convert(exc, source, _lines or {}, applied) from None
+
+
+def load_spec(path: str | Path, overrides: Sequence[str] = ()) -> ExperimentSpec:
+    """Read, override and validate a spec file.
+
+    Args:
+        path: a YAML file.
+        overrides: ``"dotted.path=value"`` strings; values are parsed as YAML, e.g.
+            ``training.total_timesteps=2000``, ``env.physics.dt=1e-4``, ``seeds=[0,1]``.
+            A path that is not a field of the spec is an error.
+
+    Returns:
+        The validated spec. A missing ``name`` defaults to the file's stem.
+
+    Raises:
+        SpecError: missing/unreadable file, malformed YAML, a top level that is not a mapping,
+            an unknown field, a wrong type, an out-of-range value or a malformed override.
+    """
+    path = Path(path)
+    label = str(path)
+    if not path.exists():
+        raise SpecError(
+            label, "no such file", "check the path; the shipped specs are in experiments/"
+        )
+    if path.is_dir():
+        raise SpecError(label, "is a directory, not a spec file", "give a .yaml file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise SpecError(label, f"not UTF-8 text ({exc.reason})", "save the file as UTF-8") from None
+    except OSError as exc:
+        raise SpecError(
+            label, f"cannot read the file ({exc.strerror})", "check its permissions"
+        ) from None
+    data, lines = _parse_yaml(text, label)
+    return parse_spec(data, overrides, source=label, default_name=path.stem, _lines=lines)
+
+
+def _dump_scalar(value: Any) -> str:
+    text = yaml.safe_dump(
+        value, default_flow_style=True, width=10_000, sort_keys=False, allow_unicode=True
+    )
+    text = text.strip()
+    if text.endswith("\n..."):
+        text = text[: -len("\n...")].strip()
+    elif text.endswith("..."):
+        text = text[:-3].strip()
+    return text
+
+
+def _emit(
+    model: BaseModel, data: dict[str, Any], indent: int, comments: bool, out: list[str]
+) -> None:
+    pad = " " * indent
+    for name, field in type(model).model_fields.items():
+        value = data[name]
+        child = getattr(model, name)
+        if comments and field.description:
+            if indent == 0 and out:
+                out.append("")
+            for line in textwrap.wrap(field.description, width=max(40, 96 - indent)):
+                out.append(f"{pad}# {line}")
+        if isinstance(child, BaseModel):
+            out.append(f"{pad}{name}:")
+            _emit(child, value, indent + 2, comments, out)
+        else:
+            out.append(f"{pad}{name}: {_dump_scalar(value)}")
+
+
+def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
+    """The fully resolved spec as YAML (every field, in declaration order).
+
+    With ``comments=True`` every field is preceded by its description and unit, which makes a
+    self-documenting template (``softtrack spec --defaults``). Either form loads back to an
+    equal spec.
+    """
+    out: list[str] = []
+    _emit(spec, spec.model_dump(mode="json"), 0, comments, out)
+    return "\n".join(out) + "\n"
+
+
+def spec_hash(spec: ExperimentSpec) -> str:
+    """SHA-256 (hex) of the canonical JSON of the spec *without* ``seeds``.
+
+    The runs of one experiment therefore share the hash across seeds; any other change
+    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what).
+    """
+    data = spec.model_dump(mode="json", exclude={"seeds", "cluster"})
+    canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def spec_json_schema() -> dict[str, Any]:
+    """JSON Schema of :class:`ExperimentSpec` (descriptions carry the units)."""
+    return ExperimentSpec.model_json_schema()
