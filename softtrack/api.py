@@ -31,15 +31,18 @@ if TYPE_CHECKING:
     from softtrack.rl.train import TrainOutcome
 
 __all__ = [
+    "QUICKSTART_PRETRAINED",
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
     "effective_status",
     "evaluate",
+    "export",
     "final_stage_return",
     "format_failures",
     "format_runs_table",
     "is_lost",
     "list_run_summaries",
+    "quickstart_pretrained_path",
     "quickstart_spec_path",
     "report",
     "resolved_spec_yaml",
@@ -382,6 +385,7 @@ def evaluate(
     *,
     runs_dir: str | os.PathLike[str] | None = None,
     on_episode: Callable[..., None] | None = None,
+    write: bool = True,
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories.
 
@@ -391,9 +395,10 @@ def evaluate(
     Args:
         trajectories: subset of circle, rectangle, figure8 (default: all three).
         on_episode: called with (record, episode, metrics) after each trajectory.
+        write: store the tables in each run (``False``: only return the metrics).
 
     Returns:
-        The metrics rows written (one per run, trajectory and arm).
+        The metrics rows (one per run, trajectory and arm).
     """
     from softtrack.eval_runs import evaluate_run, resolve_run
     from softtrack.evaluation import EVAL_TRAJECTORIES
@@ -415,8 +420,22 @@ def evaluate(
                 f"{missing[0]}: run {record.run_id} has no trained model (status "
                 f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
             )
-    frames = [evaluate_run(record, chosen, on_episode) for record in records]
+    frames = [evaluate_run(record, chosen, on_episode, write=write) for record in records]
     return pd.concat(frames, ignore_index=True)
+
+
+def export(
+    reference: str, dest: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None
+) -> Path:
+    """Copy a finished run (id, id prefix or run directory) to ``dest`` without its checkpoints
+    and replay buffers: spec, run.json, final model(s), tables and log (see
+    :mod:`softtrack.store.export`). Returns ``dest``."""
+    from softtrack.eval_runs import resolve_run
+    from softtrack.rl.policy import model_paths
+    from softtrack.store.export import export_run
+
+    record = resolve_run(reference, runs_dir)
+    return export_run(record, model_paths(record, record.load_spec()), dest)
 
 
 def report(
@@ -426,18 +445,28 @@ def report(
     runs_dir: str | os.PathLike[str] | None = None,
     command_line: Sequence[str] | None = None,
     on_episode: Callable[..., None] | None = None,
+    extra_runs: Sequence[str | os.PathLike[str]] = (),
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
     Completed runs without evaluation tables are evaluated first; the report itself reads only
     the stored tables. Returns the path of ``index.md``.
+
+    Args:
+        extra_runs: run directories from elsewhere (e.g. ``models/td3-sbx-1e7-seed0``) reported
+            beside the selection; they must already be evaluated and are only read.
     """
-    from softtrack.eval_runs import evaluate_run, has_evaluation
+    from softtrack.eval_runs import evaluate_run, has_evaluation, resolve_run
     from softtrack.report import build_report, select_runs
     from softtrack.rl.policy import model_paths
 
     store = RunStore(resolve_runs_dir(runs_dir))
     records = select_runs(store, selection)
+    extra = [resolve_run(str(path)) for path in extra_runs]
+    for record in extra:
+        if not has_evaluation(record):
+            raise RunStoreError(f"{record.path}: no stored evaluation; run `softtrack evaluate "
+                                f"{record.path}` first")
     for record in records:
         spec = record.load_spec()
         trained = all(p.is_file() for p in model_paths(record, spec))
@@ -445,7 +474,17 @@ def report(
             evaluate_run(record, on_episode=on_episode)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report(records, out_dir, command_line)
+    return build_report([*records, *extra], out_dir, command_line)
+
+
+QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
+"""The shipped policy the quickstart shows beside its own short training (repo-relative)."""
+
+
+def quickstart_pretrained_path() -> Path | None:
+    """The checkout's :data:`QUICKSTART_PRETRAINED` run directory, or ``None`` if absent."""
+    path = Path(__file__).resolve().parents[1] / QUICKSTART_PRETRAINED
+    return path if (path / "run.json").is_file() else None
 
 
 def quickstart_spec_path() -> Path:

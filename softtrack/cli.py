@@ -11,6 +11,7 @@ import json
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Annotated, NoReturn
 
 import typer
@@ -446,6 +447,26 @@ def _print_episode(record: object, episode: object, metrics: object) -> None:
 
 
 @app.command()
+def export(
+    run: Annotated[str, typer.Argument(metavar="RUN", help="Run id, unique id prefix or run "
+                                       "directory.", show_default=False)],
+    dest: Annotated[str, typer.Argument(metavar="DEST", help="New directory to create.",
+                                        show_default=False)],
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Copy a finished run to DEST without checkpoints or replay buffers (spec, run.json,
+    model, tables, log): small enough to commit or share, e.g. under models/.
+
+    `softtrack evaluate DEST` and `softtrack report NAME --runs-dir PARENT_OF_DEST` use it as
+    any run.
+    """
+    with _user_errors():
+        path = api.export(run, dest, runs_dir=runs_dir)
+    size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+    typer.echo(f"exported: {path} ({size / 1e6:.1f} MB)")
+
+
+@app.command()
 def report(
     selection: Annotated[
         list[str],
@@ -471,28 +492,52 @@ def report(
 
 @app.command()
 def quickstart(
+    overrides: SetOption = None,
     runs_dir: RunsDirOption = None,
     out: Annotated[
         str, typer.Option("--out", "-o", metavar="DIR", help="Output directory of the report.")
     ] = "reports/quickstart",
+    pretrained: Annotated[
+        str | None,
+        typer.Option("--pretrained", metavar="DIR", show_default=False,
+                     help="A trained run directory to show beside the quickstart's own run "
+                     f"[default: {api.QUICKSTART_PRETRAINED} of this checkout].")
+    ] = None,
+    no_pretrained: Annotated[
+        bool, typer.Option("--no-pretrained", help="Leave the shipped policy out.")
+    ] = False,
 ) -> None:
     """Train, evaluate and report the quickstart experiment (a few minutes).
 
     TD3 for 1e5 env steps (experiments/quickstart.yaml), then `softtrack evaluate` on the three
-    trajectories and `softtrack report` into --out.
+    trajectories, then the shipped study-budget policy (models/td3-sbx-1e7-seed0, 1e7 env
+    steps) driving the arms live on the same trajectories, and `softtrack report` of both into
+    --out. The shipped run directory is only read.
     """
     with _user_errors():
         spec_path = api.quickstart_spec_path()
-        typer.echo(f"1/3 training {spec_path} (progress on stderr)")
-        outcomes = api.train(spec_path, runs_dir=runs_dir,
+        shipped = None if no_pretrained else (
+            Path(pretrained) if pretrained is not None else api.quickstart_pretrained_path())
+        if shipped is not None and not (shipped / "run.json").is_file():
+            _fail(f"quickstart: --pretrained {shipped} is not a run directory (no run.json); "
+                  "give a directory made by `softtrack export`, or --no-pretrained")
+        typer.echo(f"1/4 training {spec_path} (progress on stderr)")
+        outcomes = api.train(spec_path, overrides or [], runs_dir=runs_dir,
                              on_start=lambda record: typer.echo(f"    run {record.run_id}"))
         if not outcomes or outcomes[-1].status != "completed":
             raise typer.Exit(max((o.exit_code for o in outcomes), default=1))
         run_ids = [o.run_id for o in outcomes]
-        typer.echo("2/3 evaluating on circle, rectangle, figure8")
+        typer.echo("2/4 evaluating on circle, rectangle, figure8")
         api.evaluate(run_ids, runs_dir=runs_dir, on_episode=_print_episode)
-        typer.echo("3/3 building the report")
-        index = api.report(run_ids, out, runs_dir=runs_dir,
+        extra = []
+        if shipped is None:
+            typer.echo("3/4 no shipped policy to show (skipped)")
+        else:
+            typer.echo(f"3/4 the shipped policy {shipped} on the same trajectories")
+            api.evaluate([str(shipped)], on_episode=_print_episode, write=False)
+            extra = [shipped]
+        typer.echo("4/4 building the report")
+        index = api.report(run_ids, out, runs_dir=runs_dir, extra_runs=extra,
                            command_line=["softtrack", "quickstart", "--out", out])
     typer.echo(f"report: {index}")
 

@@ -5,7 +5,9 @@ writes three tables into the run's ``tables/`` (atomically, replacing the rows o
 trajectories it evaluated and keeping the others):
 
 * ``eval_trajectories.parquet``: tip and target positions at every control step;
-* ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s);
+* ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s),
+  and the arm's action statistics (``action_saturation``, ``action_change``, ``action_rms``;
+  tables written before these were added lack them, and readers treat them as optional);
 * ``eval_moments.parquet``: spatial-RMS and peak element torques per step, arm and direction,
   with the element torques themselves.
 """
@@ -69,8 +71,11 @@ def evaluate_run(
     record: RunRecord,
     trajectories: Sequence[str] = EVAL_TRAJECTORIES,
     on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
+    *,
+    write: bool = True,
 ) -> pd.DataFrame:
-    """Evaluate one run on ``trajectories`` and write its tables.
+    """Evaluate one run on ``trajectories`` and write its tables (``write=False``: only return
+    the metrics, leaving the run directory untouched, e.g. for a committed run under models/).
 
     Args:
         on_episode: called after each trajectory with the run, the episode and its metrics.
@@ -97,6 +102,6 @@ def evaluate_run(
         frames["eval_moments"].append(moments_table(record.run_id, episode))
         if on_episode is not None:
             on_episode(record, episode, metrics)
-    for name, parts in frames.items():
+    for name, parts in frames.items() if write else ():
         _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True), trajectories)
     return pd.concat(frames["eval_metrics"], ignore_index=True)

@@ -17,7 +17,8 @@ import pandas as pd
 
 from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
-from softtrack.metrics import AXES, moment_rms, tracking_metrics
+from softtrack.metrics import AXES, action_statistics, moment_rms, tracking_metrics
+from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
     "EVAL_TRAJECTORIES",
@@ -39,6 +40,7 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 _ARM_OBS = 37
 _TARGET_OBS = 7
+_ARM_ACTIONS = 2 * N_CONTROL_POINTS  # per arm: 6 normal, then 6 binormal control points
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ class Episode:
         tips: (N, A, 3) tip positions, m.
         target: (N, 3) target centre, m.
         element_torques: (N, A, 2, n_elem) applied torques, N·m.
-        actions: (N, 12·A) the policy's actions (before clipping).
+        actions: (N, 12·A) the policy's actions (before clipping); arm k's are columns
+            12k … 12k + 11 (6 normal, then 6 binormal control points).
         terminated: True if the state became non-finite (the episode then stops early).
     """
 
@@ -142,10 +145,18 @@ def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
     """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s
-    (NaN when the episode is shorter than that)."""
+    (NaN when the episode is shorter than that), and the arm's action statistics
+    (``action_saturation``, ``action_change``, ``action_rms``, see
+    :func:`softtrack.metrics.action_statistics`) over the steps the episode ran."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
-    for arm in range(episode.tips.shape[1]):
+    n_arms = episode.tips.shape[1]
+    if episode.actions.shape != (len(episode.t), _ARM_ACTIONS * n_arms):
+        raise ValueError(
+            f"actions have shape {episode.actions.shape}; expected "
+            f"{(len(episode.t), _ARM_ACTIONS * n_arms)}"
+        )
+    for arm in range(n_arms):
         row: dict[str, object] = {"run_id": run_id, "trajectory": episode.trajectory, "arm": arm}
         row.update(tracking_metrics(episode.tips[:, arm], episode.target))
         if steady.any():
@@ -154,6 +165,8 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
             steady_metrics = dict.fromkeys(tracking_metrics(episode.tips[:, arm], episode.target),
                                            float("nan"))
         row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
+        columns = slice(_ARM_ACTIONS * arm, _ARM_ACTIONS * (arm + 1))
+        row.update(action_statistics(episode.actions[:, columns]))
         row["terminated"] = episode.terminated
         row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
         rows.append(row)

@@ -5,7 +5,10 @@ With e(t) = tip(t) − target(t) of one arm over the N control steps of an episo
 * axis RMSE sqrt(mean_t e_a²) and axis MAE mean_t |e_a| for a ∈ {x, y, z};
 * spatial error d(t) = ‖e(t)‖, its mean, its maximum, and the 3-D RMSE sqrt(mean_t d²);
 * for the torques of one arm and direction: the spatial RMS over the elements at each step,
-  and the largest absolute element torque over the episode.
+  and the largest absolute element torque over the episode;
+* for the actions of one arm (clipped to [−1, 1] as the environment applies them): the
+  fraction saturated (|a| ≥ 0.99), the mean absolute change per control step and the RMS —
+  high saturation with large changes marks a "bang-bang" policy.
 """
 
 from __future__ import annotations
@@ -13,7 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "ACTION_STATISTICS",
     "AXES",
+    "SATURATION_THRESHOLD",
+    "action_statistics",
     "moment_peak",
     "moment_rms",
     "tracking_errors",
@@ -21,6 +27,10 @@ __all__ = [
 ]
 
 AXES = ("x", "y", "z")
+#: Keys of :func:`action_statistics`, also the ``eval_metrics`` columns (absent in tables
+#: written before they were added).
+ACTION_STATISTICS = ("action_saturation", "action_change", "action_rms")
+SATURATION_THRESHOLD = 0.99  # |a| at or above this counts as saturated
 
 
 def tracking_errors(tip: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -68,3 +78,32 @@ def moment_peak(element_torques: np.ndarray) -> np.ndarray:
     """Largest absolute torque over steps and elements: (N, ..., n_elem) N·m → (...) N·m."""
     torques = np.abs(np.asarray(element_torques, dtype=np.float64))
     return torques.max(axis=(0, -1))
+
+
+def action_statistics(actions: np.ndarray) -> dict[str, float]:
+    """How hard and how jerkily one arm is driven over one episode.
+
+    The actions are clipped to [−1, 1] first, as the environment applies them.
+
+    Args:
+        actions: (N, M) one arm's actions at the N control steps, N ≥ 1 (M = 12 for an arm:
+            6 normal, then 6 binormal control points), before clipping.
+
+    Returns:
+        ``action_saturation``: fraction of the N·M values with |a| ≥ 0.99 (0..1);
+        ``action_change``: mean over steps k ≥ 1 and the M values of |a_k − a_{k−1}| (0..2;
+        0 when N = 1);
+        ``action_rms``: sqrt(mean a²) over the N·M values (0..1).
+    """
+    a = np.asarray(actions, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] == 0:
+        raise ValueError(f"actions must have shape (N, M) with M ≥ 1; got {a.shape}")
+    if a.shape[0] == 0:
+        raise ValueError("at least one time step is needed")
+    a = np.clip(a, -1.0, 1.0)
+    change = float(np.mean(np.abs(np.diff(a, axis=0)))) if a.shape[0] > 1 else 0.0
+    return {
+        "action_saturation": float(np.mean(np.abs(a) >= SATURATION_THRESHOLD)),
+        "action_change": change,
+        "action_rms": float(np.sqrt(np.mean(a * a))),
+    }

@@ -13,7 +13,7 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.metrics import tracking_metrics
+from softtrack.metrics import ACTION_STATISTICS, action_statistics, tracking_metrics
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
 
@@ -69,10 +69,35 @@ def test_evaluate_writes_tables_and_metrics_match_trajectories(trained: tuple[Pa
         stored = metrics[(metrics["trajectory"] == trajectory) & (metrics["arm"] == arm)].iloc[0]
         for key, value in recomputed.items():
             assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+    # every row has the per-arm action statistics, in range
+    for key in ACTION_STATISTICS:
+        assert metrics[key].notna().all(), key
+    assert metrics["action_saturation"].between(0.0, 1.0).all()
+    assert metrics["action_change"].between(0.0, 2.0).all()
+    assert metrics["action_rms"].between(0.0, 1.0).all()
     # the moment statistics agree with the stored element torques
     torques = np.stack(moments["element_torques"].to_numpy()).astype(np.float64)
     assert np.allclose(np.sqrt((torques**2).mean(axis=1)), moments["rms_moment"], rtol=1e-6)
     assert np.allclose(np.abs(torques).max(axis=1), moments["max_abs_moment"], rtol=1e-6)
+
+
+def test_stored_action_statistics_match_the_episode_actions(trained: tuple[Path, str]) -> None:
+    from softtrack import api
+
+    runs, run_id = trained
+    episodes = []
+    api.evaluate([run_id], ["circle", "figure8"], runs_dir=runs,
+                 on_episode=lambda record, episode, metrics: episodes.append(episode))
+    metrics = read_table(runs / run_id / "tables" / "eval_metrics.parquet")
+    assert [e.trajectory for e in episodes] == ["circle", "figure8"]
+    for episode in episodes:
+        assert episode.actions.shape == (len(episode.t), 24)
+        for arm in (0, 1):
+            expected = action_statistics(episode.actions[:, 12 * arm:12 * (arm + 1)])
+            stored = metrics[(metrics["trajectory"] == episode.trajectory)
+                             & (metrics["arm"] == arm)].iloc[0]
+            for key, value in expected.items():
+                assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
 
 
 def test_evaluate_one_trajectory_keeps_the_others(trained: tuple[Path, str]) -> None:
@@ -87,6 +112,34 @@ def test_evaluate_one_trajectory_keeps_the_others(trained: tuple[Path, str]) -> 
     merged = before.sort_values(key).reset_index(drop=True)
     # deterministic policy and physics: re-evaluating gives the same numbers
     assert np.allclose(after.sort_values(key)["rmse_3d"].to_numpy(), merged["rmse_3d"].to_numpy())
+
+
+def test_old_metrics_tables_without_action_columns_stay_valid(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    from softtrack.eval_runs import has_evaluation
+    from softtrack.store.tables import write_table
+
+    runs, run_id = trained
+    fresh = tmp_path / "runs"
+    shutil.copytree(runs / run_id, fresh / run_id)
+    assert runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(fresh)]).exit_code == 0
+    path = fresh / run_id / "tables" / "eval_metrics.parquet"
+    write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))  # as written before
+    record = RunStore(fresh).get_run(run_id)
+    assert has_evaluation(record)  # an old table is still a complete evaluation
+    # re-evaluating one trajectory adds the columns for it; the old rows have none
+    result = runner.invoke(app, ["evaluate", run_id, "-t", "circle", "--runs-dir", str(fresh)])
+    assert result.exit_code == 0, result.output
+    metrics = read_table(path)
+    circle = metrics["trajectory"] == "circle"
+    assert len(metrics) == 6 and metrics.loc[circle, "action_rms"].notna().all()
+    assert metrics.loc[~circle, list(ACTION_STATISTICS)].isna().all().all()
+    assert has_evaluation(record)
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(fresh), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "### Policy actions" in (out / "index.md").read_text(encoding="utf-8")
 
 
 def test_a_copied_run_directory_evaluates(trained: tuple[Path, str], tmp_path: Path) -> None:
@@ -149,3 +202,111 @@ def test_unfinished_run_has_no_model(tmp_path: Path) -> None:
     assert result.exit_code == 2
     assert "no trained model" in result.output
     assert not (record.path / "tables" / "eval_metrics.parquet").exists()
+
+
+def _tree(root: Path) -> set[str]:
+    return {str(p.relative_to(root)) for p in root.rglob("*") if p.is_file()}
+
+
+def test_export_keeps_what_evaluation_needs_and_drops_checkpoints(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    runs, run_id = trained
+    source = runs / run_id
+    (source / "checkpoints" / "step-000000100").mkdir(parents=True, exist_ok=True)
+    (source / "checkpoints" / "step-000000100" / "replay_buffer.pkl").write_bytes(b"x" * 1000)
+    dest = tmp_path / "models" / "tiny-seed0"
+    result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)])
+    assert result.exit_code == 0, result.output
+    assert "exported:" in result.output
+    exported = _tree(dest)
+    assert {"spec.yaml", "run.json", "model.zip"} <= exported
+    assert not any(name.startswith(("checkpoints", "run.lock")) for name in exported)
+    expected = {n for n in _tree(source) if not n.startswith("checkpoints") and n != "run.lock"}
+    assert exported == expected
+    # the export is a run directory: evaluation and reports take it as they are
+    result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle"])
+    assert result.exit_code == 0, result.output
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["report", "tiny-centralized", "--runs-dir",
+                                 str(dest.parent), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "tiny-seed0" in (out / "index.md").read_text(encoding="utf-8")
+
+
+def test_export_refuses_an_existing_destination_and_unfinished_runs(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    runs, run_id = trained
+    dest = tmp_path / "taken"
+    dest.mkdir()
+    (dest / "keep.txt").write_text("mine", encoding="utf-8")
+    result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)])
+    assert result.exit_code == 2 and "already exists" in result.output
+    assert _tree(dest) == {"keep.txt"}
+
+    from softtrack.spec import ExperimentSpec
+
+    record = RunStore(runs).create_run(ExperimentSpec(name="unfinished"), 0)
+    result = runner.invoke(app, ["export", record.run_id, str(tmp_path / "new"),
+                                 "--runs-dir", str(runs)])
+    assert result.exit_code == 2 and "no final model" in result.output
+    assert not (tmp_path / "new").exists()
+    shutil.rmtree(record.path)
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+
+def test_evaluate_without_writing_leaves_the_run_untouched(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    from softtrack import api
+
+    runs, run_id = trained
+    shipped = tmp_path / "shipped"
+    shutil.copytree(runs / run_id, shipped)
+    assert runner.invoke(app, ["evaluate", str(shipped)]).exit_code == 0
+    before = _files(shipped)
+    live = api.evaluate([str(shipped)], write=False)
+    assert _files(shipped) == before
+    stored = read_table(shipped / "tables" / "eval_metrics.parquet")
+    key = ["trajectory", "arm"]
+    assert np.array_equal(live.sort_values(key)["rmse_3d"].to_numpy(),
+                          stored.sort_values(key)["rmse_3d"].to_numpy())
+
+
+TINY_QUICKSTART = [
+    "--set", "training.total_timesteps=200", "--set", "training.n_envs=2",
+    "--set", "training.checkpoint_interval=0", "--set", f"training.eval_duration={EVAL_DURATION}",
+    "--set", "env.episode_duration=0.1", "--set", "algo.learning_starts=50",
+    "--set", "algo.batch_size=16", "--set", "algo.buffer_size=2000",
+    "--set", "algo.policy_kwargs.net_arch=[16, 16]",
+]
+
+
+def test_quickstart_reports_the_shipped_policy_beside_its_own_run(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    runs, run_id = trained
+    shipped = tmp_path / "models" / "shipped-td3"
+    assert runner.invoke(app, ["export", run_id, str(shipped), "--runs-dir", str(runs)]).exit_code == 0
+    assert runner.invoke(app, ["evaluate", str(shipped)]).exit_code == 0
+    before = _files(shipped)
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["quickstart", *TINY_QUICKSTART, "--runs-dir",
+                                 str(tmp_path / "runs"), "--out", str(out),
+                                 "--pretrained", str(shipped)])
+    assert result.exit_code == 0, result.output
+    assert "3/4 the shipped policy" in result.output
+    assert result.output.count("3-D RMSE arm 1 / arm 2") == 6  # own run + shipped policy
+    assert _files(shipped) == before
+    index = (out / "index.md").read_text(encoding="utf-8")
+    assert "shipped-td3" in index and "quickstart" in index
+
+    result = runner.invoke(app, ["quickstart", *TINY_QUICKSTART, "--runs-dir",
+                                 str(tmp_path / "runs"), "--out", str(tmp_path / "r2"),
+                                 "--pretrained", str(tmp_path / "nothing")])
+    assert result.exit_code == 2 and "not a run directory" in result.output
+    assert not (tmp_path / "r2").exists()

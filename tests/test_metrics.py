@@ -3,7 +3,14 @@
 import numpy as np
 import pytest
 
-from softtrack.metrics import moment_peak, moment_rms, tracking_metrics
+from softtrack.evaluation import Episode, metrics_table
+from softtrack.metrics import (
+    ACTION_STATISTICS,
+    action_statistics,
+    moment_peak,
+    moment_rms,
+    tracking_metrics,
+)
 
 
 def test_constant_offset() -> None:
@@ -82,3 +89,90 @@ def test_moments() -> None:
     assert peak[0, 0] == pytest.approx(10.0)
     assert peak[1, 1] == pytest.approx(138.9)
     assert peak[0, 1] == 0.0
+
+
+# ---- action statistics ----------------------------------------------------------------------
+def test_constant_actions_do_not_change() -> None:
+    m = action_statistics(np.full((50, 12), -0.5))
+    assert set(m) == set(ACTION_STATISTICS)
+    assert m["action_saturation"] == 0.0
+    assert m["action_change"] == 0.0
+    assert m["action_rms"] == pytest.approx(0.5, rel=1e-12)
+
+
+def test_alternating_full_actions_are_bang_bang() -> None:
+    # ±1 flipping every step: all saturated, |Δa| = 2 at every step, RMS 1
+    signs = np.where(np.arange(40) % 2 == 0, 1.0, -1.0)
+    m = action_statistics(np.tile(signs[:, None], (1, 12)))
+    assert m == {"action_saturation": 1.0, "action_change": 2.0, "action_rms": 1.0}
+    # the same beyond the clip limits: the environment applies ±1
+    assert action_statistics(np.tile(5 * signs[:, None], (1, 12))) == m
+
+
+def test_ramp_is_clipped_before_the_statistics() -> None:
+    # a = −2, −1, 0, 1, 2 → clipped −1, −1, 0, 1, 1: 4 of 5 saturated,
+    # |Δa| = 0, 1, 1, 0 (mean 0.5), RMS sqrt(4/5)
+    ramp = np.linspace(-2.0, 2.0, 5)
+    m = action_statistics(np.tile(ramp[:, None], (1, 12)))
+    assert m["action_saturation"] == pytest.approx(0.8, rel=1e-12)
+    assert m["action_change"] == pytest.approx(0.5, rel=1e-12)
+    assert m["action_rms"] == pytest.approx(np.sqrt(0.8), rel=1e-12)
+    # an unclipped ramp 0, 0.1, …, 0.5: none saturated, |Δa| = 0.1, RMS sqrt(0.55/6)
+    m = action_statistics(np.tile(0.1 * np.arange(6)[:, None], (1, 12)))
+    assert m["action_saturation"] == 0.0
+    assert m["action_change"] == pytest.approx(0.1, rel=1e-12)
+    assert m["action_rms"] == pytest.approx(np.sqrt(0.55 / 6), rel=1e-12)
+
+
+def test_saturation_threshold_and_mixed_values() -> None:
+    actions = np.array([[0.99, -0.989, 1.0, 0.0], [-0.995, 0.5, 3.0, 0.0]])
+    m = action_statistics(actions)
+    assert m["action_saturation"] == pytest.approx(4 / 8)  # 0.99, 1.0, −0.995, 3.0
+    assert m["action_change"] == pytest.approx((1.985 + 1.489 + 0.0 + 0.0) / 4)
+    assert m["action_rms"] == pytest.approx(
+        np.sqrt((0.99**2 + 0.989**2 + 1 + 0.995**2 + 0.25 + 1) / 8)
+    )
+
+
+def test_one_step_has_no_change_and_bad_shapes_fail() -> None:
+    m = action_statistics(np.full((1, 12), 2.0))
+    assert m == {"action_saturation": 1.0, "action_change": 0.0, "action_rms": 1.0}
+    with pytest.raises(ValueError, match="time step"):
+        action_statistics(np.zeros((0, 12)))
+    with pytest.raises(ValueError, match=r"\(N, M\)"):
+        action_statistics(np.zeros(12))
+
+
+def _episode(actions: np.ndarray, terminated: bool = False) -> Episode:
+    n = len(actions)
+    return Episode(
+        trajectory="circle",
+        t=0.002 * np.arange(1, n + 1),
+        tips=np.zeros((n, 2, 3)),
+        target=np.ones((n, 3)),
+        element_torques=np.zeros((n, 2, 2, 20)),
+        actions=actions,
+        terminated=terminated,
+    )
+
+
+def test_metrics_table_splits_the_actions_per_arm() -> None:
+    # arm 1: columns 0–11 constant 0.25; arm 2: columns 12–23 alternating ±1
+    n = 10
+    actions = np.zeros((n, 24))
+    actions[:, :12] = 0.25
+    actions[:, 12:] = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]
+    table = metrics_table("run", _episode(actions)).set_index("arm")
+    assert table.loc[0, "action_saturation"] == 0.0
+    assert table.loc[0, "action_change"] == 0.0
+    assert table.loc[0, "action_rms"] == pytest.approx(0.25)
+    assert table.loc[1, "action_saturation"] == 1.0
+    assert table.loc[1, "action_change"] == 2.0
+    assert table.loc[1, "action_rms"] == 1.0
+    # an episode that diverged after one step holds only that step's actions
+    short = metrics_table("run", _episode(actions[:1] * 3, terminated=True)).set_index("arm")
+    assert list(short["action_change"]) == [0.0, 0.0]
+    assert list(short["action_saturation"]) == [0.0, 1.0]
+    assert bool(short["terminated"].all())
+    with pytest.raises(ValueError, match="actions have shape"):
+        metrics_table("run", _episode(actions[:, :12]))

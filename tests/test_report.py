@@ -4,6 +4,7 @@ selection is a clear error."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 from pathlib import Path
@@ -21,6 +22,7 @@ from softtrack.evaluation import (
     run_episode,
     trajectory_table,
 )
+from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report import EmptySelectionError, build_report, select_runs
 from softtrack.report.data import (
     final_stage_table,
@@ -32,7 +34,7 @@ from softtrack.report.data import (
 )
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
-from softtrack.store.tables import write_table
+from softtrack.store.tables import read_table, write_table
 
 BUDGET = 2000
 EVAL_DURATION = 0.2  # s: 100 control steps per trajectory keeps the fixture fast
@@ -70,14 +72,23 @@ def _train_rows(record: RunRecord, level: float, arm: int | None = None) -> list
     return rows
 
 
+def _bang_bang(value: float):
+    """A policy whose actions are ``value`` in arm 1 and flip between ±1 in arm 2."""
+    steps = itertools.count()
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.full(12, value), np.full(12, (-1.0) ** next(steps))])
+
+    return act
+
+
 def _write_eval(record: RunRecord, value: float) -> None:
-    """Eval tables from real evaluation episodes of a constant policy."""
+    """Eval tables from real evaluation episodes of a constant (arm 1) and bang-bang (arm 2)
+    policy."""
     config = make_config()
     trajs, metrics, moments = [], [], []
     for trajectory in EVAL_TRAJECTORIES:
-        episode = run_episode(
-            lambda obs: np.full(24, value), config, trajectory, duration=EVAL_DURATION
-        )
+        episode = run_episode(_bang_bang(value), config, trajectory, duration=EVAL_DURATION)
         trajs.append(trajectory_table(record.run_id, episode))
         metrics.append(metrics_table(record.run_id, episode))
         moments.append(moments_table(record.run_id, episode))
@@ -237,6 +248,7 @@ def test_report_has_every_figure_and_table(report: Path, store: RunStore) -> Non
         "Trajectories and errors over time (study Figs. 4–9)",
         "Actuation moments (study Fig. 10)",
         "Peak element moments",
+        "Policy actions",
     ):
         assert f"## {heading}" in md or f"### {heading}" in md, heading
         assert heading in page
@@ -279,11 +291,67 @@ def test_report_tables_show_the_study_values(report: Path) -> None:
     assert "| 2,000 env steps per arm |" in final[-1]
 
 
+def test_policy_actions_table(report: Path) -> None:
+    md = report.read_text(encoding="utf-8")
+    # a subsection of the Table 4 section, after its tables, before the trajectory figures
+    assert md.index("## Tracking error (study Table 4)") < md.index("### Policy actions")
+    assert md.index("### Policy actions") < md.index("## Trajectories and errors over time")
+    rows = _table_after(md, "### Policy actions\n")
+    assert rows[0] == (
+        "| algorithm | trajectory | arm | action saturation (%) | mean \\|Δa\\| per step "
+        "| action RMS | seeds with data |"
+    )
+    body = rows[2:]
+    assert len(body) == 3 * 3 * 2  # groups × trajectories × arms
+    # arm 1 holds 0.02 (seed 0) and 0.03 (seed 1): never saturated, no change, RMS 0.025 ± 0.007
+    assert "| TD3 | circle | arm 1 | 0.0 ± 0.0 | 0.000 ± 0.000 | 0.025 ± 0.007 | 2 of 2 |" in body
+    # arm 2 flips between ±1 at every step: saturated, |Δa| = 2, RMS 1
+    assert (
+        "| DDPG | figure-eight | arm 2 | 100.0 ± 0.0 | 2.000 ± 0.000 | 1.000 ± 0.000 | 2 of 2 |"
+    ) in body
+    assert "| TD3 (independent) | rectangle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 1 |" in body
+    text = md.split("### Policy actions\n", 1)[1]
+    assert "66 % saturation and a mean change of 0.30" in text.split("\n\n")[1]
+    assert text.split("\n\n")[2].startswith("*Behind these numbers*")
+
+
+def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -> None:
+    """Metrics tables written before the action statistics existed: the report builds, the
+    other tables keep their numbers and the actions table says "no data"."""
+    store = RunStore(tmp_path / "runs")
+    spec = _spec("td3")
+    for seed in (0, 1):
+        record = store.create_run(spec, seed, ["softtrack", "train", "td3.yaml"])
+        write_table(record.table_path("train_episodes"), _train_rows(record, 100.0))
+        _write_eval(record, 0.02)
+        store.mark_finished(record.run_id, "completed", global_step=BUDGET)
+        if seed == 0:  # seed 0 has an old table, seed 1 a new one
+            path = record.table_path("eval_metrics")
+            write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
+    groups = group_runs(load_runs(select_runs(store, ["td3"])))
+    summary = metrics_summary(groups)
+    assert (summary["action_saturation_n"] == 1).all() and (summary["rmse_3d_n"] == 2).all()
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    rows = _table_after(index.read_text(encoding="utf-8"), "### Policy actions\n")[2:]
+    assert "| TD3 | circle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 2 |" in rows
+    # only old tables: no data, and the tracking tables are unaffected
+    record = select_runs(store, ["td3"])[1]
+    path = record.table_path("eval_metrics")
+    write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    md = index.read_text(encoding="utf-8")
+    rows = _table_after(md, "### Policy actions\n")[2:]
+    assert len(rows) == 3 * 2
+    assert all(r.endswith("| no data | no data | no data | 0 of 2 |") for r in rows)
+    assert " ± " in next(r for r in _table_after(md, "### TD3\n") if r.startswith("| circle |"))
+
+
 def test_every_table_has_provenance(report: Path, store: RunStore) -> None:
     md = report.read_text(encoding="utf-8")
     blocks = md.split("\n\n")
     tables = [i for i, b in enumerate(blocks) if b.startswith("|")]
-    assert len(tables) == 1 + 1 + 3 + 1 + 1  # runs, final, 3 error tables, side by side, peaks
+    # runs, final, 3 error tables, side by side, policy actions, peaks
+    assert len(tables) == 1 + 1 + 3 + 1 + 1 + 1
     for i in tables:
         after = "\n\n".join(blocks[i + 1 : i + 3])
         assert "*Behind these numbers*" in after, blocks[i][:80]

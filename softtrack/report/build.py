@@ -29,6 +29,7 @@ from pathlib import Path
 import pandas as pd
 
 from softtrack.report import figures as fg
+from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
 from softtrack.report.data import (
     DIRECTIONS,
     Group,
@@ -448,6 +449,13 @@ def _errors_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> No
     doc.img(rel, "3-D RMSE per trajectory and arm against the study")
 
 
+def _actions_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> None:
+    doc.h(3, "Policy actions")
+    doc.table(ACTIONS_HEADER, actions_rows(metrics_summary(ctx.groups), ctx.groups, trajectories))
+    doc.p(actions_caption())
+    doc.p(ctx.provenance())
+
+
 def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
     n = sum(
         1
@@ -643,6 +651,7 @@ def build_report(
     _training_section(doc, ctx)
     _final_section(doc, ctx)
     _errors_section(doc, ctx, trajectories)
+    _actions_section(doc, ctx, trajectories)
     _trajectories_section(doc, ctx, trajectories)
     _moments_section(doc, ctx, trajectories)
 

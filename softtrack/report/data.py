@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
+from softtrack.metrics import ACTION_STATISTICS
 from softtrack.store.runs import RunRecord
 from softtrack.store.tables import TableError, read_table
 
@@ -67,7 +68,8 @@ class RunData:
         final_stage_fraction: ``training.final_stage_fraction`` of its spec (default 0.1).
         train: ``train_episodes`` (episode, global_step, return, …, optionally arm).
         trajectories: ``eval_trajectories`` (tip and target positions per step and arm, m).
-        metrics: ``eval_metrics`` (one row per trajectory and arm, m).
+        metrics: ``eval_metrics`` (one row per trajectory and arm, m; the action statistics
+            columns are absent from tables written before they were added).
         moments: ``eval_moments`` without the per-element torques (N·m).
         problems: one line per unreadable table.
     """
@@ -419,8 +421,10 @@ def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
     """Evaluation metrics per group, trajectory and arm: mean and sample std across seeds.
 
     Columns: group, algo, controller, trajectory, arm, n, seeds, terminated (runs whose episode
-    ended early), and ``<metric>_mean`` / ``<metric>_std`` for every metric column stored
-    (``rmse_x`` … ``max_error`` and their ``_steady`` forms), in m.
+    ended early), and ``<metric>_mean`` / ``<metric>_std`` / ``<metric>_n`` (runs with a value)
+    for every metric column stored: ``rmse_x`` … ``max_error`` and their ``_steady`` forms, in
+    m, and ``action_saturation``, ``action_change``, ``action_rms`` (dimensionless). A metric no
+    run of a group stores has no columns (or NaN where another group has it).
     """
     rows = []
     for group in groups:
@@ -431,7 +435,11 @@ def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
         if not frames:
             continue
         df = pd.concat(frames, ignore_index=True)
-        metric_cols = [c for c in df.columns if c.removesuffix("_steady") in METRIC_COLUMNS]
+        metric_cols = [
+            c
+            for c in df.columns
+            if c.removesuffix("_steady") in METRIC_COLUMNS or c in ACTION_STATISTICS
+        ]
         for (trajectory, arm), part in df.groupby(["trajectory", "arm"], sort=False):
             row: dict[str, object] = {
                 "group": group.label,
@@ -449,6 +457,7 @@ def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
                 values = pd.to_numeric(part[col], errors="coerce").dropna().to_numpy(float)
                 row[f"{col}_mean"] = float(values.mean()) if values.size else np.nan
                 row[f"{col}_std"] = float(values.std(ddof=1)) if values.size >= 2 else np.nan
+                row[f"{col}_n"] = int(values.size)
             rows.append(row)
     return pd.DataFrame(rows)
 

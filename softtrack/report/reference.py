@@ -4,6 +4,9 @@ Only what the SPEC states is here: the 3-D RMSE per trajectory and arm for centr
 for the independent single-arm TD3 baseline, the peak element moments during the figure-eight,
 and the training budget. The study's final-stage returns (its Table 3), its axis RMSE/MAE and
 mean spatial errors are not in the SPEC, so they have no reference value (``None``).
+
+Beside them, SPEC §5 states the action statistics of this project's calibration prototype
+(a TD3 prototype, not the study), as a yardstick for "bang-bang" control.
 """
 
 from __future__ import annotations
@@ -11,6 +14,8 @@ from __future__ import annotations
 from typing import Final
 
 __all__ = [
+    "CALIBRATION_ACTION_CHANGE",
+    "CALIBRATION_ACTION_SATURATION",
     "STUDY_ALGORITHMS",
     "STUDY_BUDGET_TEXT",
     "STUDY_PEAK_MOMENTS",
@@ -53,6 +58,11 @@ STUDY_BUDGET_TEXT: Final[str] = (
     f"{STUDY_TOTAL_TIMESTEPS:,} env steps per run ({STUDY_TRAINING_HOURS:g} h on a "
     f"{STUDY_TRAINING_HARDWARE}), seeds {', '.join(map(str, STUDY_SEEDS))}"
 )
+
+#: The calibration prototype's actions (SPEC §5, last paragraph): saturated at ±1 66 % of the
+#: time, changed by 0.30 on average from one control step to the next.
+CALIBRATION_ACTION_SATURATION: Final[float] = 0.66  # fraction of action values
+CALIBRATION_ACTION_CHANGE: Final[float] = 0.30  # mean |Δa| per control step
 
 #: Display names of the evaluation trajectories.
 TRAJECTORY_TITLES: Final[dict[str, str]] = {

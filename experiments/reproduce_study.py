@@ -1,0 +1,148 @@
+"""Reproduce every run behind ``reports/study/`` and the README's results, then rebuild the report.
+
+    .venv/bin/python experiments/reproduce_study.py            # everything, one run at a time
+    .venv/bin/python experiments/reproduce_study.py --jobs 2   # two runs at once, one core each
+    .venv/bin/python experiments/reproduce_study.py --list     # what it would do, and budgets
+    .venv/bin/python experiments/reproduce_study.py --only ddpg-sbx --report-only
+
+Each job is one (spec, seed). A job whose directory under ``models/`` exists is done. Otherwise
+the script looks in the runs directory (``runs/`` or ``--runs-dir``) for a run of the same
+experiment, seed and spec: a completed one is exported, an interrupted or lost one is resumed
+(`softtrack train --resume`), and without one a new run is trained. So the script can be
+stopped at any time and started again; a training continues from its last checkpoint.
+Finished runs are exported with `softtrack export` (no checkpoints or replay buffers) and
+evaluated with `softtrack evaluate`; the report is then rebuilt from ``models/`` with
+`softtrack report ... --runs-dir models --out reports/study`.
+
+Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX backend):
+td3-sbx ~30 min per seed, td3-sbx-1e7 ~75 min, independent-td3-sbx ~60 min (two arms of 4e6),
+ddpg-sbx ~6 min per seed (1e6 steps), ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s).
+"""
+
+from __future__ import annotations
+
+import argparse
+import queue
+import shutil
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from softtrack import api
+from softtrack.store.runs import RunStore, resolve_runs_dir
+
+ROOT = Path(__file__).resolve().parent.parent
+SOFTTRACK = [sys.executable, "-m", "softtrack.cli"]
+REPORT_DIR = "reports/study"
+
+
+@dataclass(frozen=True)
+class Job:
+    """One training: ``experiments/<spec>.yaml`` with ``seed``, kept as ``models/<dest>``."""
+
+    spec: str
+    seed: int
+    dest: str
+
+
+JOBS: tuple[Job, ...] = (
+    *(Job("td3-sbx", s, f"td3-sbx-4e6-seed{s}") for s in (0, 1, 2)),
+    Job("td3-sbx-1e7", 0, "td3-sbx-1e7-seed0"),
+    Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
+    *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
+    *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
+)
+REPORTED = ("td3-sbx", "td3-sbx-1e7", "independent-td3-sbx", "ddpg-sbx", "ppo-sbx")
+
+
+def _softtrack(*args: str, taskset: int | None = None) -> str:
+    """Run the CLI, echoing its output; return stdout. Exits with its code on failure."""
+    command = [*SOFTTRACK, *args]
+    if taskset is not None:
+        command = ["taskset", "-c", str(taskset), *command]
+    print("$", " ".join(["softtrack", *args]), flush=True)
+    done = subprocess.run(command, check=False, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    sys.stdout.write(done.stdout)
+    if done.returncode:
+        raise SystemExit(f"failed ({done.returncode}): softtrack {' '.join(args)}")
+    return done.stdout
+
+
+def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
+    """(run id, status) of the newest run of ``job``'s experiment, seed and spec, if any."""
+    spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
+    if not runs_dir.is_dir():
+        return None
+    candidates = [
+        r for r in RunStore(runs_dir).list_runs()
+        if r.info.name == spec.name and r.info.seed == job.seed
+        and r.info.total_timesteps == spec.training.total_timesteps
+    ]
+    if not candidates:
+        return None
+    newest = candidates[-1]
+    return newest.run_id, api.effective_status(newest)
+
+
+def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
+    """Train (or resume) ``job`` if needed, then export and evaluate it into ``models/``."""
+    dest = ROOT / "models" / job.dest
+    if dest.is_dir():
+        print(f"done: models/{job.dest}", flush=True)
+        return
+    found = _existing_run(job, runs_dir)
+    runs = ["--runs-dir", str(runs_dir)]
+    if found is None:
+        out = _softtrack("train", f"experiments/{job.spec}.yaml", "--seed", str(job.seed), *runs,
+                         taskset=core)
+        run_id = out.split()[0]
+    else:
+        run_id, status = found
+        if status != "completed":
+            _softtrack("train", "--resume", run_id, *runs, taskset=core)
+    _softtrack("evaluate", run_id, *runs, taskset=core)
+    _softtrack("export", run_id, f"models/{job.dest}", *runs)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--jobs", type=int, default=1, help="runs at once (one core each)")
+    parser.add_argument("--only", action="append", metavar="SPEC",
+                        help="only the jobs of this experiment (repeatable)")
+    parser.add_argument("--runs-dir", default=None, help="where runs are trained [runs/]")
+    parser.add_argument("--list", action="store_true", help="print the jobs and stop")
+    parser.add_argument("--report-only", action="store_true", help="only rebuild the report")
+    args = parser.parse_args(argv)
+    jobs = [j for j in JOBS if not args.only or j.spec in args.only]
+    if args.list:
+        for job in jobs:
+            spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
+            state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
+            print(f"{job.spec:20s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
+                  f"steps  models/{job.dest}  ({state})")
+        return
+    if not args.report_only:
+        runs_dir = resolve_runs_dir(args.runs_dir)
+        n = max(1, args.jobs)
+        cores: queue.Queue[int | None] = queue.Queue()
+        pin = n > 1 and shutil.which("taskset") is not None
+        for core in range(n):
+            cores.put(core if pin else None)
+
+        def on_free_core(job: Job) -> None:
+            core = cores.get()
+            try:
+                run_job(job, runs_dir, core)
+            finally:
+                cores.put(core)
+
+        with ThreadPoolExecutor(n) as pool:
+            for future in [pool.submit(on_free_core, job) for job in jobs]:
+                future.result()
+    _softtrack("report", *REPORTED, "--runs-dir", "models", "--out", REPORT_DIR)
+
+
+if __name__ == "__main__":
+    main()
