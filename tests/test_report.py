@@ -404,3 +404,18 @@ def test_missing_training_and_eval_tables(store: RunStore, tmp_path: Path) -> No
         import shutil
 
         shutil.rmtree(bare.path)
+
+
+def test_runs_table_gives_training_time_and_speed(report: Path) -> None:
+    md = report.read_text(encoding="utf-8")
+    header, _rule, *rows = _table_after(md, "## Runs")
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    time_col, speed_col = columns.index("training time"), columns.index("env steps/s")
+    steps_col = columns.index("env steps / budget")
+    wall = 0.1 * (BUDGET // 100 - 1)  # the fixture's training clock at its last episode, s
+    assert rows
+    for row in rows:
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[time_col] == f"{wall / 60:.0f} min"
+        steps = int(cells[steps_col].split("/")[0].replace(",", ""))
+        assert cells[speed_col] == f"{steps / wall:,.0f}"

@@ -254,6 +254,7 @@ def _runs_section(doc: _Doc, ctx: _Context, runs: Sequence[RunData]) -> None:
                     str(info.seed),
                     info.status,
                     f"{r.last_step:,} / {info.total_timesteps:,}",
+                    *_training_speed(r),
                     info.spec_hash[:12],
                     _commit(r),
                     ", ".join(tables) or "none",
@@ -268,6 +269,8 @@ def _runs_section(doc: _Doc, ctx: _Context, runs: Sequence[RunData]) -> None:
             "seed",
             "status",
             "env steps / budget",
+            "training time",
+            "env steps/s",
             "spec hash",
             "commit",
             "stored tables",
@@ -278,6 +281,18 @@ def _runs_section(doc: _Doc, ctx: _Context, runs: Sequence[RunData]) -> None:
     problems = [p for r in runs for p in r.problems]
     if problems:
         doc.p("Problems: " + "; ".join(problems) + ".")
+
+
+def _training_speed(run: RunData) -> tuple[str, str]:
+    """(training wall time, env steps per second) of a run from its training clock, summed over
+    sessions (the ``wall_time`` of its last logged episode); "—" without training episodes."""
+    if run.train is None or not len(run.train) or "wall_time" not in run.train:
+        return "—", "—"
+    seconds = float(run.train["wall_time"].max())
+    if not seconds > 0:
+        return "—", "—"
+    duration = f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.2f} h"
+    return duration, f"{run.last_step / seconds:,.0f}"
 
 
 def _training_section(doc: _Doc, ctx: _Context) -> None:
