@@ -450,7 +450,9 @@ class AlgoSpec(_Spec):
     normalize: bool = _f(
         False,
         "normalise observations with a running mean/std (VecNormalize); its statistics are "
-        "saved with the model and every checkpoint",
+        "saved with the model and every checkpoint. Caution: a feature that is constant in "
+        "training (the random target's speed, 0.3 m/s) is divided by sqrt(1e-8) and saturates "
+        "at ±10 on the evaluation trajectories, whose speeds differ",
         "-",
     )
     normalize_reward: bool = _f(False, "also normalise rewards (VecNormalize)", "-")
