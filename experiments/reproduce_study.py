@@ -49,7 +49,7 @@ class Job:
 
 JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx", s, f"td3-sbx-4e6-seed{s}") for s in (0, 1, 2)),
-    Job("td3-sbx-1e7", 0, "td3-sbx-1e7-seed0"),
+    *(Job("td3-sbx-1e7", s, f"td3-sbx-1e7-seed{s}") for s in (0, 1, 2)),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
