@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from softtrack import api
+from softtrack.spec import spec_hash
 from softtrack.store.runs import RunStore, resolve_runs_dir
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -78,7 +79,7 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     candidates = [
         r for r in RunStore(runs_dir).list_runs()
         if r.info.name == spec.name and r.info.seed == job.seed
-        and r.info.total_timesteps == spec.training.total_timesteps
+        and r.info.spec_hash == spec_hash(spec)
     ]
     if not candidates:
         return None

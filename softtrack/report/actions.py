@@ -18,6 +18,7 @@ from softtrack.report.reference import (
     CALIBRATION_ACTION_SATURATION,
     TRAJECTORY_TITLES,
 )
+from softtrack.report.text import mean_pm_std
 
 __all__ = ["ACTIONS_HEADER", "actions_caption", "actions_rows"]
 
@@ -35,16 +36,10 @@ _CELLS = (("action_saturation", 100.0, 1), ("action_change", 1.0, 3), ("action_r
 
 
 def _pm(row: pd.Series | None, column: str, scale: float, digits: int) -> str:
-    """``mean ± std`` (just the mean for one seed) of ``column`` × ``scale``, or "no data"."""
+    """``mean ± std`` of ``column`` × ``scale`` in a summary row, or "no data"."""
     if row is None:
         return "no data"
-    mean = row.get(f"{column}_mean")
-    if mean is None or not math.isfinite(mean):
-        return "no data"
-    std = row.get(f"{column}_std")
-    if std is None or not math.isfinite(std):
-        return f"{scale * mean:.{digits}f}"
-    return f"{scale * mean:.{digits}f} ± {scale * std:.{digits}f}"
+    return mean_pm_std(row.get(f"{column}_mean"), row.get(f"{column}_std"), digits, scale)
 
 
 def actions_rows(

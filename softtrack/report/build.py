@@ -52,6 +52,7 @@ from softtrack.report.reference import (
     study_rmse_3d,
 )
 from softtrack.report.select import EmptySelectionError, select_runs
+from softtrack.report.text import mean_pm_std
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 
@@ -148,15 +149,6 @@ def _num(value: float | None, digits: int) -> str:
     if value is None or not math.isfinite(value):
         return "no data"
     return f"{value:.{digits}f}"
-
-
-def _pm(mean: float | None, std: float | None, digits: int) -> str:
-    """``0.0652 ± 0.0031``; just the mean when the std is undefined (one seed)."""
-    if mean is None or not math.isfinite(mean):
-        return "no data"
-    if std is None or not math.isfinite(std):
-        return f"{mean:.{digits}f}"
-    return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
 def _study(value: float | None, digits: int) -> str:
@@ -325,7 +317,7 @@ def _final_section(doc: _Doc, ctx: _Context) -> None:
                 row.group,
                 "both arms" if row.arm < 0 else f"arm {int(row.arm) + 1} policy",
                 f"{row.n} of {len(row.seeds)}",
-                _pm(row.mean, row.std, 2),
+                mean_pm_std(row.mean, row.std, 2),
                 per_seed,
                 NOT_IN_SPEC,
                 ", ".join(group.budgets),
@@ -358,7 +350,7 @@ def _final_section(doc: _Doc, ctx: _Context) -> None:
 
 def _cell(row: pd.Series, metric: str) -> str:
     """``mean ± std`` of ``metric`` in a :func:`metrics_summary` row (m, 4 decimals)."""
-    return _pm(row.get(f"{metric}_mean"), row.get(f"{metric}_std"), 4)
+    return mean_pm_std(row.get(f"{metric}_mean"), row.get(f"{metric}_std"), 4)
 
 
 def _metric_rows(
@@ -399,9 +391,10 @@ def _metric_rows(
     return rows
 
 
-def _errors_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> None:
+def _errors_section(
+    doc: _Doc, ctx: _Context, summary: pd.DataFrame, trajectories: Sequence[str]
+) -> None:
     doc.h(2, "Tracking error (study Table 4)")
-    summary = metrics_summary(ctx.groups)
     header = [
         "trajectory",
         "arm",
@@ -448,7 +441,7 @@ def _errors_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> No
                 row.append(
                     "no data"
                     if sel.empty
-                    else _pm(sel.iloc[0]["rmse_3d_mean"], sel.iloc[0]["rmse_3d_std"], 4)
+                    else mean_pm_std(sel.iloc[0]["rmse_3d_mean"], sel.iloc[0]["rmse_3d_std"], 4)
                 )
             row.append(_study(study_rmse_3d("td3", "centralized", trajectory, arm), 3))
             row.append(_study(study_rmse_3d("td3", "independent", trajectory, arm), 3))
@@ -464,9 +457,11 @@ def _errors_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> No
     doc.img(rel, "3-D RMSE per trajectory and arm against the study")
 
 
-def _actions_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> None:
+def _actions_section(
+    doc: _Doc, ctx: _Context, summary: pd.DataFrame, trajectories: Sequence[str]
+) -> None:
     doc.h(3, "Policy actions")
-    doc.table(ACTIONS_HEADER, actions_rows(metrics_summary(ctx.groups), ctx.groups, trajectories))
+    doc.table(ACTIONS_HEADER, actions_rows(summary, ctx.groups, trajectories))
     doc.p(actions_caption())
     doc.p(ctx.provenance())
 
@@ -569,9 +564,8 @@ def _moments_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> N
                         if not part.empty
                         else part
                     )
-                    cells.append(
-                        "no data" if sel.empty else _pm(sel.iloc[0]["mean"], sel.iloc[0]["std"], 1)
-                    )
+                    peak = sel.iloc[0] if not sel.empty else None
+                    cells.append("no data" if peak is None else mean_pm_std(peak["mean"], peak["std"], 1))
                 study = study_peak_moment(group.algo, group.controller, trajectory, direction)
                 rows.append(
                     [
@@ -665,8 +659,9 @@ def build_report(
     _runs_section(doc, ctx, runs)
     _training_section(doc, ctx)
     _final_section(doc, ctx)
-    _errors_section(doc, ctx, trajectories)
-    _actions_section(doc, ctx, trajectories)
+    summary = metrics_summary(ctx.groups)
+    _errors_section(doc, ctx, summary, trajectories)
+    _actions_section(doc, ctx, summary, trajectories)
     _trajectories_section(doc, ctx, trajectories)
     _moments_section(doc, ctx, trajectories)
 
