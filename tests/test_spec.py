@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -113,6 +114,7 @@ def test_env_kwargs_are_plain_dicts_with_exact_names() -> None:
         "name",
         "sphere_radius",
         "speed",
+        "speed_min",
         "redirect_interval",
         "box_low",
         "box_high",
@@ -190,6 +192,11 @@ ERROR_CASES = {
         "env:\n  target:\n    box_low: [0, 1]\n",
         [],
         ["env.target.box_low", "expected 3 values"],
+    ),
+    "speed-range": (
+        "env:\n  target:\n    speed_min: 0.5\n",
+        [],
+        ["env.target.speed_min", "exceeds speed=0.3", "make speed_min <= speed"],
     ),
     "bool-as-number": ("training: {n_envs: yes}\n", [], ["training.n_envs", "expected a number"]),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
@@ -404,6 +411,14 @@ def test_spec_hash() -> None:
     assert len(spec_hash(base)) == 64
     assert spec_hash(base.with_seed(7)) == spec_hash(base)  # seed-independent
     assert spec_hash(parse_spec({"algo": {"tau": 0.01}})) != spec_hash(base)
+    assert spec_hash(parse_spec({"env": {"target": {"speed_min": 0.1}}})) != spec_hash(base)
+
+
+@pytest.mark.parametrize("run_dir", sorted((REPO / "models").glob("*/")), ids=lambda p: p.name)
+def test_spec_hash_of_shipped_runs_is_stable(run_dir: Path) -> None:
+    """Fields added to the spec after these runs were trained keep their recorded hash."""
+    recorded = json.loads((run_dir / "run.json").read_text())["spec_hash"]
+    assert spec_hash(load_spec(run_dir / "spec.yaml")) == recorded
 
 
 # ---- algo kwargs --------------------------------------------------------------------------

@@ -58,6 +58,9 @@ def test_defaults_match_spec() -> None:
         ({"box_low": (0.6, 0.3, -0.6)}, "box_low"),
         ({"box_low": (-0.6, 0.3, -0.6), "box_high": (0.6, 0.39, 0.6)}, "sphere"),
         ({"sphere_radius": 0.7}, "sphere_radius"),
+        ({"speed_min": 0.4}, "speed_min"),
+        ({"speed_min": -0.1}, "speed_min"),
+        ({"speed_min": float("nan")}, "speed_min"),
     ],
 )
 def test_validate_names_the_field(overrides: dict, field: str) -> None:
@@ -307,6 +310,38 @@ def test_random_redirect_interval_is_configurable() -> None:
             draws.append(k)
         previous = np.abs(targets.velocity[0])
     assert draws == [125, 250, 375, 500]
+
+
+def _speeds(config: TargetConfig, seeds: list[int], steps: int = 5000) -> np.ndarray:
+    """(steps, n_envs) speeds of random targets stepped at 2 ms."""
+    targets = _random_targets(seeds, config)
+    speeds = np.empty((steps, len(seeds)))
+    for k in range(steps):
+        targets.step(0.002)
+        speeds[k] = np.linalg.norm(targets.velocity, axis=1)
+    return speeds
+
+
+def test_random_speed_is_constant_without_speed_min() -> None:
+    np.testing.assert_allclose(_speeds(TargetConfig(), [1, 2, 3]), 0.3, rtol=1e-12)
+
+
+def test_random_speed_min_draws_a_speed_with_every_direction() -> None:
+    speeds = _speeds(TargetConfig(speed_min=0.1), list(range(20)))  # 10 s: 10 draws per env
+    assert speeds.min() >= 0.1 and speeds.max() <= 0.3
+    per_interval = speeds[::500]  # one sample per 1-s direction
+    assert len(np.unique(per_interval.round(12))) == per_interval.size  # all different
+    # 200 uniform draws on [0.1, 0.3]: mean 0.2 ± 0.004 (std 0.058/sqrt(200)), both ends reached
+    assert abs(per_interval.mean() - 0.2) < 0.02
+    assert per_interval.min() < 0.12 and per_interval.max() > 0.28
+    # between draws a speed only changes by reflection, which keeps it
+    np.testing.assert_allclose(speeds[1:499], speeds[0:498], rtol=1e-12)
+
+
+def test_random_speed_min_equal_to_speed_is_the_constant_speed() -> None:
+    np.testing.assert_allclose(
+        _speeds(TargetConfig(speed_min=0.3), [4, 5]), _speeds(TargetConfig(), [4, 5]), rtol=1e-12
+    )
 
 
 def _run(seeds: list[int], steps: int = 1500) -> np.ndarray:

@@ -2,7 +2,8 @@
 
 Modes:
 
-* ``random`` (training): constant speed, a new direction uniform on the unit sphere every
+* ``random`` (training): constant speed (or, with ``speed_min``, a speed drawn uniformly in
+  [``speed_min``, ``speed``] with every direction), a new direction uniform on the unit sphere every
   ``redirect_interval`` seconds, specular reflection (per velocity component) at the walls of
   the box so that the whole sphere stays inside it.
 * ``circle``, ``rectangle``, ``figure8`` (evaluation): closed-form periodic paths in the
@@ -64,7 +65,9 @@ class TargetConfig:
     Attributes:
         name: one of ``random``, ``circle``, ``rectangle``, ``figure8``, ``fixed``.
         sphere_radius: radius of the target sphere, m.
-        speed: speed of the random target, m/s.
+        speed: speed of the random target, m/s (its maximum when ``speed_min`` is set).
+        speed_min: ``None`` (the study): constant ``speed``. Otherwise every new direction of the
+            random target comes with a speed uniform in [speed_min, speed], m/s.
         redirect_interval: time between two direction draws of the random target, s.
         box_low: (x, y, z) lower corner of the random target's box, m.
         box_high: (x, y, z) upper corner of the random target's box, m.
@@ -79,6 +82,7 @@ class TargetConfig:
     name: str = "random"
     sphere_radius: float = 0.05
     speed: float = 0.3
+    speed_min: float | None = None
     redirect_interval: float = 1.0
     box_low: tuple[float, float, float] = (-0.6, 0.3, -0.6)
     box_high: tuple[float, float, float] = (0.6, 0.9, 0.6)
@@ -110,6 +114,13 @@ class TargetConfig:
             value = getattr(self, field_name)
             if not (_is_finite_number(value) and value > 0):
                 raise ValueError(f"target {field_name}={value!r} must be a finite number > 0")
+        if self.speed_min is not None and not (
+            _is_finite_number(self.speed_min) and 0 <= self.speed_min <= self.speed
+        ):
+            raise ValueError(
+                f"target speed_min={self.speed_min!r} must be a finite number in [0, speed="
+                f"{self.speed!r}]; leave it unset for a constant speed"
+            )
         for field_name, length in (
             ("box_low", 3),
             ("box_high", 3),
@@ -315,7 +326,8 @@ class BatchedTargets:
         self._all_reset = all(rng is not None for rng in self._rngs)
 
     def _draw_direction(self, i: int) -> None:
-        """New velocity of env ``i``: ``speed`` times a direction uniform on the unit sphere."""
+        """New velocity of env ``i``: a direction uniform on the unit sphere times ``speed``, or
+        times a speed uniform in [``speed_min``, ``speed``] (drawn after the direction)."""
         rng = self._rngs[i]
         assert rng is not None
         while True:
@@ -324,7 +336,10 @@ class BatchedTargets:
             norm = math.sqrt(gx * gx + gy * gy + gz * gz)
             if norm > 1e-12:  # practically always; redraw the measure-zero degenerate case
                 break
-        self.velocity[i] = (self.config.speed / norm) * g
+        speed = self.config.speed
+        if self.config.speed_min is not None:
+            speed = float(rng.uniform(self.config.speed_min, speed))
+        self.velocity[i] = (speed / norm) * g
 
     def step(self, dt: float) -> None:
         """Advance every environment by ``dt`` seconds."""

@@ -141,13 +141,26 @@ def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
     return "\n".join(out) + "\n"
 
 
+# Fields added after runs had been recorded, with the value that reproduces the behaviour from
+# before they existed. At that value they are left out of the hash, so that adding an optional
+# field keeps the hash (and the spec matching) of every existing run and experiment file.
+_FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {("env", "target", "speed_min"): None}
+
+
 def spec_hash(spec: ExperimentSpec) -> str:
     """SHA-256 (hex) of the canonical JSON of the spec *without* ``seeds``.
 
     The runs of one experiment therefore share the hash across seeds; any other change
-    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what).
+    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what)
+    and a later-added field left at its neutral value (``_FIELDS_ADDED_LATER``).
     """
     data = spec.model_dump(mode="json", exclude={"seeds", "cluster"})
+    for (*parents, leaf), neutral in _FIELDS_ADDED_LATER.items():
+        section = data
+        for key in parents:
+            section = section[key]
+        if section.get(leaf, neutral) == neutral:
+            section.pop(leaf, None)
     canonical = json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 

@@ -209,7 +209,17 @@ class TargetSpec(_Spec):
         "random", "target motion: random (training), circle, rectangle, figure8 or fixed", "-"
     )
     sphere_radius: Float = _f(0.05, "radius of the target sphere", "m", gt=0)
-    speed: Float = _f(0.3, "speed of the random target", "m/s", ge=0)
+    speed: Float = _f(
+        0.3, "speed of the random target (its maximum when speed_min is set)", "m/s", ge=0
+    )
+    speed_min: Float | None = _f(
+        None,
+        "null (the study): the random target always moves at speed. A number: every new "
+        "direction comes with a speed drawn uniformly in [speed_min, speed], so that the policy "
+        "also sees the slower speeds of the evaluation trajectories (0.13-0.27 m/s)",
+        "m/s",
+        ge=0,
+    )
     redirect_interval: Float = _f(
         1.0, "time between new random directions (uniform on the unit sphere)", "s", gt=0
     )
@@ -240,7 +250,13 @@ class TargetSpec(_Spec):
         return value
 
     @model_validator(mode="after")
-    def _check_box(self) -> TargetSpec:
+    def _check_speeds_and_box(self) -> TargetSpec:
+        if self.speed_min is not None and self.speed_min > self.speed:
+            raise _custom_error(
+                f"speed_min={self.speed_min:g} m/s exceeds speed={self.speed:g} m/s; speed is the "
+                "largest speed drawn, so make speed_min <= speed (or leave it null)",
+                "speed_min",
+            )
         for axis, lo, hi in zip("xyz", self.box_low, self.box_high):
             if hi - lo <= 2 * self.sphere_radius:
                 raise _custom_error(
