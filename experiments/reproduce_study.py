@@ -16,8 +16,8 @@ evaluated with `softtrack evaluate`; the report is then rebuilt from ``models/``
 
 Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX backend):
 td3-sbx and td3-sbx-speeds ~30 min per seed, td3-sbx-1e7 ~75 min, independent-td3-sbx ~60 min
-(two arms of 4e6), ddpg-sbx ~6 min per seed (1e6 steps), ppo-sbx ~8 min per seed (4e6 steps,
-~9,000 env steps/s).
+(two arms of 4e6), independent-td3-sbx-speeds ~30 min (two arms of 2e6), ddpg-sbx ~6 min per
+seed (1e6 steps), ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s).
 """
 
 from __future__ import annotations
@@ -54,11 +54,13 @@ JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx-1e7", s, f"td3-sbx-1e7-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-speeds", s, f"td3-sbx-speeds-4e6-seed{s}") for s in (0, 1, 2)),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
+    Job("independent-td3-sbx-speeds", 0, "independent-td3-sbx-speeds-2e6-seed0"),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
 )
 REPORTED = (
-    "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "independent-td3-sbx", "ddpg-sbx", "ppo-sbx"
+    "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "independent-td3-sbx",
+    "independent-td3-sbx-speeds", "ddpg-sbx", "ppo-sbx",
 )
 
 
@@ -125,8 +127,9 @@ def main(argv: list[str] | None = None) -> None:
         for job in jobs:
             spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
-            print(f"{job.spec:20s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
-                  f"steps  models/{job.dest}  ({state})")
+            per_arm = " per arm" if spec.controller == "independent" else ""
+            print(f"{job.spec:27s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
+                  f"steps{per_arm}  models/{job.dest}  ({state})")
         return
     if not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)
