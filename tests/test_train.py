@@ -273,3 +273,22 @@ def test_sigkill_then_resume(tmp_path: Path) -> None:
     (bad / "state.json").write_text("{not json")
     (bad / "model.zip").write_bytes(b"garbage")
     _resume_and_check(runs_dir, run_dir.name, split, total, n_envs, n_envs)
+
+
+@pytest.mark.parametrize("algo, backend", [("td3", "sb3"), SBX_TD3])
+def test_same_seed_trains_the_same_run(tmp_path: Path, algo: str, backend: str) -> None:
+    """Two trainings of one spec and seed, learning from step 50, give the same episode returns."""
+    spec = _spec(tmp_path, algo, backend)
+    returns = []
+    for name in ("a", "b", "c"):
+        seed = "1" if name == "c" else "0"
+        result = runner.invoke(
+            app,
+            ["train", str(spec), "--runs-dir", str(tmp_path / name), "--seed", seed],
+            env={"CI": "1"},
+        )
+        assert result.exit_code == 0, result.output
+        record = RunStore(tmp_path / name).get_run(result.stdout.strip())
+        returns.append(_episodes(record.path)["return"].to_numpy())
+    np.testing.assert_array_equal(returns[0], returns[1])
+    assert not np.array_equal(returns[0], returns[2])  # another seed, another run
