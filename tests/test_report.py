@@ -419,3 +419,17 @@ def test_runs_table_gives_training_time_and_speed(report: Path) -> None:
         assert cells[time_col] == f"{wall / 60:.0f} min"
         steps = int(cells[steps_col].split("/")[0].replace(",", ""))
         assert cells[speed_col] == f"{steps / wall:,.0f}"
+
+
+def test_trajectory_captions_name_the_full_run_id(report: Path, store: RunStore) -> None:
+    """Runs started in the same millisecond share their first 10 ULID characters, so a caption
+    must give the whole id; one seed is "1 seed"."""
+    md = report.read_text(encoding="utf-8")
+    captions = [line for line in md.splitlines() if "(median 3-D RMSE of" in line]
+    assert captions
+    ids = {r.run_id for r in store.list_runs()}
+    for line in captions:
+        named = line.split(", run ", 1)[1].split(" ", 1)[0]
+        assert named in ids, line
+    assert any("of 1 seed)" in line for line in captions)
+    assert not any("of 1 seeds" in line for line in captions)

@@ -472,7 +472,8 @@ def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
         for r in group.runs
         if r.trajectories is not None and (r.trajectories["trajectory"] == trajectory).any()
     )
-    return f"{group.label}, seed {run.seed}, run {run.run_id[:10]} (median 3-D RMSE of {n} seeds)"
+    seeds = "1 seed" if n == 1 else f"{n} seeds"
+    return f"{group.label}, seed {run.seed}, run {run.run_id} (median 3-D RMSE of {seeds})"
 
 
 def _trajectories_section(doc: _Doc, ctx: _Context, trajectories: Sequence[str]) -> None:
