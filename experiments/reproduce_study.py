@@ -17,7 +17,7 @@ evaluated with `softtrack evaluate`; the report is then rebuilt from ``models/``
 Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX backend):
 td3-sbx, td3-sbx-speeds and td3-sbx-arm-bonus ~30 min per seed, td3-sbx-128 ~65 min per seed
 (~1,060 env steps/s), td3-sbx-1e7 ~75 min, independent-td3-sbx ~60 min (two arms of 4e6),
-independent-td3-sbx-2e6 ~30 min (two arms of 2e6), ddpg-sbx ~6 min per seed (1e6 steps),
+independent-td3-sbx-2e6 ~30 min per seed (two arms of 2e6), ddpg-sbx ~6 min per seed (1e6 steps),
 ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s).
 """
 
@@ -57,7 +57,7 @@ JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx-arm-bonus", s, f"td3-sbx-arm-bonus-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-128", s, f"td3-sbx-128-4e6-seed{s}") for s in (0, 1, 2)),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
-    Job("independent-td3-sbx-2e6", 0, "independent-td3-sbx-2e6-seed0"),
+    *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
 )
