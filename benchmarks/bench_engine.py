@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from softtrack.sim import RodBatch, SimParams, actions_to_element_torques
+from softtrack.store.provenance import cpu_description
 
 
 def _timed(run_once) -> float:
@@ -111,7 +112,7 @@ def main() -> None:
     warm = warm_start_seconds()
 
     print("integration steps/s (both arms, dt = 2e-4 s), median of", args.repeats,
-          "interleaved runs; ratios are medians of per-run ratios")
+          "interleaved runs; ratios are medians of per-run ratios; CPU:", cpu_description())
     print(f"  PyElastica 1.0.0          {pyelastica:12,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
     print(f"  softtrack, 1 env          {single:12,.0f}   ({1e6 / single:6.2f} µs/step)"
           f"   {single_ratio:5.1f}× PyElastica")

@@ -31,6 +31,7 @@ import numpy as np
 from softtrack.env import DualArmTrackingEnv, make_config
 from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.sim import RodBatch
+from softtrack.store.provenance import cpu_description
 
 
 def _timed(setup: Callable[[], None], run: Callable[[], None]) -> float:
@@ -135,7 +136,7 @@ def main() -> None:
     envb, engineb = bench_batch(actions, args.batch, args.batch_steps, args.repeats, args.target)
 
     print(f"control steps/s (10 integration steps of both arms each), target={args.target}, "
-          f"median of {args.repeats} runs")
+          f"median of {args.repeats} runs; CPU: {cpu_description()}")
     for label, env_rate, engine_rate in (
         ("1 env", env1, engine1),
         (f"{args.batch} envs, per env", envb, engineb),

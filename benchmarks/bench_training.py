@@ -25,6 +25,7 @@ import numpy as np
 from softtrack.rl.factory import build_model, env_config, make_vec_env
 from softtrack.sim import RodBatch
 from softtrack.spec import ExperimentSpec
+from softtrack.store.provenance import cpu_description
 
 STUDY_BUDGET = 10_000_000
 STUDY_HOURS = 8.5
@@ -78,7 +79,7 @@ def main() -> None:
     args = parser.parse_args()
     backends = ["sb3"] + (["sbx"] if importlib.util.find_spec("sbx") else [])
     print(f"TD3 [64, 64], batch 128, one gradient step per env step, {args.n_envs} envs, "
-          f"{args.steps:,} timed env steps after warm-up")
+          f"{args.steps:,} timed env steps after warm-up; CPU: {cpu_description()}")
     for backend in backends:
         spec = study_spec(backend, args.n_envs)
         total = time_learning(spec, args.steps)

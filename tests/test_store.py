@@ -29,6 +29,7 @@ from softtrack.store.atomic import (
     remove_temp_files,
 )
 from softtrack.store.ids import create_unique_dir, id_timestamp, is_valid_id, new_id
+from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunStore, resolve_runs_dir
 from softtrack.store.tables import (
     TableNotFoundError,
@@ -266,6 +267,7 @@ def test_create_run(tmp_path: Path, spec: ExperimentSpec) -> None:
     assert data["command"] == ["softtrack", "train", "x.yaml"]
     assert data["versions"]["numpy"] == np.__version__ and "python" in data["versions"]
     assert data["created"].endswith("Z") and data["started"] is None
+    assert data["cpu"] == cpu_description()
     assert {
         "git_commit",
         "git_dirty",
@@ -323,3 +325,16 @@ def test_resolve_runs_dir(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("SOFTTRACK_RUNS_DIR", "/data/runs")
     assert resolve_runs_dir(None) == Path("/data/runs")
     assert resolve_runs_dir("elsewhere") == Path("elsewhere")
+
+
+def test_cpu_description_reads_model_cores_and_widest_extension(tmp_path: Path) -> None:
+    cpuinfo = tmp_path / "cpuinfo"
+    cpuinfo.write_text(
+        "processor\t: 0\nmodel name\t: Test CPU 9000\nflags\t\t: fpu sse4_2 avx avx2 fma\n\n"
+        "processor\t: 1\nmodel name\t: Test CPU 9000\nflags\t\t: fpu sse4_2 avx avx2 fma\n"
+    )
+    cores = len(os.sched_getaffinity(0))
+    suffix = "s" if cores != 1 else ""
+    assert cpu_description(str(cpuinfo)) == f"Test CPU 9000, {cores} core{suffix}, avx2"
+    described = cpu_description(str(tmp_path / "missing"))
+    assert described.endswith(f"{cores} core{suffix}") and not described.startswith(",")

@@ -31,7 +31,7 @@ from softtrack.spec import ExperimentSpec, load_spec, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text, is_temp_file
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.layout import PolicyDir
-from softtrack.store.provenance import git_info, library_versions
+from softtrack.store.provenance import cpu_description, git_info, library_versions
 
 __all__ = [
     "RUNS_DIR_ENV",
@@ -126,6 +126,10 @@ class RunInfo(BaseModel):
     )
     command: list[str] = Field(default_factory=list, description="command line (sys.argv)")
     host: str | None = Field(None, description="host name of the (last) running process")
+    cpu: str | None = Field(
+        None, description="CPU model, usable cores and vector extension of the (last) running "
+        "process (steps_per_second depends on it)"
+    )
     pid: int | None = Field(None, description="process id of the (last) running process")
     error: str | None = Field(None, description="one-line error of a failed run")
     traceback: str | None = Field(
@@ -276,6 +280,7 @@ class RunStore:
                 versions=library_versions(),
                 command=list(sys.argv if command is None else command),
                 host=socket.gethostname(),
+                cpu=cpu_description(),
                 notes=dict(notes or {}),
             )
             self._write(path, info)  # last: a directory with run.json is a complete run
@@ -380,6 +385,7 @@ class RunStore:
             error=None,
             traceback=None,
             host=socket.gethostname(),
+            cpu=cpu_description(),
             pid=os.getpid(),
         )
 
