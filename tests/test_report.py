@@ -33,6 +33,7 @@ from softtrack.report.data import (
     training_curves,
 )
 from softtrack.spec import parse_spec, spec_to_yaml
+from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
 from softtrack.store.tables import read_table, write_table
 
@@ -406,11 +407,12 @@ def test_missing_training_and_eval_tables(store: RunStore, tmp_path: Path) -> No
         shutil.rmtree(bare.path)
 
 
-def test_runs_table_gives_training_time_and_speed(report: Path) -> None:
+def test_runs_table_gives_training_time_speed_and_cpu(report: Path) -> None:
     md = report.read_text(encoding="utf-8")
     header, _rule, *rows = _table_after(md, "## Runs")
     columns = [c.strip() for c in header.strip("|").split("|")]
     time_col, speed_col = columns.index("training time"), columns.index("env steps/s")
+    cpu_col = columns.index("CPU (speed depends on it)")
     steps_col = columns.index("env steps / budget")
     wall = 0.1 * (BUDGET // 100 - 1)  # the fixture's training clock at its last episode, s
     assert rows
@@ -419,6 +421,7 @@ def test_runs_table_gives_training_time_and_speed(report: Path) -> None:
         assert cells[time_col] == f"{wall / 60:.0f} min"
         steps = int(cells[steps_col].split("/")[0].replace(",", ""))
         assert cells[speed_col] == f"{steps / wall:,.0f}"
+        assert cells[cpu_col] == cpu_description()
 
 
 def test_trajectory_captions_name_the_full_run_id(report: Path, store: RunStore) -> None:

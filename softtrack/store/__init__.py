@@ -3,7 +3,8 @@
 Layout of one run (``<runs dir>/<run id>/``)::
 
     spec.yaml             fully resolved spec of this run (seeds: [its seed])
-    run.json              status, times, seed, spec hash, git commit, versions, command, progress
+    run.json              status, times, seed, spec hash, git commit, versions, command, progress,
+                          CPU
     model.zip             the final model (written atomically by the trainer)
     checkpoints/          step-<global step>/ directories (model, replay buffer, normalisation)
     models/arm<k>/        independent runs: arm k's model.zip, vecnormalize.pkl, state.json
