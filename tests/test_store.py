@@ -29,7 +29,7 @@ from softtrack.store.atomic import (
     remove_temp_files,
 )
 from softtrack.store.ids import create_unique_dir, id_timestamp, is_valid_id, new_id
-from softtrack.store.provenance import cpu_description
+from softtrack.store.provenance import cpu_description, usable_cores
 from softtrack.store.runs import RunNotFoundError, RunStore, resolve_runs_dir
 from softtrack.store.tables import (
     TableNotFoundError,
@@ -333,7 +333,7 @@ def test_cpu_description_reads_model_cores_and_widest_extension(tmp_path: Path) 
         "processor\t: 0\nmodel name\t: Test CPU 9000\nflags\t\t: fpu sse4_2 avx avx2 fma\n\n"
         "processor\t: 1\nmodel name\t: Test CPU 9000\nflags\t\t: fpu sse4_2 avx avx2 fma\n"
     )
-    cores = len(os.sched_getaffinity(0))
+    cores = usable_cores()
     suffix = "s" if cores != 1 else ""
     assert cpu_description(str(cpuinfo)) == f"Test CPU 9000, {cores} core{suffix}, avx2"
     described = cpu_description(str(tmp_path / "missing"))

@@ -9,7 +9,6 @@ no new job starts, every running worker gets SIGTERM (it saves a checkpoint and 
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import threading
@@ -19,6 +18,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from softtrack.executors.base import Job, record_worker_exit, worker_env
+from softtrack.store.provenance import usable_cores
 
 __all__ = ["LocalPool", "default_workers"]
 
@@ -27,10 +27,7 @@ POLL_S = 0.2
 
 def default_workers() -> int:
     """The number of cores this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover (not Linux)
-        return max(1, os.cpu_count() or 1)
+    return usable_cores()
 
 
 @contextmanager

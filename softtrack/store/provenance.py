@@ -9,7 +9,7 @@ import platform
 import subprocess
 from pathlib import Path
 
-__all__ = ["cpu_description", "git_info", "library_versions"]
+__all__ = ["cpu_description", "git_info", "library_versions", "usable_cores"]
 
 _TRACKED_LIBRARIES = (
     "softtrack",
@@ -78,7 +78,14 @@ def library_versions() -> dict[str, str]:
 _VECTOR_EXTENSIONS = ("avx512f", "avx2", "avx", "neon", "asimd")
 
 
-@functools.cache
+def usable_cores() -> int:
+    """The number of logical cores this process may run on (its affinity mask where known)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover (not Linux)
+        return max(1, os.cpu_count() or 1)
+
+
 def cpu_description(cpuinfo: str = "/proc/cpuinfo") -> str:
     """CPU model, logical cores usable by this process and widest vector extension.
 
@@ -97,10 +104,12 @@ def cpu_description(cpuinfo: str = "/proc/cpuinfo") -> str:
                     model = value.strip()
                 elif key in ("flags", "Features") and not flags:
                     flags = set(value.split())
+                if model and flags:
+                    break
     except OSError:
         pass
     model = model or platform.processor() or platform.machine() or "unknown CPU"
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = usable_cores()
     parts = [model, f"{cores} core{'s' if cores != 1 else ''}"]
     widest = next((ext for ext in _VECTOR_EXTENSIONS if ext in flags), None)
     if widest:

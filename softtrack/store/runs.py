@@ -8,8 +8,9 @@ directory without ``run.json`` is an aborted creation and is ignored by :meth:`R
 ``run.json`` (:class:`RunInfo`) holds the status (queued → running → completed | failed |
 interrupted), ISO-8601 UTC times (created, started, ended, heartbeat), the seed, the spec
 hash, the git commit and dirty flag of the code, library versions, the command line, the
-progress (global_step, steps_per_second) and the CPU of the running process. It has a single writer at a time (the process that
-runs the run); every update is an atomic read-modify-write of the whole file.
+progress (global_step, steps_per_second) and the CPU of the running process. It has a single
+writer at a time (the process that runs the run); every update is an atomic read-modify-write
+of the whole file.
 """
 
 from __future__ import annotations
