@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from softtrack.api import final_stage_return, list_run_summaries
 from softtrack.cli import app
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunStore
+from softtrack.store.status import final_stage_return, list_run_summaries
 from softtrack.store.tables import append_rows
 
 runner = CliRunner()

@@ -13,7 +13,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from softtrack.api import final_stage_return
 from softtrack.env import make_config
 from softtrack.evaluation import (
     EVAL_TRAJECTORIES,
@@ -35,6 +34,7 @@ from softtrack.report.data import (
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
+from softtrack.store.status import final_stage_return
 from softtrack.store.tables import read_table, write_table
 
 BUDGET = 2000

@@ -18,12 +18,12 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from softtrack.api import effective_status, list_run_summaries
 from softtrack.cli import app
 from softtrack.executors.dispatch import ExecOptions, execute, select_runs
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds, split_values
 from softtrack.spec import SpecError, load_spec
 from softtrack.store.runs import RunStore
+from softtrack.store.status import effective_status, list_run_summaries
 from softtrack.store.tables import read_table
 
 runner = CliRunner()

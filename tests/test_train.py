@@ -181,7 +181,7 @@ def _start(spec: Path, runs_dir: Path) -> subprocess.Popen[str]:
     )
 
 
-def _wait_for_checkpoint(proc: subprocess.Popen[str], runs_dir: Path, timeout: float = 60) -> Path:
+def _wait_for_checkpoint(proc: subprocess.Popen[str], runs_dir: Path, timeout: float = 180) -> Path:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         assert proc.poll() is None, proc.communicate()

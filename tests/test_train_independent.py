@@ -18,10 +18,11 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from softtrack.api import final_stage_return, validate_spec
+from softtrack.api import validate_spec
 from softtrack.cli import app
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunRecord, RunStore
+from softtrack.store.status import final_stage_return
 from softtrack.store.tables import append_rows, read_table
 
 runner = CliRunner()

@@ -20,6 +20,7 @@ from softtrack.executors.base import Job, failed_by_signal
 from softtrack.executors.sweep import progress_counts
 from softtrack.spec import ClusterSpec
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, lock_held
+from softtrack.store.status import effective_status
 
 __all__ = ["ExecOptions", "Outcome", "execute", "progress_line", "resumable", "select_runs"]
 
@@ -81,8 +82,6 @@ class Outcome:
 
 def progress_line(label: str, records: Sequence[RunRecord]) -> str:
     """``sweep 01X…: 4 runs: 1 completed, 2 running, 1 queued; 2,340 steps/s``."""
-    from softtrack.api import effective_status
-
     counts = progress_counts(records, effective_status)
     parts = [f"{counts[s]} {s}" for s in
              ("completed", "running", "queued", "interrupted", "failed", "lost") if counts[s]
@@ -127,8 +126,6 @@ def execute(
     label: str | None = None,
 ) -> Outcome:
     """Run ``run_ids`` on ``opts.executor``; returns when all ended (or at once if detached)."""
-    from softtrack.api import effective_status
-
     label = label or f"sweep {sweep_id}"
     outcome = Outcome(sweep_id, list(run_ids))
     jobs = [Job(str(store.root), r) for r in run_ids]
@@ -186,8 +183,6 @@ def execute(
 
 def resumable(record: RunRecord) -> bool:
     """Interrupted, queued (never started), failed-by-signal and lost runs."""
-    from softtrack.api import effective_status
-
     status = effective_status(record)
     return status in ("interrupted", "queued", "lost") or failed_by_signal(record.info)
 

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from softtrack.metrics import SATURATION_THRESHOLD
-from softtrack.report.data import Group
+from softtrack.report.data import Group, summary_row
 from softtrack.report.reference import (
     CALIBRATION_ACTION_CHANGE,
     CALIBRATION_ACTION_SATURATION,
@@ -50,16 +50,7 @@ def actions_rows(
     for group in groups:
         for trajectory in trajectories:
             for arm in (0, 1):
-                sel = (
-                    summary[
-                        (summary["group"] == group.label)
-                        & (summary["trajectory"] == trajectory)
-                        & (summary["arm"] == arm)
-                    ]
-                    if not summary.empty
-                    else summary
-                )
-                row = None if sel.empty else sel.iloc[0]
+                row = summary_row(summary, group.label, trajectory, arm)
                 n_data = row.get("action_saturation_n") if row is not None else None
                 n_data = int(n_data) if n_data is not None and math.isfinite(n_data) else 0
                 seeds = f"{n_data} of {int(row['n']) if row is not None else len(group.runs)}"

@@ -18,6 +18,7 @@ import pandas as pd
 from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.store.runs import RunRecord
+from softtrack.store.status import DEFAULT_FINAL_STAGE_FRACTION
 from softtrack.store.tables import TableError, read_table
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "moment_peaks",
     "representative_run",
     "run_final_stage_returns",
+    "summary_row",
     "training_curves",
     "trajectories_in",
 ]
@@ -55,7 +57,6 @@ _MOMENT_COLUMNS = (
 )
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3}
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
-DEFAULT_FINAL_STAGE_FRACTION = 0.1
 
 
 # ---- runs -----------------------------------------------------------------------------------
@@ -460,6 +461,17 @@ def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
                 row[f"{col}_n"] = int(values.size)
             rows.append(row)
     return pd.DataFrame(rows)
+
+
+def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) -> pd.Series | None:
+    """The :func:`metrics_summary` row of ``group`` (its label), ``trajectory`` and ``arm``
+    (0-indexed), or None where nothing is stored."""
+    if summary.empty:
+        return None
+    sel = summary[
+        (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
+    ]
+    return None if sel.empty else sel.iloc[0]
 
 
 def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:

@@ -19,20 +19,11 @@ Errors a user can make raise :class:`SpecError`, whose ``str`` is one line::
     experiments/td3.yaml:12: algo.learnig_rate: unknown field 'learnig_rate'; did you mean 'learning_rate'?
 """
 
+from softtrack.spec.algo_models import OFF_POLICY_ALGOS, AlgoSpec, PolicyKwargsSpec
 from softtrack.spec.api import load_spec, parse_spec, spec_hash, spec_json_schema, spec_to_yaml
-from softtrack.spec.models import (
-    OFF_POLICY_ALGOS,
-    AlgoSpec,
-    ClusterSpec,
-    EnvSpec,
-    ExperimentSpec,
-    PhysicsSpec,
-    PolicyKwargsSpec,
-    RewardSpec,
-    SpecError,
-    TargetSpec,
-    TrainingSpec,
-)
+from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RewardSpec, TargetSpec
+from softtrack.spec.fields import SpecError
+from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
 
 __all__ = [
     "OFF_POLICY_ALGOS",

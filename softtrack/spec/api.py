@@ -17,7 +17,8 @@ from pydantic import (
     ValidationError,
 )
 
-from softtrack.spec.models import ExperimentSpec, SpecError
+from softtrack.spec.fields import SpecError
+from softtrack.spec.models import ExperimentSpec
 from softtrack.spec.parsing import _apply_override, _convert, _parse_override, _parse_yaml
 
 

@@ -14,7 +14,8 @@ from pydantic import (
     ValidationError,
 )
 
-from softtrack.spec.models import _ERROR_TYPE, ExperimentSpec, SpecError
+from softtrack.spec.fields import ERROR_TYPE, SpecError
+from softtrack.spec.models import ExperimentSpec
 
 
 # ------------------------------------------------------------------------------------------
@@ -222,7 +223,7 @@ def _describe(error: dict[str, Any], loc: tuple[Any, ...]) -> tuple[str, str]:
     """(problem, fix) for one pydantic error."""
     kind, ctx, value = error["type"], error.get("ctx") or {}, error.get("input")
     msg = error["msg"]
-    if kind == _ERROR_TYPE:
+    if kind == ERROR_TYPE:
         problem, _, fix = str(ctx.get("message", msg)).partition("; ")
         return problem, fix
     if kind == "extra_forbidden":
@@ -292,7 +293,7 @@ def _convert(
     errors = exc.errors()
     locs: list[tuple[Any, ...]] = []
     for err in errors:
-        extra = str((err.get("ctx") or {}).get("field", "")) if err["type"] == _ERROR_TYPE else ""
+        extra = str((err.get("ctx") or {}).get("field", "")) if err["type"] == ERROR_TYPE else ""
         locs.append(_clean_loc(err["loc"], extra))
     first, loc = errors[0], locs[0]
     problem, fix = _describe(first, loc)

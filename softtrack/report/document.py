@@ -1,0 +1,207 @@
+"""The report's document model and the pieces every section shares.
+
+:class:`Doc` collects headings, paragraphs, tables and images and renders them to Markdown and
+to a standalone HTML page; the ``*_text`` helpers format table cells; :class:`Context` gives
+the sections the run groups, the provenance lines under every table and figure, and the paths
+of the figures they write.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import re
+import shlex
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from softtrack.report.data import Group, RunData
+from softtrack.report.reference import STUDY_BUDGET_TEXT
+
+__all__ = [
+    "FIGURES_DIR",
+    "NOT_IN_SPEC",
+    "Context",
+    "Doc",
+    "commit_text",
+    "group_provenance",
+    "num_text",
+    "seeds_text",
+    "study_text",
+]
+
+#: The report's figure directory, relative to the report directory.
+FIGURES_DIR = "figures"
+#: The cell shown where the SPEC gives no study value.
+NOT_IN_SPEC = "—"
+
+
+# ---- a minimal document model rendered to Markdown and HTML ---------------------------------
+@dataclass
+class Doc:
+    """Blocks: ("h", level, text), ("p", text), ("table", header, rows), ("img", src, alt)."""
+
+    blocks: list[tuple[object, ...]] = field(default_factory=list)
+
+    def h(self, level: int, text: str) -> None:
+        """A heading of ``level`` (1 = the title)."""
+        self.blocks.append(("h", level, text))
+
+    def p(self, text: str) -> None:
+        """A paragraph (inline Markdown: code, bold, italics)."""
+        self.blocks.append(("p", text))
+
+    def table(self, header: Sequence[str], rows: Iterable[Sequence[str]]) -> None:
+        """A table of text cells under ``header``."""
+        self.blocks.append(("table", list(header), [list(r) for r in rows]))
+
+    def img(self, src: str, alt: str) -> None:
+        """An image by path relative to the report, with its alternative text."""
+        self.blocks.append(("img", src, alt))
+
+    def markdown(self) -> str:
+        """The document as Markdown."""
+        out: list[str] = []
+        for block in self.blocks:
+            kind = block[0]
+            if kind == "h":
+                out.append(f"{'#' * int(block[1])} {block[2]}")  # type: ignore[call-overload]
+            elif kind == "p":
+                out.append(str(block[1]))
+            elif kind == "table":
+                header, rows = block[1], block[2]
+                cell = lambda s: str(s).replace("|", "\\|").replace("\n", " ")
+                out.append(
+                    "\n".join(
+                        [
+                            "| " + " | ".join(cell(h) for h in header) + " |",  # type: ignore[attr-defined]
+                            "|" + "---|" * len(header),
+                        ]  # type: ignore[arg-type]
+                        + ["| " + " | ".join(cell(c) for c in r) + " |" for r in rows]  # type: ignore[attr-defined]
+                    )
+                )
+            elif kind == "img":
+                out.append(f"![{block[2]}]({block[1]})")
+        return "\n\n".join(out) + "\n"
+
+    def html(self, title: str) -> str:
+        """The document as a standalone HTML page titled ``title``."""
+        def inline(text: object) -> str:
+            escaped = html.escape(str(text))
+            escaped = re.sub(r"`([^`]+)`", r"<code>\1</code>", escaped)
+            escaped = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", escaped)
+            return re.sub(r"\*([^*]+)\*", r"<em>\1</em>", escaped)
+
+        body: list[str] = []
+        for block in self.blocks:
+            kind = block[0]
+            if kind == "h":
+                body.append(f"<h{block[1]}>{inline(block[2])}</h{block[1]}>")
+            elif kind == "p":
+                body.append(f"<p>{inline(block[1])}</p>")
+            elif kind == "table":
+                head = "".join(f"<th>{inline(h)}</th>" for h in block[1])  # type: ignore[attr-defined]
+                rows = "".join(
+                    "<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>"
+                    for r in block[2]  # type: ignore[attr-defined]
+                )
+                body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+            elif kind == "img":
+                src, alt = html.escape(str(block[1]), quote=True), html.escape(str(block[2]))
+                body.append(f'<p><img src="{src}" alt="{alt}"></p>')
+        style = (
+            "body{font-family:sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;"
+            "line-height:1.45}table{border-collapse:collapse;margin:1em 0;font-size:0.9em}"
+            "th,td{border:1px solid #bbb;padding:3px 7px;text-align:left}th{background:#eee}"
+            "img{max-width:100%;border:1px solid #ddd}code{background:#f4f4f4;padding:0 3px}"
+        )
+        return (
+            '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8">'
+            f"<title>{html.escape(title)}</title><style>{style}</style></head>\n<body>\n"
+            + "\n".join(body)
+            + "\n</body>\n</html>\n"
+        )
+
+
+# ---- formatting -----------------------------------------------------------------------------
+def num_text(value: float | None, digits: int) -> str:
+    """A measured value with ``digits`` decimals, or "no data" (``None`` or not finite)."""
+    if value is None or not math.isfinite(value):
+        return "no data"
+    return f"{value:.{digits}f}"
+
+
+def study_text(value: float | None, digits: int) -> str:
+    """A study value with ``digits`` decimals, or :data:`NOT_IN_SPEC` (``None``)."""
+    return NOT_IN_SPEC if value is None else f"{value:.{digits}f}"
+
+
+def seeds_text(seeds: Iterable[int]) -> str:
+    """The distinct seeds, sorted and comma-separated, or "none"."""
+    return ", ".join(str(s) for s in sorted(set(seeds))) or "none"
+
+
+def commit_text(run: RunData) -> str:
+    """A run's git commit (12 digits, noting uncommitted changes), or "unknown"."""
+    info = run.record.info
+    if not info.git_commit:
+        return "unknown"
+    return info.git_commit[:12] + (" (+ uncommitted changes)" if info.git_dirty else "")
+
+
+def group_provenance(group: Group) -> str:
+    """One group's experiment, spec hashes, seeds, budgets, commits and training commands."""
+    budgets = ", ".join(group.budgets)
+    reached = ", ".join(f"{r.last_step:,}" for r in group.runs)
+    commits = "; ".join(sorted({commit_text(r) for r in group.runs}))
+    hashes = ", ".join(sorted({r.record.info.spec_hash[:12] for r in group.runs}))
+    commands = sorted(
+        {shlex.join(r.record.info.command) for r in group.runs if r.record.info.command}
+    )
+    text = (
+        f"**{group.label}**: experiment `{group.name}`, spec `{hashes}`, seeds "
+        f"{seeds_text(group.seeds)}, budget {budgets} (reached {reached}), "
+        f"commit `{commits}`"
+    )
+    if commands:
+        text += "; trained by " + ", ".join(f"`{c}`" for c in commands)
+    return text
+
+
+class Context:
+    """What every section needs: the groups, the report command and the figure list."""
+
+    def __init__(self, groups: list[Group], command: str, figures_dir: Path) -> None:
+        self.groups = groups
+        self.command = command
+        self.figures_dir = figures_dir
+        self.written: list[str] = []
+
+    def provenance(self, groups: Sequence[Group] | None = None) -> str:
+        """The *Behind these numbers* paragraph of ``groups`` (default: all)."""
+        groups = self.groups if groups is None else groups
+        parts = [f"Command: `{self.command}`."]
+        parts += [group_provenance(g) + "." for g in groups]
+        parts.append(f"Study: {STUDY_BUDGET_TEXT}.")
+        return "*Behind these numbers* — " + " ".join(parts)
+
+    def footer(self, groups: Sequence[Group] | None = None) -> str:
+        """The one-line provenance printed under a figure of ``groups`` (default: all)."""
+        groups = self.groups if groups is None else groups
+        names = ", ".join(sorted({g.name for g in groups}))
+        seeds = seeds_text(s for g in groups for s in g.seeds)
+        budgets = ", ".join(sorted({b for g in groups for b in g.budgets}))
+        hashes = ", ".join(sorted({r.record.info.spec_hash[:8] for g in groups for r in g.runs}))
+        commits = ", ".join(
+            sorted({(r.record.info.git_commit or "unknown")[:8] for g in groups for r in g.runs})
+        )
+        return (
+            f"experiment {names} · spec {hashes} · seeds {seeds} · budget {budgets} · "
+            f"commit {commits}"
+        )
+
+    def figure(self, name: str) -> tuple[Path, str]:
+        """(path to write, path relative to the report) of figure ``name``."""
+        self.written.append(f"{FIGURES_DIR}/{name}")
+        return self.figures_dir / name, f"{FIGURES_DIR}/{name}"

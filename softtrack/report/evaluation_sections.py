@@ -1,0 +1,276 @@
+"""Report sections on the evaluation episodes: tracking error (study Table 4), policy actions,
+trajectories and errors over time (study Figs. 4–9) and actuation moments (study Fig. 10).
+
+Each section appends its headings, tables, figures and provenance lines to a
+:class:`~softtrack.report.document.Doc`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pandas as pd
+
+from softtrack.report import figures as fg
+from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
+from softtrack.report.data import (
+    DIRECTIONS,
+    Group,
+    RunData,
+    moment_peaks,
+    representative_run,
+    summary_row,
+)
+from softtrack.report.document import NOT_IN_SPEC, Context, Doc, num_text, study_text
+from softtrack.report.reference import (
+    STUDY_PEAK_MOMENTS,
+    STUDY_RMSE_3D,
+    TRAJECTORY_TITLES,
+    study_peak_moment,
+    study_rmse_3d,
+)
+from softtrack.report.text import mean_pm_std
+
+__all__ = ["actions_section", "errors_section", "moments_section", "trajectories_section"]
+
+
+def _cell(row: pd.Series, metric: str) -> str:
+    """``mean ± std`` of ``metric`` in a :func:`metrics_summary` row (m, 4 decimals)."""
+    return mean_pm_std(row.get(f"{metric}_mean"), row.get(f"{metric}_std"), 4)
+
+
+def _metric_rows(
+    summary: pd.DataFrame, group: Group, trajectories: Sequence[str]
+) -> list[list[str]]:
+    rows = []
+    for trajectory in trajectories:
+        for arm in (0, 1):
+            r = summary_row(summary, group.label, trajectory, arm)
+            study = study_text(study_rmse_3d(group.algo, group.controller, trajectory, arm), 3)
+            name = TRAJECTORY_TITLES.get(trajectory, trajectory)
+            if r is None:
+                rows.append([name, f"arm {arm + 1}"] + ["no data"] * 8 + [study, "no data", "0"])
+                continue
+            rows.append(
+                [name, f"arm {arm + 1}"]
+                + [
+                    _cell(r, c)
+                    for c in (
+                        "rmse_x",
+                        "rmse_y",
+                        "rmse_z",
+                        "mae_x",
+                        "mae_y",
+                        "mae_z",
+                        "mean_spatial_error",
+                        "rmse_3d",
+                    )
+                ]
+                + [study, _cell(r, "rmse_3d_steady"), str(r["n"])]
+            )
+    return rows
+
+
+def errors_section(
+    doc: Doc, ctx: Context, summary: pd.DataFrame, trajectories: Sequence[str]
+) -> None:
+    """Per-axis and 3-D tracking errors per group against the study, and the 3-D RMSE of all
+    groups side by side (``summary``: :func:`~softtrack.report.data.metrics_summary`)."""
+    doc.h(2, "Tracking error (study Table 4)")
+    header = [
+        "trajectory",
+        "arm",
+        "RMSE x (m)",
+        "RMSE y (m)",
+        "RMSE z (m)",
+        "MAE x (m)",
+        "MAE y (m)",
+        "MAE z (m)",
+        "mean spatial error (m)",
+        "3-D RMSE (m)",
+        "study 3-D RMSE (m)",
+        "3-D RMSE, t ≥ 1 s (m)",
+        "seeds",
+    ]
+    for group in ctx.groups:
+        doc.h(3, f"{group.label}")
+        doc.table(header, _metric_rows(summary, group, trajectories))
+        doc.p(
+            "Mean ± sample std across seeds of one deterministic evaluation episode per "
+            "trajectory (SPEC §5). The SPEC gives the study's 3-D RMSE only (centralized TD3 "
+            f"and the independent TD3 baseline); {NOT_IN_SPEC}: no study value."
+        )
+        doc.p(ctx.provenance([group]))
+    doc.h(3, "Centralized against independent controllers")
+    header = ["trajectory", "arm"]
+    for group in ctx.groups:
+        header.append(f"{group.label} 3-D RMSE (m)")
+    header += ["study centralized TD3 (m)", "study independent TD3 (m)"]
+    rows = []
+    for trajectory in trajectories:
+        for arm in (0, 1):
+            row = [TRAJECTORY_TITLES.get(trajectory, trajectory), f"arm {arm + 1}"]
+            for group in ctx.groups:
+                cell = summary_row(summary, group.label, trajectory, arm)
+                row.append(
+                    "no data"
+                    if cell is None
+                    else mean_pm_std(cell["rmse_3d_mean"], cell["rmse_3d_std"], 4)
+                )
+            row.append(study_text(study_rmse_3d("td3", "centralized", trajectory, arm), 3))
+            row.append(study_text(study_rmse_3d("td3", "independent", trajectory, arm), 3))
+            rows.append(row)
+    doc.table(header, rows)
+    doc.p(ctx.provenance())
+    study = {
+        f"study {controller} TD3": {(t, a): v[a] for t, v in values.items() for a in (0, 1)}
+        for controller, values in STUDY_RMSE_3D.items()
+    }
+    path, rel = ctx.figure("rmse_comparison.png")
+    fg.rmse_comparison_figure(summary, study, trajectories, path, ctx.footer())
+    doc.img(rel, "3-D RMSE per trajectory and arm against the study")
+
+
+def actions_section(
+    doc: Doc, ctx: Context, summary: pd.DataFrame, trajectories: Sequence[str]
+) -> None:
+    """Statistics of the policies' actions during the evaluation episodes."""
+    doc.h(3, "Policy actions")
+    doc.table(ACTIONS_HEADER, actions_rows(summary, ctx.groups, trajectories))
+    doc.p(actions_caption())
+    doc.p(ctx.provenance())
+
+
+def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
+    n = sum(
+        1
+        for r in group.runs
+        if r.trajectories is not None and (r.trajectories["trajectory"] == trajectory).any()
+    )
+    seeds = "1 seed" if n == 1 else f"{n} seeds"
+    return f"{group.label}, seed {run.seed}, run {run.run_id} (median 3-D RMSE of {seeds})"
+
+
+def trajectories_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None:
+    """3-D paths and errors over time of each group's median-RMSE seed per trajectory."""
+    doc.h(2, "Trajectories and errors over time (study Figs. 4–9)")
+    doc.p(
+        "For each trajectory and controller, the seed with the median 3-D RMSE: the 3-D paths "
+        "of the target and both tips, then per-axis error tip − target and spatial error "
+        "against time for both arms."
+    )
+    for trajectory in trajectories:
+        doc.h(3, TRAJECTORY_TITLES.get(trajectory, trajectory))
+        for group in ctx.groups:
+            run = representative_run(group, trajectory)
+            traj = None
+            rmse: dict[int, float] = {}
+            if run is not None and run.trajectories is not None:
+                traj = run.trajectories[run.trajectories["trajectory"] == trajectory]
+                if run.metrics is not None:
+                    m = run.metrics[run.metrics["trajectory"] == trajectory]
+                    rmse = {int(a): float(v) for a, v in zip(m["arm"], m["rmse_3d"])}
+            caption = _run_caption(group, run, trajectory) if run is not None else group.label
+            footer = ctx.footer([group])
+            path, rel = ctx.figure(f"trajectory_{group.slug}_{trajectory}.png")
+            fg.trajectory_3d_figure(
+                traj, trajectory, path, subtitle=caption, rmse=rmse, footer=footer
+            )
+            doc.img(rel, f"{trajectory}: 3-D target and tip paths, {group.label}")
+            path, rel = ctx.figure(f"errors_{group.slug}_{trajectory}.png")
+            fg.tracking_errors_figure(traj, trajectory, path, subtitle=caption, footer=footer)
+            doc.img(rel, f"{trajectory}: tracking error against time, {group.label}")
+            if run is None:
+                doc.p(
+                    f"No data for {group.label} on the {trajectory}: no run has a stored "
+                    "evaluation trajectory (run `softtrack evaluate` on its runs)."
+                )
+            else:
+                study = [
+                    study_text(study_rmse_3d(group.algo, group.controller, trajectory, a), 3)
+                    for a in (0, 1)
+                ]
+                measured = [num_text(rmse.get(a), 4) for a in (0, 1)]
+                doc.p(
+                    f"{caption}. 3-D RMSE arm 1 / arm 2: {measured[0]} / {measured[1]} m "
+                    f"(study: {study[0]} / {study[1]} m)."
+                )
+            doc.p(ctx.provenance([group]))
+
+
+def moments_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None:
+    """Actuation moment histories per group and the peak element moments against the study."""
+    doc.h(2, "Actuation moments (study Fig. 10)")
+    for group in ctx.groups:
+        moments: dict[str, pd.DataFrame | None] = {}
+        subtitles: dict[str, str] = {}
+        for trajectory in trajectories:
+            run = representative_run(group, trajectory)
+            candidates = [run] if run is not None else list(group.runs)
+            df = None
+            for r in candidates:
+                if r.moments is not None and (r.moments["trajectory"] == trajectory).any():
+                    df = r.moments[r.moments["trajectory"] == trajectory]
+                    subtitles[trajectory] = f"seed {r.seed}"
+                    break
+            moments[trajectory] = df
+        path, rel = ctx.figure(f"moments_{group.slug}.png")
+        fg.moments_figure(
+            moments,
+            path,
+            title=f"Actuation moments, {group.label}",
+            subtitles=subtitles,
+            footer=ctx.footer([group]),
+        )
+        doc.img(rel, f"Spatial-RMS moment histories, {group.label}")
+        if not any(df is not None for df in moments.values()):
+            doc.p(f"No data for {group.label}: no stored evaluation moments.")
+    peaks = moment_peaks(ctx.groups)
+    rows = []
+    for group in ctx.groups:
+        part = peaks[peaks["group"] == group.label] if not peaks.empty else peaks
+        for trajectory in trajectories:
+            for direction in DIRECTIONS:
+                cells = []
+                for arm in (0, 1, -1):
+                    sel = (
+                        part[
+                            (part["trajectory"] == trajectory)
+                            & (part["direction"] == direction)
+                            & (part["arm"] == arm)
+                        ]
+                        if not part.empty
+                        else part
+                    )
+                    peak = sel.iloc[0] if not sel.empty else None
+                    cells.append("no data" if peak is None else mean_pm_std(peak["mean"], peak["std"], 1))
+                study = study_peak_moment(group.algo, group.controller, trajectory, direction)
+                rows.append(
+                    [
+                        group.label,
+                        TRAJECTORY_TITLES.get(trajectory, trajectory),
+                        direction,
+                        *cells,
+                        study_text(study, 1),
+                    ]
+                )
+    doc.h(3, "Peak element moments")
+    doc.table(
+        [
+            "controller",
+            "trajectory",
+            "direction",
+            "arm 1 peak (N·m)",
+            "arm 2 peak (N·m)",
+            "both arms peak (N·m)",
+            "study, both arms (N·m)",
+        ],
+        rows,
+    )
+    doc.p(
+        "Peak: the largest absolute element torque over the evaluation episode, mean ± sample "
+        "std across seeds. The study reports peaks during the figure-eight only (centralized "
+        f"TD3: {STUDY_PEAK_MOMENTS['normal']} N·m normal, {STUDY_PEAK_MOMENTS['binormal']} N·m "
+        f"binormal); {NOT_IN_SPEC}: no study value."
+    )
+    doc.p(ctx.provenance())

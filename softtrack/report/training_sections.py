@@ -1,0 +1,150 @@
+"""Report sections on the runs themselves: the runs table, training curves (study Fig. 3) and
+final-stage returns (study Table 3).
+
+Each section appends its headings, tables, figures and provenance lines to a
+:class:`~softtrack.report.document.Doc`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from softtrack.report import figures as fg
+from softtrack.report.data import RunData, final_stage_table, training_curves
+from softtrack.report.document import NOT_IN_SPEC, Context, Doc, commit_text, seeds_text
+from softtrack.report.text import mean_pm_std
+
+__all__ = ["final_section", "runs_section", "training_section"]
+
+
+def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
+    """The runs table: identity, status, progress, speed, CPU, provenance and stored tables of
+    every run, and the problems met reading them."""
+    doc.h(2, "Runs")
+    rows = []
+    for g in ctx.groups:
+        for r in g.runs:
+            info = r.record.info
+            tables = [
+                name
+                for name, df in (
+                    ("train", r.train),
+                    ("trajectories", r.trajectories),
+                    ("metrics", r.metrics),
+                    ("moments", r.moments),
+                )
+                if df is not None
+            ]
+            rows.append(
+                [
+                    f"`{r.run_id}`",
+                    info.name,
+                    info.algo,
+                    info.controller,
+                    str(info.seed),
+                    info.status,
+                    f"{r.last_step:,} / {info.total_timesteps:,}",
+                    *_training_speed(r),
+                    info.cpu or "—",
+                    info.spec_hash[:12],
+                    commit_text(r),
+                    ", ".join(tables) or "none",
+                ]
+            )
+    doc.table(
+        [
+            "run",
+            "experiment",
+            "algorithm",
+            "controller",
+            "seed",
+            "status",
+            "env steps / budget",
+            "training time",
+            "env steps/s",
+            "CPU (speed depends on it)",
+            "spec hash",
+            "commit",
+            "stored tables",
+        ],
+        rows,
+    )
+    doc.p(ctx.provenance())
+    problems = [p for r in runs for p in r.problems]
+    if problems:
+        doc.p("Problems: " + "; ".join(problems) + ".")
+
+
+def _training_speed(run: RunData) -> tuple[str, str]:
+    """(training wall time, env steps per second) of a run from its training clock, summed over
+    sessions (the ``wall_time`` of its last logged episode); "—" without training episodes."""
+    if run.train is None or not len(run.train) or "wall_time" not in run.train:
+        return "—", "—"
+    seconds = float(run.train["wall_time"].max())
+    if not seconds > 0:
+        return "—", "—"
+    duration = f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.2f} h"
+    return duration, f"{run.last_step / seconds:,.0f}"
+
+
+def training_section(doc: Doc, ctx: Context) -> None:
+    """Episode return against environment steps per group (study Fig. 3)."""
+    doc.h(2, "Training curves (study Fig. 3)")
+    curves, smoothing = training_curves(ctx.groups)
+    path, rel = ctx.figure("training_curves.png")
+    fg.training_curves_figure(curves, smoothing, path, ctx.footer())
+    doc.img(rel, "Training curves: episode return against environment steps")
+    if curves:
+        doc.p(
+            f"Episode return against environment steps, mean ± 1 sample std across seeds; "
+            f"smoothing: {smoothing.describe()}. The study's curves are not in the SPEC."
+        )
+    else:
+        doc.p("No data: no selected run has stored training episodes.")
+    doc.p(ctx.provenance())
+
+
+def final_section(doc: Doc, ctx: Context) -> None:
+    """Final-stage return per group and policy, per seed and against the study (Table 3)."""
+    doc.h(2, "Final-stage return (study Table 3)")
+    table = final_stage_table(ctx.groups)
+    rows = []
+    for row in table.itertuples():
+        group = next(g for g in ctx.groups if g.label == row.group)
+        per_seed = ", ".join(f"{s}: {v:.2f}" for s, v in sorted(row.values.items())) or "none"
+        if row.missing:
+            per_seed += f" (no final stage: seed {seeds_text(row.missing)})"
+        rows.append(
+            [
+                row.group,
+                "both arms" if row.arm < 0 else f"arm {int(row.arm) + 1} policy",
+                f"{row.n} of {len(row.seeds)}",
+                mean_pm_std(row.mean, row.std, 2),
+                per_seed,
+                NOT_IN_SPEC,
+                ", ".join(group.budgets),
+                "10,000,000 env steps per run",
+            ]
+        )
+    doc.table(
+        [
+            "algorithm",
+            "policy",
+            "seeds with data",
+            "final-stage return (mean ± std)",
+            "per seed",
+            "study",
+            "budget",
+            "study budget",
+        ],
+        rows,
+    )
+    doc.p(
+        "Final-stage return: the mean episode return over the last 10 % of a run's training "
+        "budget (SPEC §4; the run's `training.final_stage_fraction`), then mean ± sample std "
+        f"across seeds. Study values: {NOT_IN_SPEC} = the SPEC does not state them."
+    )
+    doc.p(ctx.provenance())
+    path, rel = ctx.figure("final_returns.png")
+    fg.final_returns_figure(table, path, ctx.footer())
+    doc.img(rel, "Final-stage return per algorithm")

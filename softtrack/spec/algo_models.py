@@ -1,0 +1,199 @@
+"""The algorithm section of a spec: the RL algorithm, its hyperparameters (rl-baselines3-zoo
+key names) and its network architecture. See :mod:`softtrack.spec`."""
+
+from __future__ import annotations
+
+import copy
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import Field, field_validator
+
+from softtrack.spec.fields import Float, Int, SpecModel, custom_error, section_field, unit_field
+
+OFF_POLICY_ALGOS = frozenset({"td3", "ddpg", "sac"})
+
+NetArch = (
+    list[Annotated[int, Field(ge=1)]]
+    | dict[Literal["pi", "vf", "qf"], list[Annotated[int, Field(ge=1)]]]
+)
+_ACTIVATIONS = {
+    # spec name: (torch.nn class name, jax.nn function name)
+    "relu": ("ReLU", "relu"),
+    "tanh": ("Tanh", "tanh"),
+    "elu": ("ELU", "elu"),
+    "leaky_relu": ("LeakyReLU", "leaky_relu"),
+    "gelu": ("GELU", "gelu"),
+    "silu": ("SiLU", "silu"),
+}
+
+
+class PolicyKwargsSpec(SpecModel):
+    """``policy_kwargs`` of the SB3 policy, as data (rl-zoo writes them as Python; we do not eval)."""
+
+    net_arch: NetArch = unit_field(
+        [64, 64],
+        "hidden layer sizes of actor and critic(s); a list for all networks, or a mapping "
+        "{pi: [...], qf: [...]} (off-policy) / {pi: [...], vf: [...]} (PPO)",
+        "units per layer",
+    )
+    activation_fn: Literal["relu", "tanh", "elu", "leaky_relu", "gelu", "silu"] = unit_field(
+        "relu", "activation of the hidden layers", "-"
+    )
+
+
+class AlgoSpec(SpecModel):
+    """The RL algorithm and its hyperparameters, with rl-baselines3-zoo key names.
+
+    Defaults are the study's TD3 settings (SPEC §4); the PPO-only keys default to SB3's values.
+    Keys an algorithm does not use are ignored for it (see :meth:`sb3_kwargs`).
+    """
+
+    name: Literal["td3", "ddpg", "ppo", "sac"] = unit_field("td3", "algorithm", "-")
+    backend: Literal["sb3", "sbx"] = unit_field(
+        "sb3", "implementation: sb3 = Stable-Baselines3 (PyTorch), sbx = SBX (JAX)", "-"
+    )
+    policy: Literal["MlpPolicy"] = unit_field("MlpPolicy", "policy class", "-")
+    policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
+    learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
+    batch_size: Int = unit_field(
+        128,
+        "minibatch size (off-policy: per gradient step; PPO: per minibatch)",
+        "transitions",
+        ge=1,
+    )
+    gamma: Float = unit_field(0.99, "discount factor", "-", gt=0, le=1)
+    # off-policy (td3, ddpg, sac)
+    buffer_size: Int = unit_field(
+        2_000_000, "replay buffer capacity (td3, ddpg, sac)", "transitions", ge=1
+    )
+    learning_starts: Int = unit_field(
+        50_000, "random-action warm-up before learning starts (td3, ddpg, sac)", "env steps", ge=0
+    )
+    train_freq: Int = unit_field(
+        1,
+        "update the model every train_freq vectorised env steps (td3, ddpg, sac)",
+        "vectorised env steps",
+        ge=1,
+    )
+    gradient_steps: Int = unit_field(
+        1,
+        "gradient steps per update; -1 = as many as transitions collected (td3, ddpg, sac)",
+        "gradient steps",
+        ge=-1,
+    )
+    tau: Float = unit_field(
+        0.005, "soft target-update coefficient (td3, ddpg, sac)", "-", gt=0, le=1
+    )
+    policy_delay: Int = unit_field(
+        2, "critic updates per actor update (td3)", "gradient steps", ge=1
+    )
+    target_policy_noise: Float = unit_field(
+        0.2, "std of the target policy smoothing noise (td3)", "action units", ge=0
+    )
+    target_noise_clip: Float = unit_field(
+        0.5, "clip of the target policy smoothing noise (td3)", "action units", ge=0
+    )
+    noise_type: Literal["normal", "ornstein-uhlenbeck"] | None = unit_field(
+        "normal", "exploration noise added to actions (td3, ddpg, sac); null = none", "-"
+    )
+    noise_std: Float = unit_field(
+        0.1, "std of the exploration noise (td3, ddpg, sac)", "action units", ge=0
+    )
+    # on-policy (ppo)
+    n_steps: Int = unit_field(
+        2048, "rollout length per env between updates (ppo)", "env steps per env", ge=1
+    )
+    n_epochs: Int = unit_field(10, "optimisation epochs per rollout (ppo)", "-", ge=1)
+    gae_lambda: Float = unit_field(0.95, "GAE lambda (ppo)", "-", ge=0, le=1)
+    clip_range: Float = unit_field(0.2, "policy ratio clip (ppo)", "-", gt=0)
+    vf_coef: Float = unit_field(0.5, "value loss coefficient (ppo)", "-", ge=0)
+    max_grad_norm: Float = unit_field(0.5, "gradient norm clip (ppo)", "-", gt=0)
+    ent_coef: Float | str | None = unit_field(
+        None,
+        "entropy coefficient; null = the algorithm's default (ppo 0.0, sac 'auto'); "
+        "sac also accepts 'auto' or 'auto_<initial value>'",
+        "-",
+    )
+    normalize: bool = unit_field(
+        False,
+        "normalise observations with a running mean/std (VecNormalize); its statistics are "
+        "saved with the model and every checkpoint. Caution: a feature that is constant in "
+        "training (the random target's speed, 0.3 m/s) is divided by sqrt(1e-8) and saturates "
+        "at ±10 on the evaluation trajectories, whose speeds differ",
+        "-",
+    )
+    normalize_reward: bool = unit_field(False, "also normalise rewards (VecNormalize)", "-")
+    device: Literal["auto", "cpu", "cuda"] = unit_field(
+        "auto", "torch device; small [64, 64] networks are often fastest on cpu", "-"
+    )
+
+    @field_validator("ent_coef", mode="before")
+    @classmethod
+    def _check_ent_coef(cls, value: Any) -> Any:
+        if isinstance(value, bool):
+            raise custom_error("expected a number, 'auto' or null; write e.g. 0.0 or auto")
+        if isinstance(value, str) and not re.fullmatch(
+            r"auto(_\d+(\.\d*)?([eE][-+]?\d+)?)?", value
+        ):
+            raise custom_error(
+                f"invalid value {value!r}; use a number, 'auto' or 'auto_<initial value>'"
+            )
+        return value
+
+    @property
+    def is_off_policy(self) -> bool:
+        return self.name in OFF_POLICY_ALGOS
+
+    def sb3_kwargs(self, *, resolve_activation: bool = True) -> dict[str, Any]:
+        """Constructor keyword arguments of the chosen algorithm class (SB3 or SBX).
+
+        Only keys that algorithm accepts are included. Left out on purpose: ``env`` and
+        ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
+        ``noise_std``, which needs the action shape) and ``normalize`` (a VecNormalize wrapper).
+
+        Args:
+            resolve_activation: replace ``policy_kwargs.activation_fn`` by the backend's
+                callable (``torch.nn.ReLU`` for sb3, ``jax.nn.relu`` for sbx; imported lazily).
+                With ``False`` it stays the spec's string, e.g. ``"relu"``.
+        """
+        common = ["policy", "learning_rate", "batch_size", "gamma"]
+        if self.is_off_policy:
+            keys = common + [
+                "buffer_size",
+                "learning_starts",
+                "train_freq",
+                "gradient_steps",
+                "tau",
+            ]
+            if self.name == "td3":
+                keys += ["policy_delay", "target_policy_noise", "target_noise_clip"]
+            if self.name == "sac" and self.ent_coef is not None:
+                keys.append("ent_coef")
+        else:  # ppo
+            keys = common + [
+                "n_steps",
+                "n_epochs",
+                "gae_lambda",
+                "clip_range",
+                "vf_coef",
+                "max_grad_norm",
+            ]
+            if self.ent_coef is not None:
+                keys.append("ent_coef")
+        kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
+        if self.backend == "sb3":
+            kwargs["device"] = self.device
+        policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())
+        if resolve_activation:
+            torch_name, jax_name = _ACTIVATIONS[self.policy_kwargs.activation_fn]
+            if self.backend == "sb3":
+                import torch.nn  # lazy: importing torch costs seconds
+
+                policy_kwargs["activation_fn"] = getattr(torch.nn, torch_name)
+            else:
+                import jax.nn
+
+                policy_kwargs["activation_fn"] = getattr(jax.nn, jax_name)
+        kwargs["policy_kwargs"] = policy_kwargs
+        return kwargs

@@ -1,0 +1,277 @@
+"""The environment section of a spec: the rods' physics, the target, the reward and the
+episode length. See :mod:`softtrack.spec`."""
+
+from __future__ import annotations
+
+import re
+from typing import Any, Literal
+
+from pydantic import field_validator, model_validator
+
+from softtrack.sim.params import STANDARD_GRAVITY, InvalidParameterError, SimParams
+from softtrack.spec.fields import (
+    Float,
+    Int,
+    Pair,
+    SpecModel,
+    Vec3,
+    custom_error,
+    section_field,
+    unit_field,
+)
+
+
+class PhysicsSpec(SpecModel):
+    """Physical and numerical parameters of the two Cosserat rods (SPEC §1–2).
+
+    Field names equal those of :class:`softtrack.sim.params.SimParams`; the whole section is
+    checked by ``SimParams.validate()``, which enforces the explicit stability limit on ``dt``.
+    """
+
+    n_elem: Int = unit_field(20, "elements per arm (nodes = n_elem + 1)", "-", ge=2)
+    length: Float = unit_field(1.0, "rest length of each arm", "m", gt=0)
+    radius: Float = unit_field(0.05, "cross-section radius, uniform along the arm", "m", gt=0)
+    density: Float = unit_field(1000.0, "mass density rho", "kg/m³", gt=0)
+    youngs_modulus: Float = unit_field(1.0e7, "Young's modulus E", "Pa", gt=0)
+    poisson_ratio: Float = unit_field(
+        0.5, "Poisson ratio nu; shear modulus G = E / (2 (1 + nu))", "-", gt=-1, le=0.5
+    )
+    shear_correction: Float = unit_field(
+        27.0 / 28.0, "shear correction factor alpha_c in the shear stiffness alpha_c·G·A", "-", gt=0
+    )
+    damping: Float = unit_field(
+        30.0,
+        "PyElastica-0.1 dissipation coefficient nu_d (explicit internal damping)",
+        "N·s/m²",
+        ge=0,
+    )
+    dt: Float = unit_field(
+        2.0e-4,
+        "integration time step (Position Verlet); must not exceed the explicit stability "
+        "limit computed from n_elem, the material and the damping (about 2.32e-4 s at the "
+        "defaults)",
+        "s",
+        gt=0,
+    )
+    steps_per_action: Int = unit_field(
+        10, "integration steps per control step (one action is held this long)", "-", ge=1
+    )
+    gravity: Float = unit_field(
+        0.0,
+        f"gravitational acceleration along -y; 0 = off, true = {STANDARD_GRAVITY}",
+        "m/s²",
+    )
+    torque_scale: Float = unit_field(
+        75.0, "element torque at a control value of 1 (no clipping)", "N·m"
+    )
+    base_positions: tuple[Vec3, Vec3] = unit_field(
+        ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0)), "clamp position (x, y, z) of arm 1 and arm 2", "m"
+    )
+
+    @field_validator("gravity", mode="before")
+    @classmethod
+    def _gravity_switch(cls, value: Any) -> Any:
+        if isinstance(value, bool):
+            return STANDARD_GRAVITY if value else 0.0
+        return value
+
+    @field_validator("base_positions", mode="before")
+    @classmethod
+    def _two_arms(cls, value: Any) -> Any:
+        if isinstance(value, (list, tuple)) and len(value) != 2:
+            raise custom_error(
+                f"expected 2 base positions (one per arm), got {len(value)}; "
+                "write it as [[x1, y1, z1], [x2, y2, z2]]"
+            )
+        return value
+
+    @model_validator(mode="after")
+    def _check_sim_params(self) -> PhysicsSpec:
+        try:
+            self.sim_params()
+        except InvalidParameterError as exc:
+            message = str(exc)
+            match = re.match(r"^(\w+)=", message)
+            field = match.group(1) if match and match.group(1) in type(self).model_fields else ""
+            if ";" not in message:
+                message += "; change the value"
+            raise custom_error(message, field) from None
+        return self
+
+    def sim_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`SimParams` (tuples, SI units)."""
+        return self.model_dump()
+
+    def sim_params(self) -> SimParams:
+        """The validated :class:`SimParams` (direction/normal keep their defaults)."""
+        params = SimParams(**self.sim_kwargs())
+        params.validate()
+        return params
+
+
+class TargetSpec(SpecModel):
+    """The kinematic target sphere (SPEC §3, "Target"). ``name`` is the training target;
+    evaluation uses the trajectories listed in ``training.eval_trajectories`` with these
+    geometry parameters."""
+
+    name: Literal["random", "circle", "rectangle", "figure8", "fixed"] = unit_field(
+        "random", "target motion: random (training), circle, rectangle, figure8 or fixed", "-"
+    )
+    sphere_radius: Float = unit_field(0.05, "radius of the target sphere", "m", gt=0)
+    speed: Float = unit_field(
+        0.3, "speed of the random target (its maximum when speed_min is set)", "m/s", ge=0
+    )
+    speed_min: Float | None = unit_field(
+        None,
+        "null (the study): the random target always moves at speed. A number: every new "
+        "direction comes with a speed drawn uniformly in [speed_min, speed], so that the policy "
+        "also sees the slower speeds of the evaluation trajectories (0.13-0.27 m/s)",
+        "m/s",
+        ge=0,
+    )
+    redirect_interval: Float = unit_field(
+        1.0, "time between new random directions (uniform on the unit sphere)", "s", gt=0
+    )
+    box_low: Vec3 = unit_field(
+        (-0.6, 0.3, -0.6), "lower corner (x, y, z) of the box the random target stays in", "m"
+    )
+    box_high: Vec3 = unit_field(
+        (0.6, 0.9, 0.6), "upper corner (x, y, z) of the box the random target stays in", "m"
+    )
+    center: Vec3 = unit_field(
+        (0.0, 0.6, 0.0), "centre (x, y, z) of the circle, rectangle and figure-eight", "m"
+    )
+    circle_radius: Float = unit_field(0.3, "radius of the circle in the x-z plane", "m", gt=0)
+    rectangle_size: Pair = unit_field((0.6, 0.4), "rectangle side lengths along x and along z", "m")
+    figure8_amplitude: Pair = unit_field(
+        (0.3, 0.15), "figure-eight amplitudes: x = a_x sin(wt), z = a_z sin(2wt)", "m"
+    )
+    period: Float = unit_field(
+        10.0, "duration of one lap of the circle, rectangle and figure-eight", "s", gt=0
+    )
+    fixed_position: Vec3 = unit_field(
+        (0.3, 0.6, 0.0), "position (x, y, z) of the fixed target", "m"
+    )
+
+    @field_validator("rectangle_size")
+    @classmethod
+    def _positive_sides(cls, value: tuple[float, float]) -> tuple[float, float]:
+        if min(value) <= 0:
+            raise custom_error(f"sides must be > 0, got {list(value)}; use e.g. [0.6, 0.4]")
+        return value
+
+    @model_validator(mode="after")
+    def _check_speeds_and_box(self) -> TargetSpec:
+        if self.speed_min is not None and self.speed_min > self.speed:
+            raise custom_error(
+                f"speed_min={self.speed_min:g} m/s exceeds speed={self.speed:g} m/s; speed is the "
+                "largest speed drawn, so make speed_min <= speed (or leave it null)",
+                "speed_min",
+            )
+        for axis, lo, hi in zip("xyz", self.box_low, self.box_high):
+            if hi - lo <= 2 * self.sphere_radius:
+                raise custom_error(
+                    f"box is too small along {axis} ({lo:g} to {hi:g} m) for a sphere of radius "
+                    f"{self.sphere_radius:g} m; make box_high exceed box_low by more than "
+                    f"2·sphere_radius on every axis",
+                    "box_high",
+                )
+        return self
+
+
+class RewardSpec(SpecModel):
+    """Reward shaping (SPEC §3, "Reward"): r = -(w1 d1² + w2 d2²) + per-arm bonuses
+    + cooperative bonus; optional inter-arm collision penalty."""
+
+    arm_weights: Pair = unit_field(
+        (1.0, 1.0), "weights w1, w2 of the squared tip distances", "1/m²"
+    )
+    bonus_thresholds: tuple[Float, ...] = unit_field(
+        (0.10, 0.075),
+        "per-arm bonus distance thresholds; bonus_values[k] is paid when d_i ≤ bonus_thresholds[k]",
+        "m",
+        min_length=1,
+    )
+    bonus_values: tuple[Float, ...] = unit_field(
+        (0.5, 1.0), "per-arm bonuses, one per threshold", "reward units", min_length=1
+    )
+    cooperative_threshold: Float = unit_field(
+        0.05, "both tips within this distance earns the cooperative bonus", "m", gt=0
+    )
+    cooperative_bonus: Float = unit_field(1.5, "cooperative bonus", "reward units")
+    nonfinite_reward: Float = unit_field(
+        -1000.0,
+        "reward of the step on which the state becomes NaN/inf (episode terminates)",
+        "reward units",
+    )
+    collision_penalty: Float = unit_field(
+        0.0,
+        "penalty c_col when the arms come closer than r1 + r2 + margin; 0 = off",
+        "reward units",
+        ge=0,
+    )
+    collision_margin: Float = unit_field(
+        0.0, "extra clearance added to the sum of the radii in the collision test", "m", ge=0
+    )
+
+    @model_validator(mode="after")
+    def _check_bonuses(self) -> RewardSpec:
+        if len(self.bonus_values) != len(self.bonus_thresholds):
+            raise custom_error(
+                f"{len(self.bonus_values)} bonus values for {len(self.bonus_thresholds)} "
+                "thresholds; give one value per threshold",
+                "bonus_values",
+            )
+        if any(t <= 0 for t in self.bonus_thresholds):
+            raise custom_error("thresholds must be > 0; use e.g. [0.10, 0.075]", "bonus_thresholds")
+        return self
+
+
+class EnvSpec(SpecModel):
+    """The dual-arm tracking environment: physics, target, reward and episode length."""
+
+    physics: PhysicsSpec = section_field(
+        PhysicsSpec, "rods, actuation scale and integrator (SPEC §1–2)"
+    )
+    target: TargetSpec = section_field(TargetSpec, "the moving target (SPEC §3)")
+    reward: RewardSpec = section_field(RewardSpec, "reward terms (SPEC §3)")
+    episode_duration: Float = unit_field(
+        10.0, "simulated length of a training episode (then truncated)", "s", gt=0
+    )
+
+    @model_validator(mode="after")
+    def _check_duration(self) -> EnvSpec:
+        control_dt = self.physics.dt * self.physics.steps_per_action
+        if self.episode_duration < control_dt:
+            raise custom_error(
+                f"episode_duration {self.episode_duration:g} s is shorter than one control step "
+                f"({control_dt:g} s); use at least {control_dt:g}",
+                "episode_duration",
+            )
+        return self
+
+    @property
+    def control_dt(self) -> float:
+        """Duration of one control step, s."""
+        return self.physics.dt * self.physics.steps_per_action
+
+    @property
+    def max_episode_steps(self) -> int:
+        """Control steps per training episode (episode_duration / control_dt, rounded)."""
+        return max(1, round(self.episode_duration / self.control_dt))
+
+    def sim_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`softtrack.sim.params.SimParams`."""
+        return self.physics.sim_kwargs()
+
+    def sim_params(self) -> SimParams:
+        """The validated :class:`SimParams`."""
+        return self.physics.sim_params()
+
+    def target_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of the env's ``TargetConfig`` (tuples, SI units)."""
+        return self.target.model_dump()
+
+    def reward_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of the env's ``RewardConfig``."""
+        return self.reward.model_dump()

@@ -1,0 +1,107 @@
+"""Building blocks of the spec models: :class:`SpecError`, the validation-error helper, the
+reusable field types (numbers that reject booleans, fixed-length vectors, seeds), the field
+constructors that put each unit into the description, and the :class:`SpecModel` base class.
+See :mod:`softtrack.spec`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic_core import PydanticCustomError
+
+ERROR_TYPE = "softtrack"  # type of the PydanticCustomErrors raised by our own validators
+
+
+# ------------------------------------------------------------------------------------------
+# The error type
+# ------------------------------------------------------------------------------------------
+class SpecError(Exception):
+    """A user error in a spec file or a ``--set`` override.
+
+    ``str(error)`` is one line: ``<file>[:<line>]: <field.path>: <problem>; <fix>`` (the field
+    path is left out for errors about the file as a whole).
+
+    Attributes:
+        file: the spec file (or ``--set path=value`` for an override), as given.
+        field: dotted field path such as ``env.physics.dt``; ``""`` for file-level errors.
+        problem: what is wrong.
+        fix: how to fix it (may be ``""``).
+        line: 1-based line in ``file``, when known.
+    """
+
+    def __init__(
+        self,
+        file: str | Path,
+        problem: str,
+        fix: str = "",
+        *,
+        field: str = "",
+        line: int | None = None,
+    ) -> None:
+        self.file = str(file)
+        self.field = field
+        self.problem = _one_line(problem)
+        self.fix = _one_line(fix)
+        self.line = line
+        super().__init__(str(self))
+
+    def __str__(self) -> str:
+        where = f"{self.file}:{self.line}" if self.line else self.file
+        head = f"{where}: {self.field}: " if self.field else f"{where}: "
+        return head + self.problem + (f"; {self.fix}" if self.fix else "")
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def custom_error(message: str, field: str = "") -> PydanticCustomError:
+    """A validation error with our own ``problem; fix`` text; ``field`` is appended to its path."""
+    return PydanticCustomError(ERROR_TYPE, "{message}", {"message": message, "field": field})
+
+
+# ------------------------------------------------------------------------------------------
+# Reusable field types
+# ------------------------------------------------------------------------------------------
+def _reject_bool(value: Any) -> Any:
+    if isinstance(value, bool):
+        raise custom_error(f"expected a number, got {str(value).lower()}; write a number instead")
+    return value
+
+
+def _fixed_length(n: int, example: str) -> BeforeValidator:
+    def check(value: Any) -> Any:
+        if isinstance(value, (list, tuple)) and len(value) != n:
+            raise custom_error(f"expected {n} values, got {len(value)}; write it as {example}")
+        return value
+
+    return BeforeValidator(check)
+
+
+Int = Annotated[int, BeforeValidator(_reject_bool)]
+Float = Annotated[float, BeforeValidator(_reject_bool)]
+Vec3 = Annotated[tuple[Float, Float, Float], _fixed_length(3, "[x, y, z]")]
+Pair = Annotated[tuple[Float, Float], _fixed_length(2, "[first, second]")]
+Seed = Annotated[int, BeforeValidator(_reject_bool), Field(ge=0, lt=2**32)]
+
+
+# ------------------------------------------------------------------------------------------
+# Field constructors and the base model
+# ------------------------------------------------------------------------------------------
+def unit_field(default: Any, text: str, unit: str, **constraints: Any) -> Any:
+    """A field whose description ends with its unit in brackets."""
+    return Field(default, description=f"{text} [{unit}]", **constraints)
+
+
+def section_field(cls: type[BaseModel], text: str) -> Any:
+    """A field holding a whole sub-section, defaulting to that section's defaults."""
+    return Field(default_factory=cls, description=text)
+
+
+class SpecModel(BaseModel):
+    """Base of every spec model: unknown keys and NaN/inf are rejected; defaults are trusted
+    (not re-validated)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=False)
