@@ -16,7 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-__all__ = ["RewardConfig", "collision_penalty", "tip_distances", "tracking_reward"]
+__all__ = [
+    "RewardConfig",
+    "collision_penalty",
+    "reward_shares",
+    "tip_distances",
+    "tracking_reward",
+]
 
 
 def _finite(value: object) -> bool:
@@ -161,6 +167,36 @@ def _tracking_reward(d, weights, thresholds, values, coop_threshold, coop_bonus,
             r += coop_bonus
         reward[i] = r if math.isfinite(r) else nonfinite
     return reward
+
+
+def reward_shares(distances: np.ndarray, rewards: np.ndarray, config: RewardConfig) -> np.ndarray:
+    """Split each step's reward into one share per arm; the shares sum to the reward.
+
+    Arm i's share is its own terms, −wᵢ·dᵢ² + Σ_k b_k·1(dᵢ ≤ θ_k), plus 1/A of the cooperative
+    bonus; whatever else the reward holds (the collision penalty, the non-finite reward of a
+    terminated step) is split equally between the A arms.
+
+    Args:
+        distances: (n, A) tip-to-target distances dᵢ, m.
+        rewards: (n,) the rewards of these steps (:func:`tracking_reward` plus penalties).
+        config: the reward settings that produced ``rewards``.
+
+    Returns:
+        (n, A) float64 shares, each row summing to its reward.
+    """
+    d = np.asarray(distances, dtype=float)
+    total = np.asarray(rewards, dtype=float)
+    n_arms = d.shape[1]
+    with np.errstate(invalid="ignore"):
+        shares = -np.asarray(config.arm_weights, dtype=float) * d * d
+        for threshold, value in zip(config.bonus_thresholds, config.bonus_values, strict=True):
+            shares += value * (d <= threshold)
+        if n_arms >= 2 and config.cooperative_bonus:
+            together = (d <= config.cooperative_threshold).all(axis=1, keepdims=True)
+            shares += config.cooperative_bonus / n_arms * together
+    shares[~np.isfinite(shares).all(axis=1)] = 0.0
+    shares += ((total - shares.sum(axis=1)) / n_arms)[:, None]
+    return shares
 
 
 def collision_penalty(nodes: np.ndarray, config: RewardConfig) -> np.ndarray:

@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 
 from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.reward import reward_shares
 
 __all__ = ["TrackingVecEnv"]
 
@@ -35,16 +36,20 @@ class TrackingVecEnv(VecEnv):
         config: a :class:`TrackingConfig`; if omitted, built from ``env_kwargs``.
         full_info: include the SPEC's per-step info keys (tip positions, target, distances,
             torques, time) in every info dict; off saves time during training.
+        reward_shares: add ``info["reward_shares"]``, the (A,) float32 per-arm split of the
+            reward (:func:`softtrack.env.reward.reward_shares`), for per-arm critics.
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
     """
 
     render_mode: str | None = None  # no rendering; read by VecEnv.__init__ via get_attr
 
     def __init__(self, n_envs: int, config: TrackingConfig | None = None, *,
-                 full_info: bool = False, **env_kwargs: Any) -> None:
+                 full_info: bool = False, reward_shares: bool = False,
+                 **env_kwargs: Any) -> None:
         self.config = config if config is not None else make_config(**env_kwargs)
         self.core = TrackingCore(n_envs, self.config)
         self.full_info = full_info
+        self.with_reward_shares = reward_shares
         observation_space = gym.spaces.Box(-np.inf, np.inf, (self.core.obs_dim,), dtype=np.float32)
         action_space = gym.spaces.Box(-1.0, 1.0, (self.core.action_dim,), dtype=np.float32)
         super().__init__(n_envs, observation_space, action_space)
@@ -78,6 +83,10 @@ class TrackingVecEnv(VecEnv):
             infos = [self.core.info(i, result.distances) for i in range(self.num_envs)]
         else:
             infos = [{} for _ in range(self.num_envs)]
+        if self.with_reward_shares:
+            shares = reward_shares(result.distances, result.reward, self.config.reward)
+            for info, share in zip(infos, shares.astype(np.float32), strict=True):
+                info["reward_shares"] = share
         finished = np.flatnonzero(dones)
         if finished.size:
             for i in finished.tolist():

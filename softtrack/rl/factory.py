@@ -96,6 +96,8 @@ def make_vec_env(
 ) -> Any:
     """``VecMonitor(TrackingVecEnv(training.n_envs, env_config(spec, arm)))``, seeded.
 
+    With ``algo.critic: per_arm`` every step's info also holds the per-arm reward shares.
+
     With ``normalize`` (default ``algo.normalize``) the result is wrapped in a fresh
     ``VecNormalize`` (observations, and rewards with ``algo.normalize_reward``); pass
     ``normalize=False`` to wrap a saved one with ``VecNormalize.load`` instead.
@@ -106,7 +108,13 @@ def make_vec_env(
 
     with warnings.catch_warnings():  # TrackingVecEnv has no render mode; SB3 warns about it
         warnings.filterwarnings("ignore", message=".*render_mode.*")
-        venv: Any = VecMonitor(TrackingVecEnv(spec.training.n_envs, env_config(spec, arm)))
+        venv: Any = VecMonitor(
+            TrackingVecEnv(
+                spec.training.n_envs,
+                env_config(spec, arm),
+                reward_shares=spec.algo.critic == "per_arm",
+            )
+        )
     if seed is not None:
         venv.seed(int(seed))
     if spec.algo.normalize if normalize is None else normalize:
@@ -142,8 +150,15 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
     return VectorizedActionNoise(base, n_envs)
 
 
-def algo_class(name: str, backend: str = "sb3") -> Any:
-    """The algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx)."""
+def algo_class(name: str, backend: str = "sb3", critic: str = "joint") -> Any:
+    """The algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx).
+
+    ``critic="per_arm"`` (td3 with sbx only) gives :class:`softtrack.rl.per_arm_td3.PerArmTD3`.
+    """
+    if critic == "per_arm":
+        from softtrack.rl.per_arm_td3 import PerArmTD3
+
+        return PerArmTD3
     if backend == "sbx":
         import sbx as library
     else:
@@ -164,7 +179,7 @@ def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise
-    return algo_class(spec.algo.name, spec.algo.backend)(
+    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic)(
         env=env, seed=int(seed), verbose=0, **kwargs
     )
 
@@ -173,4 +188,4 @@ def load_model(spec: ExperimentSpec, path: str | Path, env: Any) -> Any:
     """Load a saved model (``model.zip``) onto ``env``; ``num_timesteps`` is restored."""
     _set_threads(spec)
     device = spec.algo.device if spec.algo.backend == "sb3" else "auto"
-    return algo_class(spec.algo.name, spec.algo.backend).load(str(path), env=env, device=device)
+    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic).load(str(path), env=env, device=device)

@@ -35,7 +35,7 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
         )
     try:
         device = "cpu" if spec.algo.backend == "sb3" else "auto"
-        model: Any = algo_class(spec.algo.name, spec.algo.backend).load(str(path), device=device)
+        model: Any = algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic).load(str(path), device=device)
     except Exception as exc:  # noqa: BLE001 - any failure to load means an unusable model file
         raise RunStoreError(f"{path}: unreadable model ({type(exc).__name__}: {exc})") from None
     normalizer = None

@@ -54,6 +54,14 @@ class AlgoSpec(SpecModel):
         "sb3", "implementation: sb3 = Stable-Baselines3 (PyTorch), sbx = SBX (JAX)", "-"
     )
     policy: Literal["MlpPolicy"] = unit_field("MlpPolicy", "policy class", "-")
+    critic: Literal["joint", "per_arm"] = unit_field(
+        "joint",
+        "joint = each critic learns Q of the summed reward (the study); per_arm = each critic "
+        "has one output per arm, trained on that arm's share of the reward (its own terms plus "
+        "half the cooperative bonus), and the actor maximises their sum (td3 with backend sbx "
+        "and controller centralized only)",
+        "-",
+    )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
     learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
     batch_size: Int = unit_field(
@@ -148,7 +156,9 @@ class AlgoSpec(SpecModel):
     def sb3_kwargs(self, *, resolve_activation: bool = True) -> dict[str, Any]:
         """Constructor keyword arguments of the chosen algorithm class (SB3 or SBX).
 
-        Only keys that algorithm accepts are included. Left out on purpose: ``env`` and
+        Only keys that algorithm accepts are included (with ``critic: per_arm``, the
+        :class:`softtrack.rl.per_arm_td3.PerArmTD3` class, which also takes
+        ``n_reward_shares``). Left out on purpose: ``env`` and
         ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
         ``noise_std``, which needs the action shape) and ``normalize`` (a VecNormalize wrapper).
 
@@ -182,6 +192,8 @@ class AlgoSpec(SpecModel):
             if self.ent_coef is not None:
                 keys.append("ent_coef")
         kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
+        if self.critic == "per_arm":
+            kwargs["n_reward_shares"] = 2  # the centralized dual-arm scene
         if self.backend == "sb3":
             kwargs["device"] = self.device
         policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())

@@ -145,7 +145,10 @@ def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
 # Fields added after runs had been recorded, with the value that reproduces the behaviour from
 # before they existed. At that value they are left out of the hash, so that adding an optional
 # field keeps the hash (and the spec matching) of every existing run and experiment file.
-_FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {("env", "target", "speed_min"): None}
+_FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
+    ("env", "target", "speed_min"): None,
+    ("algo", "critic"): "joint",
+}
 
 
 def spec_hash(spec: ExperimentSpec) -> str:

@@ -116,6 +116,29 @@ class ClusterSpec(SpecModel):
 # ------------------------------------------------------------------------------------------
 
 
+def _check_per_arm_critic(spec: ExperimentSpec) -> None:
+    """Raise the spec error of the first setting ``algo.critic: per_arm`` cannot run with."""
+    a = spec.algo
+    if a.name != "td3" or a.backend != "sbx":
+        raise custom_error(
+            f"critic 'per_arm' is implemented for td3 with backend sbx, not {a.name} with "
+            f"backend {a.backend}; set algo.name: td3 and algo.backend: sbx, or critic: joint",
+            "algo.critic",
+        )
+    if spec.controller != "centralized":
+        raise custom_error(
+            "critic 'per_arm' splits the dual-arm reward, so it needs controller: centralized "
+            "(an independent run's policies each learn one arm already); use critic: joint",
+            "algo.critic",
+        )
+    if a.normalize_reward:
+        raise custom_error(
+            "critic 'per_arm' learns the raw per-arm reward shares, which VecNormalize cannot "
+            "scale; set algo.normalize_reward: false",
+            "algo.critic",
+        )
+
+
 class ExperimentSpec(SpecModel):
     """One experiment: an environment, an algorithm, a budget and a set of seeds.
 
@@ -189,6 +212,8 @@ class ExperimentSpec(SpecModel):
                 f"{a.n_steps * t.n_envs}] for ppo; lower batch_size or raise n_steps",
                 "algo.batch_size",
             )
+        if a.critic == "per_arm":
+            _check_per_arm_critic(self)
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

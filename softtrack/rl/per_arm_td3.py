@@ -1,0 +1,229 @@
+"""TD3 with one critic output per arm (JAX backend), selected by ``algo.critic: per_arm``.
+
+The study's TD3 learns Q(s, a) of the summed reward r = Σᵢ rᵢ (SPEC §3). Here each of the twin
+critics j has A outputs Q_{j,i}(s, a), one per arm i, trained on arm i's share rᵢ of the reward
+(:func:`softtrack.env.reward.reward_shares`) with the TD3 target
+
+    yᵢ = rᵢ + γ·(1 − done)·min_j Q'_{j,i}(s', π'(s') + clipped noise),
+
+and the actor maximises Σᵢ min_j Q_{j,i}(s, π(s)). Arm i's critic output then carries no noise
+from the other arm's reward (one summed reward cannot tell which arm earned it), while the
+centralized actor still sees both arms and the target. The policy network, its actions and the
+evaluation are those of plain TD3.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from gymnasium import spaces
+from sbx import TD3
+from sbx.common.policies import VectorCritic
+from sbx.common.type_aliases import ReplayBufferSamplesNp, RLTrainState
+from sbx.td3.policies import TD3Policy
+from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.type_aliases import ReplayBufferSamples
+
+__all__ = ["PerArmTD3", "PerArmTD3Policy", "RewardShareReplayBuffer"]
+
+SHARES_KEY = "reward_shares"
+
+
+class RewardShareReplayBuffer(ReplayBuffer):
+    """SB3 replay buffer that also keeps ``info["reward_shares"]`` and samples it as the reward.
+
+    Samples hold ``rewards`` of shape (batch, n_shares), the per-arm shares of each transition's
+    reward, instead of SB3's (batch, 1). The environment must report the shares in every step's
+    info (``TrackingVecEnv(reward_shares=True)``).
+
+    Args:
+        n_shares: A, the number of reward shares (arms).
+        (the others as :class:`stable_baselines3.common.buffers.ReplayBuffer`; the
+        memory-optimised variant is not supported.)
+    """
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        device: Any = "auto",
+        n_envs: int = 1,
+        optimize_memory_usage: bool = False,
+        handle_timeout_termination: bool = True,
+        n_shares: int = 2,
+    ) -> None:
+        if optimize_memory_usage:
+            raise ValueError("RewardShareReplayBuffer does not support optimize_memory_usage")
+        super().__init__(
+            buffer_size, observation_space, action_space, device, n_envs,
+            optimize_memory_usage, handle_timeout_termination,
+        )
+        self.reward_shares = np.zeros((self.buffer_size, self.n_envs, n_shares), dtype=np.float32)
+
+    def add(
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        try:
+            shares = [info[SHARES_KEY] for info in infos]
+        except KeyError:
+            raise ValueError(
+                f"per-arm critics need info[{SHARES_KEY!r}] from the environment; "
+                "build it as TrackingVecEnv(..., reward_shares=True)"
+            ) from None
+        self.reward_shares[self.pos] = np.asarray(shares, dtype=np.float32)
+        super().add(obs, next_obs, action, reward, done, infos)
+
+    def _get_samples(self, batch_inds: np.ndarray, env: Any = None) -> ReplayBufferSamples:
+        env_indices = np.random.randint(0, high=self.n_envs, size=(len(batch_inds),))
+        not_timeout = 1 - self.timeouts[batch_inds, env_indices]
+        data = (
+            self._normalize_obs(self.observations[batch_inds, env_indices, :], env),
+            self.actions[batch_inds, env_indices, :],
+            self._normalize_obs(self.next_observations[batch_inds, env_indices, :], env),
+            (self.dones[batch_inds, env_indices] * not_timeout).reshape(-1, 1),
+            self.reward_shares[batch_inds, env_indices, :],
+        )
+        return ReplayBufferSamples(*tuple(map(self.to_torch, data)))
+
+
+class PerArmTD3Policy(TD3Policy):
+    """SBX's TD3 policy whose twin critics output one Q-value per reward share.
+
+    Args:
+        n_reward_shares: A, outputs per critic (one per arm).
+        (the others as :class:`sbx.td3.policies.TD3Policy`.)
+    """
+
+    def __init__(self, *args: Any, n_reward_shares: int = 2, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.n_reward_shares = n_reward_shares
+
+    def build(self, key: jax.Array, lr_schedule: Any, qf_learning_rate: float) -> jax.Array:
+        key = super().build(key, lr_schedule, qf_learning_rate)
+        key, qf_key, dropout_key = jax.random.split(key, 3)
+        obs = jnp.array([self.observation_space.sample()])
+        action = jnp.array([self.action_space.sample()])
+        self.qf = VectorCritic(
+            dropout_rate=self.dropout_rate,
+            use_layer_norm=self.layer_norm,
+            net_arch=self.net_arch_qf,
+            n_critics=self.n_critics,
+            activation_fn=self.activation_fn,
+            output_dim=self.n_reward_shares,
+        )
+        params = self.qf.init({"params": qf_key, "dropout": dropout_key}, obs, action)
+        self.qf_state = RLTrainState.create(
+            apply_fn=self.qf.apply,
+            params=params,
+            target_params=params,
+            tx=self.optimizer_class(learning_rate=qf_learning_rate, **self.optimizer_kwargs),
+        )
+        self.qf.apply = jax.jit(  # type: ignore[method-assign]
+            self.qf.apply, static_argnames=("dropout_rate", "use_layer_norm")
+        )
+        return key
+
+
+class PerArmTD3(TD3):
+    """SBX's TD3 with per-arm critic outputs (module docstring); same constructor arguments.
+
+    The actor update is SBX's: its loss −mean over the batch and the A outputs of
+    min_j Q_{j,i}(s, π(s)) is −(1/A)·Σᵢ min_j Q_{j,i}, the module's objective up to a constant
+    factor, to which Adam is invariant.
+
+    Args:
+        n_reward_shares: A, the number of arms whose reward shares the critics learn.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[TD3Policy]]] = {"MlpPolicy": PerArmTD3Policy}
+
+    def __init__(self, policy: Any, env: Any, *args: Any, n_reward_shares: int = 2,
+                 replay_buffer_kwargs: dict[str, Any] | None = None,
+                 policy_kwargs: dict[str, Any] | None = None, **kwargs: Any) -> None:
+        self.n_reward_shares = n_reward_shares
+        super().__init__(
+            policy, env, *args,
+            replay_buffer_class=RewardShareReplayBuffer,
+            replay_buffer_kwargs={**(replay_buffer_kwargs or {}), "n_shares": n_reward_shares},
+            policy_kwargs={**(policy_kwargs or {}), "n_reward_shares": n_reward_shares},
+            **kwargs,
+        )
+
+    def train(self, gradient_steps: int, batch_size: int) -> None:
+        assert self.replay_buffer is not None
+        sample = self.replay_buffer.sample(batch_size * gradient_steps, env=self._vec_normalize_env)
+        self._maybe_reset_params()
+        data = ReplayBufferSamplesNp(  # type: ignore[call-arg]
+            sample.observations.numpy(),
+            sample.actions.numpy(),
+            sample.next_observations.numpy(),
+            sample.dones.numpy().flatten(),
+            sample.rewards.numpy(),  # (batch·gradient_steps, A): not flattened
+            np.full((batch_size * gradient_steps,), self.gamma, dtype=np.float32),
+        )
+        (
+            self.policy.qf_state,
+            self.policy.actor_state,
+            self.key,
+            (actor_loss, critic_loss),
+        ) = self._train(
+            self.tau,
+            gradient_steps,
+            data,
+            self.policy_delay,
+            (self._n_updates + 1) % self.policy_delay,
+            self.target_policy_noise,
+            self.target_noise_clip,
+            self.policy.qf_state,
+            self.policy.actor_state,
+            self.key,
+        )
+        self._n_updates += gradient_steps
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/actor_loss", actor_loss.item())
+        self.logger.record("train/critic_loss", critic_loss.item())
+
+    @staticmethod
+    @jax.jit
+    def update_critic(
+        actor_state: RLTrainState,
+        qf_state: RLTrainState,
+        observations: jax.Array,
+        actions: jax.Array,
+        next_observations: jax.Array,
+        rewards: jax.Array,
+        dones: jax.Array,
+        discounts: jax.Array,
+        target_policy_noise: float,
+        target_noise_clip: float,
+        key: jax.Array,
+    ) -> tuple[RLTrainState, jax.Array, jax.Array]:
+        """One critic step on a batch: rewards (batch, A), dones and discounts (batch,)."""
+        key, noise_key, dropout_key_target, dropout_key_current = jax.random.split(key, 4)
+        next_actions = actor_state.apply_fn(actor_state.target_params, next_observations)
+        noise = jax.random.normal(noise_key, actions.shape) * target_policy_noise
+        noise = jnp.clip(noise, -target_noise_clip, target_noise_clip)
+        next_actions = jnp.clip(next_actions + noise, -1.0, 1.0)
+        next_q = qf_state.apply_fn(
+            qf_state.target_params, next_observations, next_actions,
+            rngs={"dropout": dropout_key_target},
+        )  # (n_critics, batch, A)
+        bootstrap = ((1 - dones) * discounts)[:, None]
+        target_q = rewards + bootstrap * jnp.min(next_q, axis=0)  # (batch, A)
+
+        def loss(params: Any, dropout_key: jax.Array) -> jax.Array:
+            q = qf_state.apply_fn(params, observations, actions, rngs={"dropout": dropout_key})
+            return 0.5 * ((target_q - q) ** 2).mean(axis=1).sum()
+
+        loss_value, grads = jax.value_and_grad(loss)(qf_state.params, dropout_key_current)
+        return qf_state.apply_gradients(grads=grads), loss_value, key
