@@ -557,6 +557,18 @@ def test_vec_env_full_info_matches_single_env_info() -> None:
     assert infos == [{}, {}]
 
 
+def test_vec_env_reports_reward_shares_that_sum_to_the_reward() -> None:
+    vec = TrackingVecEnv(3, reward_shares=True, target="circle", episode_duration=0.01)
+    vec.seed(0)
+    vec.reset()
+    rng = np.random.default_rng(4)
+    for _ in range(6):  # past the end of the 5-step episodes, whose infos gain reset keys
+        _, rewards, _, infos = vec.step(rng.uniform(-1, 1, (3, 24)).astype(np.float32))
+        shares = np.stack([info["reward_shares"] for info in infos])
+        assert shares.shape == (3, 2) and shares.dtype == np.float32
+        np.testing.assert_allclose(shares.sum(axis=1), rewards, rtol=1e-6, atol=1e-6)
+
+
 def test_vec_env_single_arm_config() -> None:
     config = make_config(n_arms=1, arm=1, target="circle")
     vec = TrackingVecEnv(2, config)

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from softtrack.env.reward import RewardConfig, collision_penalty, tip_distances, tracking_reward
+from softtrack.env.reward import (
+    RewardConfig,
+    collision_penalty,
+    reward_shares,
+    tip_distances,
+    tracking_reward,
+)
 
 EPS = 1e-9
 
@@ -150,3 +156,31 @@ def test_collision_penalty_bent_arm_and_batch() -> None:
     np.testing.assert_array_equal(collision_penalty(nodes, RewardConfig()), [0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="nodes"):
         collision_penalty(nodes[:, :1], c)
+
+
+@pytest.mark.parametrize(
+    "d1, d2, expected",
+    [
+        (0.3, 0.4, (-0.09, -0.16)),
+        (0.09, 0.2, (-0.0081 + 0.5, -0.04)),                  # the other arm earns nothing
+        (0.06, 0.07, (-0.0036 + 1.5, -0.0049 + 1.5)),
+        (0.05, 0.01, (-0.0025 + 1.5 + 0.75, -0.0001 + 1.5 + 0.75)),  # cooperative: half each
+        (0.01, 0.5, (-0.0001 + 1.5, -0.25)),
+    ],
+)
+def test_reward_shares_are_each_arms_own_terms(d1: float, d2: float, expected: tuple) -> None:
+    d = np.array([[d1, d2]])
+    shares = reward_shares(d, tracking_reward(d, RewardConfig()), RewardConfig())
+    assert shares.shape == (1, 2)
+    np.testing.assert_allclose(shares[0], expected, atol=1e-12)
+
+
+def test_reward_shares_split_penalties_and_nonfinite_rewards_equally() -> None:
+    config = RewardConfig(arm_weights=(2.0, 0.5), collision_penalty=5.0)
+    d = np.array([[0.06, 0.2], [np.nan, 0.01], [0.04, 0.03]])
+    total = tracking_reward(d, config) + np.array([-5.0, 0.0, -5.0])  # a penalty on rows 0, 2
+    shares = reward_shares(d, total, config)
+    np.testing.assert_allclose(shares.sum(axis=1), total, atol=1e-12)
+    np.testing.assert_allclose(shares[0], [-2 * 0.0036 + 1.5 - 2.5, -0.5 * 0.04 - 2.5])
+    np.testing.assert_allclose(shares[1], [-500.0, -500.0])  # the non-finite reward, halved
+    assert np.isfinite(shares).all()

@@ -199,6 +199,21 @@ ERROR_CASES = {
         ["env.target.speed_min", "exceeds speed=0.3", "make speed_min <= speed"],
     ),
     "bool-as-number": ("training: {n_envs: yes}\n", [], ["training.n_envs", "expected a number"]),
+    "per-arm-critic-sb3": (
+        "algo: {critic: per_arm}\n",
+        [],
+        ["algo.critic", "td3 with backend sbx", "not td3 with backend sb3"],
+    ),
+    "per-arm-critic-independent": (
+        "controller: independent\nalgo: {critic: per_arm, backend: sbx}\n",
+        [],
+        ["algo.critic", "needs controller: centralized"],
+    ),
+    "per-arm-critic-reward-normalisation": (
+        "algo: {critic: per_arm, backend: sbx, normalize: true, normalize_reward: true}\n",
+        [],
+        ["algo.critic", "set algo.normalize_reward: false"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",
@@ -412,6 +427,8 @@ def test_spec_hash() -> None:
     assert spec_hash(base.with_seed(7)) == spec_hash(base)  # seed-independent
     assert spec_hash(parse_spec({"algo": {"tau": 0.01}})) != spec_hash(base)
     assert spec_hash(parse_spec({"env": {"target": {"speed_min": 0.1}}})) != spec_hash(base)
+    per_arm = parse_spec({"algo": {"backend": "sbx", "critic": "per_arm"}})
+    assert spec_hash(per_arm) != spec_hash(parse_spec({"algo": {"backend": "sbx"}}))
 
 
 @pytest.mark.parametrize("run_dir", sorted((REPO / "models").glob("*/")), ids=lambda p: p.name)
