@@ -65,7 +65,7 @@ JOBS: tuple[Job, ...] = (
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
-    "independent-td3-sbx", "independent-td3-sbx-2e6", "ddpg-sbx", "ppo-sbx",
+    "td3-sbx-per-arm", "td3-sbx-128-per-arm", "independent-td3-sbx", "independent-td3-sbx-2e6", "ddpg-sbx", "ppo-sbx",
 )
 
 
