@@ -56,7 +56,7 @@ JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx-speeds", s, f"td3-sbx-speeds-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-arm-bonus", s, f"td3-sbx-arm-bonus-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-128", s, f"td3-sbx-128-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-per-arm", s, f"td3-sbx-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
+    Job("td3-sbx-per-arm", 0, "td3-sbx-per-arm-4e6-seed0"),
     *(Job("td3-sbx-128-per-arm", s, f"td3-sbx-128-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
     *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
@@ -154,7 +154,12 @@ def main(argv: list[str] | None = None) -> None:
         with ThreadPoolExecutor(n) as pool:
             for future in [pool.submit(on_free_core, job) for job in jobs]:
                 future.result()
-    _softtrack("report", *REPORTED, "--runs-dir", "models", "--out", REPORT_DIR)
+    shipped = {job.spec for job in JOBS if (ROOT / "models" / job.dest).is_dir()}
+    waiting = [name for name in REPORTED if name not in shipped]
+    if waiting:
+        print(f"not in the report yet (no finished run in models/): {', '.join(waiting)}")
+    reported = [name for name in REPORTED if name in shipped]
+    _softtrack("report", *reported, "--runs-dir", "models", "--out", REPORT_DIR)
 
 
 if __name__ == "__main__":
