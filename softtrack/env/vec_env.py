@@ -19,7 +19,9 @@ from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
 from softtrack.env.reward import reward_shares
 
-__all__ = ["TrackingVecEnv"]
+__all__ = ["REWARD_SHARES_KEY", "TrackingVecEnv"]
+
+REWARD_SHARES_KEY = "reward_shares"  # info key of the per-arm reward shares
 
 
 class TrackingVecEnv(VecEnv):
@@ -86,7 +88,7 @@ class TrackingVecEnv(VecEnv):
         if self.with_reward_shares:
             shares = reward_shares(result.distances, result.reward, self.config.reward)
             for info, share in zip(infos, shares.astype(np.float32), strict=True):
-                info["reward_shares"] = share
+                info[REWARD_SHARES_KEY] = share
         finished = np.flatnonzero(dones)
         if finished.size:
             for i in finished.tolist():

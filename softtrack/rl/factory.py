@@ -27,6 +27,7 @@ __all__ = [
     "load_model",
     "make_action_noise",
     "make_vec_env",
+    "model_class",
 ]
 
 ALGO_NAMES = ("td3", "ddpg", "sac", "ppo")
@@ -166,6 +167,11 @@ def algo_class(name: str, backend: str = "sb3", critic: str = "joint") -> Any:
     return {"td3": library.TD3, "ddpg": library.DDPG, "sac": library.SAC, "ppo": library.PPO}[name]
 
 
+def model_class(spec: ExperimentSpec) -> Any:
+    """The algorithm class that trains and loads the models of ``spec`` (:func:`algo_class`)."""
+    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic)
+
+
 def _set_threads(spec: ExperimentSpec) -> None:
     import torch
 
@@ -179,7 +185,7 @@ def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise
-    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic)(
+    return model_class(spec)(
         env=env, seed=int(seed), verbose=0, **kwargs
     )
 
@@ -188,4 +194,4 @@ def load_model(spec: ExperimentSpec, path: str | Path, env: Any) -> Any:
     """Load a saved model (``model.zip``) onto ``env``; ``num_timesteps`` is restored."""
     _set_threads(spec)
     device = spec.algo.device if spec.algo.backend == "sb3" else "auto"
-    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic).load(str(path), env=env, device=device)
+    return model_class(spec).load(str(path), env=env, device=device)

@@ -27,9 +27,9 @@ from sbx.td3.policies import TD3Policy
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
-__all__ = ["PerArmTD3", "PerArmTD3Policy", "RewardShareReplayBuffer"]
+from softtrack.env.vec_env import REWARD_SHARES_KEY
 
-SHARES_KEY = "reward_shares"
+__all__ = ["PerArmTD3", "PerArmTD3Policy", "RewardShareReplayBuffer"]
 
 
 class RewardShareReplayBuffer(ReplayBuffer):
@@ -74,10 +74,10 @@ class RewardShareReplayBuffer(ReplayBuffer):
         infos: list[dict[str, Any]],
     ) -> None:
         try:
-            shares = [info[SHARES_KEY] for info in infos]
+            shares = [info[REWARD_SHARES_KEY] for info in infos]
         except KeyError:
             raise ValueError(
-                f"per-arm critics need info[{SHARES_KEY!r}] from the environment; "
+                f"per-arm critics need info[{REWARD_SHARES_KEY!r}] from the environment; "
                 "build it as TrackingVecEnv(..., reward_shares=True)"
             ) from None
         self.reward_shares[self.pos] = np.asarray(shares, dtype=np.float32)

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from softtrack.evaluation import Policy, independent_policy
-from softtrack.rl.factory import algo_class
+from softtrack.rl.factory import model_class
 from softtrack.spec import ExperimentSpec
 from softtrack.store.runs import RunRecord, RunStoreError
 
@@ -35,7 +35,7 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
         )
     try:
         device = "cpu" if spec.algo.backend == "sb3" else "auto"
-        model: Any = algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic).load(str(path), device=device)
+        model: Any = model_class(spec).load(str(path), device=device)
     except Exception as exc:  # noqa: BLE001 - any failure to load means an unusable model file
         raise RunStoreError(f"{path}: unreadable model ({type(exc).__name__}: {exc})") from None
     normalizer = None
