@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -73,6 +74,35 @@ def _check_episodes(df: pd.DataFrame, run_id: str, final_step: int) -> None:
 
 SBX_TD3 = pytest.param("td3", "sbx", marks=pytest.mark.skipif(
     importlib.util.find_spec("sbx") is None, reason="sbx-rl (JAX) not installed"))
+
+
+def test_train_prints_progress_lines_into_a_log(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from softtrack.rl import callbacks
+
+    monkeypatch.setattr(callbacks, "PROGRESS_LINE_INTERVAL_S", 0.0)
+    spec = _spec(tmp_path)
+    result = runner.invoke(
+        app, ["train", str(spec), "--runs-dir", str(tmp_path / "runs")], env={"CI": "1"}
+    )
+    assert result.exit_code == 0, result.output
+    run_id = result.stdout.strip()
+    lines = [line for line in result.stderr.splitlines() if line.startswith(run_id[-8:])]
+    steps = [int(re.match(r"\S+ ([\d,]+)/400 steps", line)[1].replace(",", "")) for line in lines]
+    assert len(steps) >= 10 and steps == sorted(steps) and steps[-1] <= 400
+    assert all("steps/s" in line for line in lines[1:])
+    assert any(re.search(r"return -?[\d,]+\.\d\d, \d+:\d\d h left$", line) for line in lines)
+
+
+def test_progress_line_format() -> None:
+    from softtrack.rl.callbacks import progress_line
+
+    line = progress_line("5JP1EEN4", 2_650_720, 4_000_000, 378.1, 14169.214)
+    assert line == (
+        "5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, return 14,169.21, 0:59 h left"
+    )
+    assert progress_line("x arm1", 0, 10, None, float("nan")) == "x arm1 0/10 steps (0.0%)"
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,9 @@
   ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
   ``training.keep_checkpoints`` are deleted.
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
-  latest episode return) on a terminal, and stops training when a stop was requested (signal).
+  latest episode return) on a terminal or prints a progress line every
+  :data:`PROGRESS_LINE_INTERVAL_S` seconds otherwise (a log file, a cluster job), and stops
+  training when a stop was requested (signal).
 """
 
 from __future__ import annotations
@@ -33,7 +35,18 @@ from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore, utc_now
 from softtrack.store.tables import append_rows
 
-__all__ = ["Checkpointer", "EpisodeLogger", "ProgressMonitor", "TrainingClock", "save_checkpoint"]
+__all__ = [
+    "PROGRESS_LINE_INTERVAL_S",
+    "Checkpointer",
+    "EpisodeLogger",
+    "ProgressMonitor",
+    "TrainingClock",
+    "progress_line",
+    "save_checkpoint",
+]
+
+PROGRESS_LINE_INTERVAL_S = 120.0
+"""Seconds between progress lines when stderr is not a terminal (no bar)."""
 
 
 class TrainingClock:
@@ -204,6 +217,26 @@ def _progress_enabled() -> bool:
     return sys.stderr.isatty() and not os.environ.get("CI")
 
 
+def _duration(seconds: float) -> str:
+    minutes = round(seconds / 60.0)
+    return f"{minutes // 60}:{minutes % 60:02d} h"
+
+
+def progress_line(
+    name: str, step: int, total: int, steps_per_second: float | None, last_return: float | None
+) -> str:
+    """One line of training progress for a log, e.g.
+    ``5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, return 14,169.21, 0:59 h left``."""
+    parts = [f"{name} {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%)"]
+    if steps_per_second:
+        parts.append(f"{steps_per_second:,.0f} steps/s")
+    if last_return is not None and math.isfinite(last_return):
+        parts.append(f"return {last_return:,.2f}")
+    if steps_per_second and step < total:
+        parts.append(f"{_duration((total - step) / steps_per_second)} left")
+    return ", ".join(parts)
+
+
 class ProgressMonitor(BaseCallback):
     """Heartbeat into run.json, a progress bar, and a stop switch.
 
@@ -213,10 +246,14 @@ class ProgressMonitor(BaseCallback):
         total_timesteps: the budget (for the bar).
         heartbeat_interval: seconds between run.json updates.
         stop_requested: a callable; when it returns true, training stops after this step.
-        show: show a tqdm bar on stderr (default: when stderr is a terminal and ``CI`` is unset).
+        show: ``True`` a tqdm bar on stderr, ``False`` nothing, ``None`` (default) a bar when
+            stderr is a terminal and ``CI`` is unset, else a :func:`progress_line` on stderr
+            every ``line_interval`` seconds.
         run_fields: maps the model's step count to the run.json progress fields (default
             ``{"global_step": step}``; an independent run adds the other arm's steps).
         label: shown after the run id in the bar, e.g. ``arm1``.
+        line_interval: seconds between progress lines (default
+            :data:`PROGRESS_LINE_INTERVAL_S`).
     """
 
     def __init__(
@@ -230,6 +267,7 @@ class ProgressMonitor(BaseCallback):
         show: bool | None = None,
         run_fields: Callable[[int], dict[str, Any]] | None = None,
         label: str = "",
+        line_interval: float | None = None,
     ) -> None:
         super().__init__(verbose=0)
         self.store = store
@@ -239,6 +277,8 @@ class ProgressMonitor(BaseCallback):
         self.heartbeat_interval = heartbeat_interval
         self.stop_requested = stop_requested
         self.show = _progress_enabled() if show is None else show
+        self.print_lines = show is None and not self.show
+        self.line_interval = PROGRESS_LINE_INTERVAL_S if line_interval is None else line_interval
         self.run_fields = run_fields or (lambda step: {"global_step": step})
         self.label = label
         self._bar: Any = None
@@ -246,6 +286,7 @@ class ProgressMonitor(BaseCallback):
         self._start_step = 0
         self._last_beat = time.monotonic()
         self._last_bar = 0.0
+        self._last_line = time.monotonic()
 
     def steps_per_second(self) -> float | None:
         """Env steps per second of this session (``None`` before the first step)."""
@@ -254,7 +295,7 @@ class ProgressMonitor(BaseCallback):
         return done / dt if dt > 0 and done > 0 else None
 
     def _on_training_start(self) -> None:
-        self._start_time = time.monotonic()
+        self._start_time = self._last_line = time.monotonic()
         self._start_step = int(self.num_timesteps)
         if self.show:
             from tqdm import tqdm
@@ -276,6 +317,14 @@ class ProgressMonitor(BaseCallback):
             self.store.heartbeat(
                 self.record.run_id, steps_per_second=self.steps_per_second(), **fields
             )
+        if self.print_lines and now - self._last_line >= self.line_interval:
+            self._last_line = now
+            name = f"{self.record.run_id[-8:]} {self.label}".rstrip()
+            step = min(int(self.num_timesteps), self.total_timesteps)
+            line = progress_line(
+                name, step, self.total_timesteps, self.steps_per_second(), self.episodes.last_return
+            )
+            print(line, file=sys.stderr, flush=True)
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
