@@ -112,6 +112,10 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         run_id = out.split()[0]
     else:
         run_id, status = found
+        if status == "running":
+            print(f"busy: run {run_id} ({job.spec} seed {job.seed}) is training in another "
+                  "process; run this script again when it has finished", flush=True)
+            return
         if status != "completed":
             _softtrack("train", "--resume", run_id, *runs, taskset=core)
     _softtrack("evaluate", run_id, *runs, taskset=core)
