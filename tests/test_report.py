@@ -372,6 +372,24 @@ def test_every_table_has_provenance(report: Path, store: RunStore) -> None:
         assert record.info.git_commit[:12] in provenance
 
 
+def test_provenance_names_every_commit_a_resumed_run_trained_on(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from softtrack.report.document import commit_text
+
+    store = RunStore(tmp_path)
+    run_id = store.create_run(_spec("td3"), 0).run_id
+    a, b = "a" * 40, "b" * 40
+    store.update_run(run_id, git_commit=a, git_dirty=False, sessions=[])
+    assert commit_text(SimpleNamespace(record=store.get_run(run_id))) == a[:12]
+    sessions = [{"git_commit": a, "git_dirty": False}, {"git_commit": b, "git_dirty": True}]
+    store.update_run(run_id, sessions=sessions)
+    text = commit_text(SimpleNamespace(record=store.get_run(run_id)))
+    assert text == f"{a[:12]}, then {b[:12]} (+ uncommitted changes)"
+    store.update_run(run_id, git_commit=None, sessions=[])
+    assert commit_text(SimpleNamespace(record=store.get_run(run_id))) == "unknown"
+
+
 def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Path) -> None:
     out = tmp_path / "ppo-report"
     (out / "figures").mkdir(parents=True)

@@ -305,6 +305,31 @@ def test_update_get_list(tmp_path: Path, spec: ExperimentSpec) -> None:
     assert store.get_run(b.run_id).info.status == "queued"
 
 
+def test_sessions_record_each_training_process(tmp_path: Path, spec: ExperimentSpec) -> None:
+    store = RunStore(tmp_path)
+    run = store.create_run(spec, 0)
+    assert run.info.sessions == []
+    store.mark_running(run.run_id)
+    store.heartbeat(run.run_id, global_step=300, steps_per_second=100.0)
+    store.mark_finished(run.run_id, "interrupted", global_step=400)
+    store.mark_running(run.run_id)
+    open_session = store.get_run(run.run_id).info.sessions[-1]
+    assert "ended" not in open_session and open_session["pid"] == os.getpid()
+    store.mark_finished(run.run_id, "completed", global_step=1000, steps_per_second=250.0)
+    first, second = store.get_run(run.run_id).info.sessions
+    assert (first["end_step"], first["status"], first["steps_per_second"]) == (
+        400, "interrupted", 100.0
+    )
+    assert (second["end_step"], second["status"], second["steps_per_second"]) == (
+        1000, "completed", 250.0
+    )
+    for session in (first, second):
+        assert session["git_commit"] == run.info.git_commit and session["cpu"] == run.info.cpu
+        assert session["started"] <= session["ended"]
+    store.mark_finished(run.run_id, "failed", error="late")  # no open session: none changed
+    assert store.get_run(run.run_id).info.sessions == [first, second]
+
+
 def test_run_not_found_message(tmp_path: Path, spec: ExperimentSpec) -> None:
     store = RunStore(tmp_path)
     with pytest.raises(RunNotFoundError) as info:

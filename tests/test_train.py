@@ -239,10 +239,12 @@ def _expected_episodes(split: int, total: int, n_envs: int) -> int:
 
 
 def _resume_and_check(
-    runs_dir: Path, run_id: str, split: int, total: int, n_envs: int, chunk: int
+    runs_dir: Path, run_id: str, split: int, total: int, n_envs: int, chunk: int,
+    first_session: str = "interrupted",
 ) -> None:
     """Resume to completion; the run ends within one collection ``chunk`` past ``total``
-    (PPO collects whole rollouts of n_steps·n_envs)."""
+    (PPO collects whole rollouts of n_steps·n_envs); run.json lists both training sessions,
+    the first ended with status ``first_session``."""
     result = runner.invoke(
         app, ["train", "--resume", run_id[:10], "--runs-dir", str(runs_dir)], env={"CI": "1"}
     )
@@ -255,6 +257,12 @@ def _resume_and_check(
     _check_episodes(df, run_id, final)
     assert len(df) == _expected_episodes(split, final, n_envs)
     assert record.model_path.is_file()
+    sessions = record.info.sessions
+    assert [s["status"] for s in sessions] == [first_session, "completed"]
+    assert sessions[1]["end_step"] == final
+    if first_session == "interrupted":  # (a killed one's end_step is its last heartbeat's)
+        assert sessions[0]["end_step"] == split
+    assert sessions[0]["ended"] <= sessions[1]["started"] <= sessions[1]["ended"]
 
 
 @pytest.mark.parametrize("algo, backend", [("td3", "sb3"), ("ppo", "sb3"), SBX_TD3])
@@ -302,7 +310,7 @@ def test_sigkill_then_resume(tmp_path: Path) -> None:
     bad.mkdir()
     (bad / "state.json").write_text("{not json")
     (bad / "model.zip").write_bytes(b"garbage")
-    _resume_and_check(runs_dir, run_dir.name, split, total, n_envs, n_envs)
+    _resume_and_check(runs_dir, run_dir.name, split, total, n_envs, n_envs, "lost")
 
 
 @pytest.mark.parametrize("algo, backend", [("td3", "sb3"), SBX_TD3])

@@ -142,12 +142,26 @@ def seeds_text(seeds: Iterable[int]) -> str:
     return ", ".join(str(s) for s in sorted(set(seeds))) or "none"
 
 
-def commit_text(run: RunData) -> str:
-    """A run's git commit (12 digits, noting uncommitted changes), or "unknown"."""
+def training_commits(run: RunData) -> list[tuple[str, bool]]:
+    """The distinct (commit, uncommitted changes) a run was created and trained with, oldest
+    first: run.json's git_commit, then each training session's (a resumed run may have more)."""
     info = run.record.info
-    if not info.git_commit:
+    found = [(info.git_commit, info.git_dirty)]
+    found += [(s.get("git_commit"), s.get("git_dirty")) for s in info.sessions]
+    commits: list[tuple[str, bool]] = []
+    for commit, dirty in found:
+        if commit and (commit, bool(dirty)) not in commits:
+            commits.append((commit, bool(dirty)))
+    return commits
+
+
+def commit_text(run: RunData) -> str:
+    """A run's git commits (12 digits, noting uncommitted changes; several when its training
+    sessions ran different code), or "unknown"."""
+    commits = training_commits(run)
+    if not commits:
         return "unknown"
-    return info.git_commit[:12] + (" (+ uncommitted changes)" if info.git_dirty else "")
+    return ", then ".join(c[:12] + (" (+ uncommitted changes)" if d else "") for c, d in commits)
 
 
 def group_provenance(group: Group) -> str:
@@ -194,7 +208,8 @@ class Context:
         budgets = ", ".join(sorted({b for g in groups for b in g.budgets}))
         hashes = ", ".join(sorted({r.record.info.spec_hash[:8] for g in groups for r in g.runs}))
         commits = ", ".join(
-            sorted({(r.record.info.git_commit or "unknown")[:8] for g in groups for r in g.runs})
+            sorted({c[:8] for g in groups for r in g.runs for c, _ in training_commits(r)})
+            or ["unknown"]
         )
         return (
             f"experiment {names} · spec {hashes} · seeds {seeds} · budget {budgets} · "

@@ -120,7 +120,10 @@ class RunInfo(BaseModel):
     )
     steps_per_second: float | None = Field(None, description="training throughput, env steps/s")
     spec_hash: str = Field(description="softtrack.spec.spec_hash of the spec (seed-independent)")
-    git_commit: str | None = Field(None, description="commit of the softtrack code, if in git")
+    git_commit: str | None = Field(
+        None, description="commit of the softtrack code when the run was created, if in git "
+        "(a resumed run may have trained on later commits: see sessions)"
+    )
     git_dirty: bool | None = Field(None, description="uncommitted changes in the checkout")
     versions: dict[str, str] = Field(
         default_factory=dict, description="python and library versions"
@@ -135,6 +138,13 @@ class RunInfo(BaseModel):
     error: str | None = Field(None, description="one-line error of a failed run")
     traceback: str | None = Field(
         None, description="full traceback of a failed run (shown by `softtrack runs --failed`)"
+    )
+    sessions: list[dict[str, Any]] = Field(
+        default_factory=list,
+        description="one entry per training process, oldest first (a resumed run has several): "
+        "started, host, cpu, pid, git_commit, git_dirty and, once it ended, ended, end_step (env "
+        "steps done), status (lost: the process died unrecorded; ended is its last heartbeat) "
+        "and steps_per_second",
     )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
 
@@ -375,8 +385,23 @@ class RunStore:
         return RunRecord(path.name, path, info)
 
     def mark_running(self, run_id: str) -> RunRecord:
-        """status=running, started/heartbeat=now, this host and pid, error cleared."""
+        """status=running, started/heartbeat=now, this host and pid, error cleared, and a new
+        entry in ``sessions`` (call it with the run's lock held)."""
         now = utc_now()
+        info = self.get_run(run_id).info
+        sessions = info.sessions
+        if sessions and "ended" not in sessions[-1]:  # its process died unrecorded
+            last_sign = {"ended": info.heartbeat, "end_step": info.global_step, "status": "lost"}
+            sessions = [*sessions[:-1], {**sessions[-1], **last_sign}]
+        commit, dirty = git_info()
+        session = {
+            "started": now,
+            "host": socket.gethostname(),
+            "cpu": cpu_description(),
+            "pid": os.getpid(),
+            "git_commit": commit,
+            "git_dirty": dirty,
+        }
         return self.update_run(
             run_id,
             status="running",
@@ -385,9 +410,10 @@ class RunStore:
             ended=None,
             error=None,
             traceback=None,
-            host=socket.gethostname(),
-            cpu=cpu_description(),
-            pid=os.getpid(),
+            host=session["host"],
+            cpu=session["cpu"],
+            pid=session["pid"],
+            sessions=[*sessions, session],
         )
 
     def heartbeat(
@@ -419,8 +445,22 @@ class RunStore:
         now = utc_now()
         if error is not None:
             error = " ".join(str(error).split())
+        info = self.get_run(run_id).info
+        sessions = info.sessions
+        if sessions and "ended" not in sessions[-1]:
+            sessions = [
+                *sessions[:-1],
+                {
+                    **sessions[-1],
+                    "ended": now,
+                    "end_step": int(fields.get("global_step", info.global_step)),
+                    "status": status,
+                    "steps_per_second": fields.get("steps_per_second", info.steps_per_second),
+                },
+            ]
         return self.update_run(
-            run_id, status=status, ended=now, heartbeat=now, error=error, **fields
+            run_id, status=status, ended=now, heartbeat=now, error=error, sessions=sessions,
+            **fields,
         )
 
 
