@@ -23,14 +23,9 @@ from softtrack.evaluation import (
 )
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report import EmptySelectionError, build_report, select_runs
-from softtrack.report.data import (
-    final_stage_table,
-    group_runs,
-    load_runs,
-    metrics_summary,
-    moment_peaks,
-    training_curves,
-)
+from softtrack.report.curves import final_stage_table, training_curves
+from softtrack.report.data import group_runs, load_runs
+from softtrack.report.summaries import metrics_summary, moment_peaks
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore

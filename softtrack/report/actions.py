@@ -1,6 +1,6 @@
 """The "Policy actions" table of a report: per-arm action statistics across seeds.
 
-Built from :func:`softtrack.report.data.metrics_summary`; metrics tables written before the
+Built from :func:`softtrack.report.summaries.metrics_summary`; metrics tables written before the
 action statistics existed have no such columns, and their cells read "no data".
 """
 
@@ -12,12 +12,13 @@ from collections.abc import Sequence
 import pandas as pd
 
 from softtrack.metrics import SATURATION_THRESHOLD
-from softtrack.report.data import Group, summary_row
+from softtrack.report.data import Group
 from softtrack.report.reference import (
     CALIBRATION_ACTION_CHANGE,
     CALIBRATION_ACTION_SATURATION,
     TRAJECTORY_TITLES,
 )
+from softtrack.report.summaries import summary_row
 from softtrack.report.text import mean_pm_std
 
 __all__ = ["ACTIONS_HEADER", "actions_caption", "actions_rows"]

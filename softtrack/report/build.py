@@ -25,7 +25,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from softtrack.report.data import group_runs, load_runs, metrics_summary, trajectories_in
+from softtrack.report.data import group_runs, load_runs, trajectories_in
 from softtrack.report.document import FIGURES_DIR, NOT_IN_SPEC, Context, Doc
 from softtrack.report.evaluation_sections import (
     actions_section,
@@ -34,6 +34,7 @@ from softtrack.report.evaluation_sections import (
     trajectories_section,
 )
 from softtrack.report.select import EmptySelectionError, select_runs
+from softtrack.report.summaries import metrics_summary
 from softtrack.report.training_sections import final_section, runs_section, training_section
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir

@@ -1,14 +1,15 @@
-"""Load the stored tables of the selected runs and aggregate them across seeds.
+"""Load the stored tables of the selected runs and group them.
 
 Everything here reads only the run directories (``run.json``, ``spec.yaml`` and
 ``tables/*.parquet``), so a report can be rebuilt at any time. Runs are grouped by
 (algorithm, controller, experiment, spec hash); a group's runs differ only in the seed.
+:mod:`softtrack.report.curves` and :mod:`softtrack.report.summaries` aggregate the groups
+across seeds.
 """
 
 from __future__ import annotations
 
 import re
-import warnings
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
@@ -16,7 +17,6 @@ import numpy as np
 import pandas as pd
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
-from softtrack.metrics import ACTION_STATISTICS
 from softtrack.store.runs import RunRecord
 from softtrack.store.status import DEFAULT_FINAL_STAGE_FRACTION
 from softtrack.store.tables import TableError, read_table
@@ -25,20 +25,13 @@ __all__ = [
     "AXIS_METRICS",
     "DIRECTIONS",
     "METRIC_COLUMNS",
-    "Curve",
     "Group",
     "RunData",
-    "Smoothing",
-    "final_stage_table",
+    "episodes_by_arm",
     "group_runs",
     "load_run",
     "load_runs",
-    "metrics_summary",
-    "moment_peaks",
     "representative_run",
-    "run_final_stage_returns",
-    "summary_row",
-    "training_curves",
     "trajectories_in",
 ]
 
@@ -113,7 +106,7 @@ class RunData:
         ``global_step``, whichever is larger."""
         step = self.record.info.global_step
         if self.train is not None and not self.train.empty:
-            parts = _episodes_by_arm(self.train)
+            parts = episodes_by_arm(self.train)
             step = max(step, sum(int(p["global_step"].max()) for p in parts.values() if len(p)))
         return int(step)
 
@@ -239,59 +232,9 @@ def group_runs(runs: Sequence[RunData]) -> list[Group]:
     return groups
 
 
-def trajectories_in(groups: Sequence[Group]) -> list[str]:
-    """The three evaluation trajectories, then any other trajectory found in the tables."""
-    found: set[str] = set()
-    for group in groups:
-        for run in group.runs:
-            for df in (run.trajectories, run.metrics, run.moments):
-                if df is not None and "trajectory" in df:
-                    found.update(str(t) for t in df["trajectory"].unique())
-    return list(EVAL_TRAJECTORIES) + sorted(found - set(EVAL_TRAJECTORIES))
-
-
-# ---- training curves ------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Smoothing:
-    """The smoothing applied to every training curve of a report.
-
-    At each of ``n_points`` evenly spaced env steps g in (0, max step], a run's value is the
-    mean return of its episodes that ended within the centred window (g − w/2, g + w/2].
-    """
-
-    window: float  # env steps
-    n_points: int
-    window_fraction: float
-
-    def describe(self) -> str:
-        return (
-            f"each run's episode returns averaged over a centred window of {self.window:,.0f} "
-            f"env steps ({self.window_fraction:.0%} of the longest run), at {self.n_points} "
-            "points; the same window for every curve"
-        )
-
-
-@dataclass(frozen=True)
-class Curve:
-    """Smoothed training return of one group (and arm policy), mean and std across seeds.
-
-    Attributes:
-        steps: (n_points,) env steps.
-        mean: (n_points,) mean over runs of the smoothed return (NaN where no run has data).
-        std: (n_points,) sample std across runs (NaN where fewer than 2 runs have data).
-        arm: the arm of an independent controller's policy (0/1), or ``None`` for one policy.
-    """
-
-    label: str
-    group: Group
-    arm: int | None
-    steps: np.ndarray
-    mean: np.ndarray
-    std: np.ndarray
-    n_runs: int
-
-
-def _episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
+def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
+    """A ``train_episodes`` table split by arm policy: ``{None: all}`` without an ``arm``
+    column, else ``{0: arm 1's rows, 1: arm 2's}`` (and ``None`` for rows with no arm)."""
     if "arm" not in train:
         return {None: train}
     arm = pd.to_numeric(train["arm"], errors="coerce").fillna(-1).astype(int)
@@ -303,224 +246,15 @@ def _episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
     return parts
 
 
-def _window_means(steps: np.ndarray, returns: np.ndarray, grid: np.ndarray, w: float) -> np.ndarray:
-    order = np.argsort(steps, kind="stable")
-    steps, returns = steps[order], returns[order]
-    csum = np.concatenate([[0.0], np.cumsum(returns)])
-    lo = np.searchsorted(steps, grid - w / 2, side="right")
-    hi = np.searchsorted(steps, grid + w / 2, side="right")
-    count = hi - lo
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(count > 0, (csum[hi] - csum[lo]) / np.maximum(count, 1), np.nan)
-
-
-def training_curves(
-    groups: Sequence[Group], n_points: int = 200, window_fraction: float = 0.05
-) -> tuple[list[Curve], Smoothing]:
-    """One curve per group (per arm policy for independent controllers), all smoothed alike."""
-    max_step = 0
+def trajectories_in(groups: Sequence[Group]) -> list[str]:
+    """The three evaluation trajectories, then any other trajectory found in the tables."""
+    found: set[str] = set()
     for group in groups:
         for run in group.runs:
-            if run.train is not None:
-                max_step = max(max_step, int(run.train["global_step"].max()))
-    window = max(1.0, window_fraction * max_step)
-    smoothing = Smoothing(window, n_points, window_fraction)
-    if max_step <= 0:
-        return [], smoothing
-    grid = np.linspace(0.0, float(max_step), n_points + 1)[1:]
-    curves = []
-    for group in groups:
-        series: dict[int | None, list[np.ndarray]] = {}
-        for run in group.runs:
-            if run.train is None:
-                continue
-            for arm, part in _episodes_by_arm(run.train).items():
-                ret = pd.to_numeric(part["return"], errors="coerce").to_numpy(float)
-                step = pd.to_numeric(part["global_step"], errors="coerce").to_numpy(float)
-                ok = np.isfinite(ret) & np.isfinite(step)
-                if ok.any():
-                    series.setdefault(arm, []).append(
-                        _window_means(step[ok], ret[ok], grid, window)
-                    )
-        for arm in sorted(series, key=lambda a: -1 if a is None else a):
-            stack = np.vstack(series[arm])
-            with warnings.catch_warnings():  # all-NaN columns: 'mean of empty slice'
-                warnings.simplefilter("ignore", RuntimeWarning)
-                mean = np.nanmean(stack, axis=0)
-                std = np.nanstd(stack, axis=0, ddof=1)
-            std = np.where(np.sum(np.isfinite(stack), axis=0) >= 2, std, np.nan)
-            label = group.label if arm is None else f"{group.label}, arm {arm + 1} policy"
-            curves.append(Curve(label, group, arm, grid, mean, std, len(stack)))
-    return curves, smoothing
-
-
-# ---- final-stage return ---------------------------------------------------------------------
-def run_final_stage_returns(run: RunData) -> dict[int | None, tuple[float | None, int]]:
-    """SPEC §4 for one run: mean return of the episodes that ended after
-    ``(1 − final_stage_fraction) · budget`` env steps, per arm policy. The budget is the run's
-    ``total_timesteps``; for an arm policy of an independent run (``arm`` column ≥ 0, whose
-    ``global_step`` counts that arm's own steps) it is the arm's budget (:attr:`RunData.arm_budget`).
-
-    Returns ``{arm or None: (mean return or None if no episode qualifies, episode count)}``.
-    """
-    if run.train is None:
-        return {}
-    out: dict[int | None, tuple[float | None, int]] = {}
-    for arm, part in _episodes_by_arm(run.train).items():
-        budget = run.total_timesteps if arm is None else run.arm_budget
-        threshold = (1.0 - run.final_stage_fraction) * budget
-        step = pd.to_numeric(part["global_step"], errors="coerce")
-        ret = pd.to_numeric(part["return"], errors="coerce")
-        final = ret[(step > threshold) & np.isfinite(ret)]
-        out[arm] = (float(final.mean()) if len(final) else None, len(final))
-    return out
-
-
-def final_stage_table(groups: Sequence[Group]) -> pd.DataFrame:
-    """Final-stage return per group (and arm policy): mean ± sample std across seeds.
-
-    Columns: group, algo, controller, arm (-1 for one policy of both arms), seeds (all runs),
-    values ({seed: return} of runs with a final stage), n, mean, std (NaN for n < 2),
-    episodes (summed over runs), missing (seeds without a final stage).
-    """
-    rows = []
-    for group in groups:
-        per_arm: dict[int | None, dict[str, object]] = {}
-        for run in group.runs:
-            results = run_final_stage_returns(run) or {None: (None, 0)}
-            for arm, (value, count) in results.items():
-                row = per_arm.setdefault(arm, {"values": {}, "episodes": 0, "missing": []})
-                row["episodes"] = int(row["episodes"]) + count  # type: ignore[call-overload]
-                if value is None:
-                    row["missing"].append(run.seed)  # type: ignore[attr-defined]
-                else:
-                    row["values"][run.seed] = value  # type: ignore[index]
-        for arm in sorted(per_arm, key=lambda a: -1 if a is None else a):
-            row = per_arm[arm]
-            arm_value = -1 if arm is None else int(arm)
-            values = np.array(list(row["values"].values()), dtype=float)  # type: ignore[attr-defined]
-            rows.append(
-                {
-                    "group": group.label,
-                    "algo": group.algo,
-                    "controller": group.controller,
-                    "arm": arm_value,
-                    "seeds": group.seeds,
-                    "values": row["values"],
-                    "n": int(values.size),
-                    "mean": float(values.mean()) if values.size else np.nan,
-                    "std": float(values.std(ddof=1)) if values.size >= 2 else np.nan,
-                    "episodes": row["episodes"],
-                    "missing": row["missing"],
-                }
-            )
-    return pd.DataFrame(rows)
-
-
-# ---- evaluation metrics ---------------------------------------------------------------------
-def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
-    """Evaluation metrics per group, trajectory and arm: mean and sample std across seeds.
-
-    Columns: group, algo, controller, trajectory, arm, n, seeds, terminated (runs whose episode
-    ended early), and ``<metric>_mean`` / ``<metric>_std`` / ``<metric>_n`` (runs with a value)
-    for every metric column stored: ``rmse_x`` … ``max_error`` and their ``_steady`` forms, in
-    m, and ``action_saturation``, ``action_change``, ``action_rms`` (dimensionless). A metric no
-    run of a group stores has no columns (or NaN where another group has it).
-    """
-    rows = []
-    for group in groups:
-        frames = []
-        for run in group.runs:
-            if run.metrics is not None:
-                frames.append(run.metrics.assign(seed=run.seed))
-        if not frames:
-            continue
-        df = pd.concat(frames, ignore_index=True)
-        metric_cols = [
-            c
-            for c in df.columns
-            if c.removesuffix("_steady") in METRIC_COLUMNS or c in ACTION_STATISTICS
-        ]
-        for (trajectory, arm), part in df.groupby(["trajectory", "arm"], sort=False):
-            row: dict[str, object] = {
-                "group": group.label,
-                "algo": group.algo,
-                "controller": group.controller,
-                "trajectory": str(trajectory),
-                "arm": int(arm),
-                "n": len(part),
-                "seeds": sorted(int(s) for s in part["seed"]),
-                "terminated": int(part["terminated"].astype(bool).sum())
-                if "terminated" in part
-                else 0,
-            }
-            for col in metric_cols:
-                values = pd.to_numeric(part[col], errors="coerce").dropna().to_numpy(float)
-                row[f"{col}_mean"] = float(values.mean()) if values.size else np.nan
-                row[f"{col}_std"] = float(values.std(ddof=1)) if values.size >= 2 else np.nan
-                row[f"{col}_n"] = int(values.size)
-            rows.append(row)
-    return pd.DataFrame(rows)
-
-
-def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) -> pd.Series | None:
-    """The :func:`metrics_summary` row of ``group`` (its label), ``trajectory`` and ``arm``
-    (0-indexed), or None where nothing is stored."""
-    if summary.empty:
-        return None
-    sel = summary[
-        (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
-    ]
-    return None if sel.empty else sel.iloc[0]
-
-
-def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:
-    """Peak absolute element moment (N·m) over an evaluation episode, per group, trajectory,
-    direction and arm (``arm`` -1: both arms), as mean and sample std across seeds.
-
-    Columns: group, algo, controller, trajectory, direction (``normal``/``binormal``), arm, n,
-    mean, std.
-    """
-    rows = []
-    for group in groups:
-        peaks: dict[tuple[str, str, int], list[float]] = {}
-        for run in group.runs:
-            df = run.moments
-            if df is None or "max_abs_moment" not in df:
-                continue
-            value = pd.to_numeric(df["max_abs_moment"], errors="coerce")
-            per = value.groupby([df["trajectory"], df["direction"], df["arm"]]).max()
-            both = value.groupby([df["trajectory"], df["direction"]]).max()
-            for (trajectory, direction, arm), peak in per.items():
-                key = (str(trajectory), _direction(direction), int(arm))
-                peaks.setdefault(key, []).append(float(peak))
-            for (trajectory, direction), peak in both.items():
-                peaks.setdefault((str(trajectory), _direction(direction), -1), []).append(
-                    float(peak)
-                )
-        for (trajectory, direction, arm), values in peaks.items():
-            arr = np.array(values)
-            rows.append(
-                {
-                    "group": group.label,
-                    "algo": group.algo,
-                    "controller": group.controller,
-                    "trajectory": trajectory,
-                    "direction": direction,
-                    "arm": arm,
-                    "n": int(arr.size),
-                    "mean": float(arr.mean()),
-                    "std": float(arr.std(ddof=1)) if arr.size >= 2 else np.nan,
-                }
-            )
-    return pd.DataFrame(rows)
-
-
-def _direction(value: object) -> str:
-    try:
-        return DIRECTIONS[int(value)]  # type: ignore[call-overload]
-    except (ValueError, TypeError, IndexError):
-        return str(value)
+            for df in (run.trajectories, run.metrics, run.moments):
+                if df is not None and "trajectory" in df:
+                    found.update(str(t) for t in df["trajectory"].unique())
+    return list(EVAL_TRAJECTORIES) + sorted(found - set(EVAL_TRAJECTORIES))
 
 
 def representative_run(group: Group, trajectory: str) -> RunData | None:

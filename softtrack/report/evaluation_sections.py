@@ -13,14 +13,7 @@ import pandas as pd
 
 from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
-from softtrack.report.data import (
-    DIRECTIONS,
-    Group,
-    RunData,
-    moment_peaks,
-    representative_run,
-    summary_row,
-)
+from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
 from softtrack.report.document import NOT_IN_SPEC, Context, Doc, num_text, study_text
 from softtrack.report.reference import (
     STUDY_PEAK_MOMENTS,
@@ -29,6 +22,7 @@ from softtrack.report.reference import (
     study_peak_moment,
     study_rmse_3d,
 )
+from softtrack.report.summaries import moment_peaks, summary_row
 from softtrack.report.text import mean_pm_std
 
 __all__ = ["actions_section", "errors_section", "moments_section", "trajectories_section"]
@@ -75,7 +69,7 @@ def errors_section(
     doc: Doc, ctx: Context, summary: pd.DataFrame, trajectories: Sequence[str]
 ) -> None:
     """Per-axis and 3-D tracking errors per group against the study, and the 3-D RMSE of all
-    groups side by side (``summary``: :func:`~softtrack.report.data.metrics_summary`)."""
+    groups side by side (``summary``: :func:`~softtrack.report.summaries.metrics_summary`)."""
     doc.h(2, "Tracking error (study Table 4)")
     header = [
         "trajectory",

@@ -18,7 +18,8 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from softtrack.report.data import DIRECTIONS, Curve, Smoothing
+from softtrack.report.curves import Curve, Smoothing
+from softtrack.report.data import DIRECTIONS
 from softtrack.report.reference import TRAJECTORY_TITLES
 from softtrack.store.atomic import atomic_path
 
@@ -403,7 +404,7 @@ def rmse_comparison_figure(
     study's values as markers.
 
     Args:
-        summary: :func:`softtrack.report.data.metrics_summary` output.
+        summary: :func:`softtrack.report.summaries.metrics_summary` output.
         study: ``{marker label: {(trajectory, arm): value}}``.
     """
     title = "3-D RMSE per trajectory and arm"

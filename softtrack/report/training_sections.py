@@ -10,7 +10,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from softtrack.report import figures as fg
-from softtrack.report.data import RunData, final_stage_table, training_curves
+from softtrack.report.curves import final_stage_table, training_curves
+from softtrack.report.data import RunData
 from softtrack.report.document import NOT_IN_SPEC, Context, Doc, commit_text, seeds_text
 from softtrack.report.text import mean_pm_std
 

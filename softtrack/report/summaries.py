@@ -1,0 +1,119 @@
+"""Evaluation metrics and actuation-moment peaks of run groups: mean and std across seeds."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+from softtrack.metrics import ACTION_STATISTICS
+from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group
+
+__all__ = ["metrics_summary", "moment_peaks", "summary_row"]
+
+
+# ---- evaluation metrics ---------------------------------------------------------------------
+def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
+    """Evaluation metrics per group, trajectory and arm: mean and sample std across seeds.
+
+    Columns: group, algo, controller, trajectory, arm, n, seeds, terminated (runs whose episode
+    ended early), and ``<metric>_mean`` / ``<metric>_std`` / ``<metric>_n`` (runs with a value)
+    for every metric column stored: ``rmse_x`` … ``max_error`` and their ``_steady`` forms, in
+    m, and ``action_saturation``, ``action_change``, ``action_rms`` (dimensionless). A metric no
+    run of a group stores has no columns (or NaN where another group has it).
+    """
+    rows = []
+    for group in groups:
+        frames = []
+        for run in group.runs:
+            if run.metrics is not None:
+                frames.append(run.metrics.assign(seed=run.seed))
+        if not frames:
+            continue
+        df = pd.concat(frames, ignore_index=True)
+        metric_cols = [
+            c
+            for c in df.columns
+            if c.removesuffix("_steady") in METRIC_COLUMNS or c in ACTION_STATISTICS
+        ]
+        for (trajectory, arm), part in df.groupby(["trajectory", "arm"], sort=False):
+            row: dict[str, object] = {
+                "group": group.label,
+                "algo": group.algo,
+                "controller": group.controller,
+                "trajectory": str(trajectory),
+                "arm": int(arm),
+                "n": len(part),
+                "seeds": sorted(int(s) for s in part["seed"]),
+                "terminated": int(part["terminated"].astype(bool).sum())
+                if "terminated" in part
+                else 0,
+            }
+            for col in metric_cols:
+                values = pd.to_numeric(part[col], errors="coerce").dropna().to_numpy(float)
+                row[f"{col}_mean"] = float(values.mean()) if values.size else np.nan
+                row[f"{col}_std"] = float(values.std(ddof=1)) if values.size >= 2 else np.nan
+                row[f"{col}_n"] = int(values.size)
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) -> pd.Series | None:
+    """The :func:`metrics_summary` row of ``group`` (its label), ``trajectory`` and ``arm``
+    (0-indexed), or None where nothing is stored."""
+    if summary.empty:
+        return None
+    sel = summary[
+        (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
+    ]
+    return None if sel.empty else sel.iloc[0]
+
+
+def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:
+    """Peak absolute element moment (N·m) over an evaluation episode, per group, trajectory,
+    direction and arm (``arm`` -1: both arms), as mean and sample std across seeds.
+
+    Columns: group, algo, controller, trajectory, direction (``normal``/``binormal``), arm, n,
+    mean, std.
+    """
+    rows = []
+    for group in groups:
+        peaks: dict[tuple[str, str, int], list[float]] = {}
+        for run in group.runs:
+            df = run.moments
+            if df is None or "max_abs_moment" not in df:
+                continue
+            value = pd.to_numeric(df["max_abs_moment"], errors="coerce")
+            per = value.groupby([df["trajectory"], df["direction"], df["arm"]]).max()
+            both = value.groupby([df["trajectory"], df["direction"]]).max()
+            for (trajectory, direction, arm), peak in per.items():
+                key = (str(trajectory), _direction(direction), int(arm))
+                peaks.setdefault(key, []).append(float(peak))
+            for (trajectory, direction), peak in both.items():
+                peaks.setdefault((str(trajectory), _direction(direction), -1), []).append(
+                    float(peak)
+                )
+        for (trajectory, direction, arm), values in peaks.items():
+            arr = np.array(values)
+            rows.append(
+                {
+                    "group": group.label,
+                    "algo": group.algo,
+                    "controller": group.controller,
+                    "trajectory": trajectory,
+                    "direction": direction,
+                    "arm": arm,
+                    "n": int(arr.size),
+                    "mean": float(arr.mean()),
+                    "std": float(arr.std(ddof=1)) if arr.size >= 2 else np.nan,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def _direction(value: object) -> str:
+    try:
+        return DIRECTIONS[int(value)]  # type: ignore[call-overload]
+    except (ValueError, TypeError, IndexError):
+        return str(value)
