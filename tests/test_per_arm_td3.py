@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pickle
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from typer.testing import CliRunner
 
 pytest.importorskip("sbx", reason="sbx-rl (JAX) not installed")
 
+import jax
 import jax.numpy as jnp
 
 from softtrack.cli import app
@@ -52,10 +54,52 @@ def test_buffer_without_shares_in_the_infos_names_the_fix() -> None:
         buffer.add(obs, obs, np.zeros((2, 24), np.float32), np.zeros(2), np.zeros(2), [{}, {}])
 
 
-def test_each_critic_output_learns_its_own_arms_reward() -> None:
+def _model(per_arm_networks: bool) -> PerArmTD3:
     venv = TrackingVecEnv(2, reward_shares=True, episode_duration=0.01)
-    model = PerArmTD3("MlpPolicy", venv, learning_rate=1e-2, learning_starts=10,
-                      policy_kwargs={"net_arch": [16, 16]}, seed=0)
+    return PerArmTD3("MlpPolicy", venv, learning_rate=1e-2, learning_starts=10,
+                     policy_kwargs={"net_arch": [16, 16]}, seed=0,
+                     per_arm_networks=per_arm_networks)
+
+
+def _perturbed(params: Any, arm_axis: int, arm: int) -> Any:
+    """``params`` with 1 added to every weight of arm ``arm``'s networks (stacked on an axis)."""
+    def bump(leaf: jax.Array) -> jax.Array:
+        index = (slice(None),) * arm_axis + (arm,)
+        return leaf.at[index].add(1.0)
+    return jax.tree_util.tree_map(bump, params)
+
+
+def test_per_arm_networks_give_each_arm_its_own_actions_and_q_values() -> None:
+    model = _model(per_arm_networks=True)
+    rng = np.random.default_rng(1)
+    obs = jnp.asarray(rng.normal(size=(5, 81)), jnp.float32)
+    actions = jnp.asarray(rng.uniform(-1, 1, (5, 24)), jnp.float32)
+    actor, qf = model.policy.actor_state, model.policy.qf_state
+    base_actions = np.asarray(actor.apply_fn(actor.params, obs))
+    base_q = np.asarray(qf.apply_fn(qf.params, obs, actions))
+    assert base_actions.shape == (5, 24) and base_q.shape == (2, 5, 2)
+    for arm in (0, 1):
+        mine = slice(12 * arm, 12 * arm + 12)
+        others = slice(12 * (1 - arm), 12 * (1 - arm) + 12)
+        moved = np.asarray(actor.apply_fn(_perturbed(actor.params, 0, arm), obs))
+        assert not np.allclose(moved[:, mine], base_actions[:, mine])
+        np.testing.assert_array_equal(moved[:, others], base_actions[:, others])
+        # the critics are stacked twin-major: network c·2 + arm
+        for twin in (0, 1):
+            moved_q = np.asarray(
+                qf.apply_fn(_perturbed(qf.params, 0, 2 * twin + arm), obs, actions)
+            )
+            assert not np.allclose(moved_q[twin, :, arm], base_q[twin, :, arm])
+            unchanged = np.ones((2, 2), bool)
+            unchanged[twin, arm] = False
+            np.testing.assert_array_equal(
+                moved_q.transpose(0, 2, 1)[unchanged], base_q.transpose(0, 2, 1)[unchanged]
+            )
+
+
+@pytest.mark.parametrize("per_arm_networks", [False, True])
+def test_each_critic_output_learns_its_own_arms_reward(per_arm_networks: bool) -> None:
+    model = _model(per_arm_networks)
     qf_state, key = model.policy.qf_state, model.key
     rng = np.random.default_rng(0)
     obs = jnp.asarray(rng.normal(size=(32, 81)), jnp.float32)
@@ -73,7 +117,7 @@ def test_each_critic_output_learns_its_own_arms_reward() -> None:
     np.testing.assert_allclose(q[..., 1], -2.0, atol=0.05)
 
 
-def _spec(tmp_path: Path) -> Path:
+def _spec(tmp_path: Path, per_arm_networks: bool = False) -> Path:
     data = {
         "name": "tiny-per-arm",
         "seeds": [0],
@@ -81,7 +125,7 @@ def _spec(tmp_path: Path) -> Path:
         "algo": {
             "name": "td3", "backend": "sbx", "critic": "per_arm", "batch_size": 16,
             "learning_starts": 50, "buffer_size": 5000, "gradient_steps": 2,
-            "policy_kwargs": {"net_arch": [16, 16]},
+            "policy_kwargs": {"net_arch": [16, 16]}, "per_arm_networks": per_arm_networks,
         },
         "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 200},
     }
@@ -90,11 +134,11 @@ def _spec(tmp_path: Path) -> Path:
     return path
 
 
-def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path) -> None:
+@pytest.mark.parametrize("per_arm_networks", [False, True])
+def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path, per_arm_networks: bool) -> None:
     runs_dir = tmp_path / "runs"
-    result = runner.invoke(
-        app, ["train", str(_spec(tmp_path)), "--runs-dir", str(runs_dir)], env={"CI": "1"}
-    )
+    spec = _spec(tmp_path, per_arm_networks)
+    result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(runs_dir)], env={"CI": "1"})
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
     record = RunStore(runs_dir).get_run(run_id)
@@ -102,6 +146,7 @@ def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path) -> None:
 
     model = algo_class("td3", "sbx", "per_arm").load(str(record.model_path))
     assert isinstance(model, PerArmTD3) and model.n_reward_shares == 2
+    assert model.policy.per_arm_networks == per_arm_networks
     obs = np.zeros((1, 81), np.float32)
     assert model.policy.qf_state.apply_fn(
         model.policy.qf_state.params, obs, np.zeros((1, 24), np.float32)
@@ -120,3 +165,14 @@ def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path) -> None:
     )
     assert evaluated.exit_code == 0, evaluated.output
     assert "circle" in evaluated.stdout
+
+
+SHIPPED = Path(__file__).resolve().parents[1] / "models" / "td3-sbx-per-arm-4e6-seed0"
+
+
+@pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped per-arm model not in this checkout")
+def test_a_model_saved_before_per_arm_networks_loads_as_one_network() -> None:
+    model = algo_class("td3", "sbx", "per_arm").load(str(SHIPPED / "model.zip"))
+    assert model.policy.per_arm_networks is False
+    action, _ = model.predict(np.zeros((1, 81), np.float32), deterministic=True)
+    assert action.shape == (1, 24) and np.isfinite(action).all()

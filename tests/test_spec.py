@@ -214,6 +214,11 @@ ERROR_CASES = {
         [],
         ["algo.critic", "set algo.normalize_reward: false"],
     ),
+    "per-arm-networks-joint-critic": (
+        "algo: {per_arm_networks: true, backend: sbx}\n",
+        [],
+        ["algo.per_arm_networks", "set algo.critic: per_arm"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",
@@ -429,6 +434,10 @@ def test_spec_hash() -> None:
     assert spec_hash(parse_spec({"env": {"target": {"speed_min": 0.1}}})) != spec_hash(base)
     per_arm = parse_spec({"algo": {"backend": "sbx", "critic": "per_arm"}})
     assert spec_hash(per_arm) != spec_hash(parse_spec({"algo": {"backend": "sbx"}}))
+    nets = {"backend": "sbx", "critic": "per_arm", "per_arm_networks": True}
+    assert spec_hash(parse_spec({"algo": nets})) != spec_hash(per_arm)
+    nets["per_arm_networks"] = False
+    assert spec_hash(parse_spec({"algo": nets})) == spec_hash(per_arm)
 
 
 @pytest.mark.parametrize("run_dir", sorted((REPO / "models").glob("*/")), ids=lambda p: p.name)

@@ -10,12 +10,18 @@ and the actor maximises Σᵢ min_j Q_{j,i}(s, π(s)). Arm i's critic output the
 from the other arm's reward (one summed reward cannot tell which arm earned it), while the
 centralized actor still sees both arms and the target. The policy network, its actions and the
 evaluation are those of plain TD3.
+
+With ``per_arm_networks`` the networks are split by arm as well: arm i's actions come from its
+own actor MLP and its Q-values from its own twin critic MLPs, each seeing the full observation
+(and the critics all A·12 actions). That is the independent baseline's per-arm networks and
+capacity, with the centralized observation and the shared reward's credit.
 """
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
+import flax.linen as nn
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -23,13 +29,19 @@ from gymnasium import spaces
 from sbx import TD3
 from sbx.common.policies import VectorCritic
 from sbx.common.type_aliases import ReplayBufferSamplesNp, RLTrainState
-from sbx.td3.policies import TD3Policy
+from sbx.td3.policies import Actor, TD3Policy
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
 from softtrack.env.vec_env import REWARD_SHARES_KEY
 
-__all__ = ["PerArmTD3", "PerArmTD3Policy", "RewardShareReplayBuffer"]
+__all__ = [
+    "PerArmActor",
+    "PerArmCritic",
+    "PerArmTD3",
+    "PerArmTD3Policy",
+    "RewardShareReplayBuffer",
+]
 
 
 class RewardShareReplayBuffer(ReplayBuffer):
@@ -96,31 +108,97 @@ class RewardShareReplayBuffer(ReplayBuffer):
         return ReplayBufferSamples(*tuple(map(self.to_torch, data)))
 
 
+class PerArmActor(nn.Module):
+    """One actor MLP per arm: observations (batch, obs) → actions (batch, n_arms·arm_action_dim),
+    arm i's block from its own network (SBX's TD3 :class:`~sbx.td3.policies.Actor`)."""
+
+    net_arch: Any
+    arm_action_dim: int
+    n_arms: int
+    activation_fn: Any = nn.relu
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        actors = nn.vmap(
+            Actor,
+            variable_axes={"params": 0},
+            split_rngs={"params": True},
+            in_axes=None,
+            out_axes=0,
+            axis_size=self.n_arms,
+        )(net_arch=self.net_arch, action_dim=self.arm_action_dim, activation_fn=self.activation_fn)
+        per_arm = actors(x)  # (n_arms, batch, arm_action_dim)
+        return jnp.concatenate(list(per_arm), axis=-1)
+
+
+class PerArmCritic(nn.Module):
+    """n_critics twin critic MLPs per arm: (observations, actions) → Q (n_critics, batch, n_arms),
+    column i from arm i's own networks (SBX's :class:`~sbx.common.policies.VectorCritic`)."""
+
+    net_arch: Any
+    n_arms: int
+    n_critics: int = 2
+    use_layer_norm: bool = False
+    dropout_rate: float | None = None
+    activation_fn: Any = nn.relu
+
+    @nn.compact
+    def __call__(self, obs: jax.Array, action: jax.Array) -> jax.Array:
+        q = VectorCritic(
+            net_arch=self.net_arch,
+            use_layer_norm=self.use_layer_norm,
+            dropout_rate=self.dropout_rate,
+            n_critics=self.n_critics * self.n_arms,
+            activation_fn=self.activation_fn,
+        )(obs, action)  # (n_critics·n_arms, batch, 1)
+        q = q[..., 0].reshape(self.n_critics, self.n_arms, -1)
+        return jnp.swapaxes(q, 1, 2)
+
+
 class PerArmTD3Policy(TD3Policy):
     """SBX's TD3 policy whose twin critics output one Q-value per reward share.
 
     Args:
         n_reward_shares: A, outputs per critic (one per arm).
+        per_arm_networks: one actor MLP and one twin critic pair per arm (module docstring)
+            instead of one actor and one twin critic pair with A outputs.
         (the others as :class:`sbx.td3.policies.TD3Policy`.)
     """
 
-    def __init__(self, *args: Any, n_reward_shares: int = 2, **kwargs: Any) -> None:
+    per_arm_networks: bool = False  # what policies pickled before the option unpickle with
+
+    def __init__(
+        self, *args: Any, n_reward_shares: int = 2, per_arm_networks: bool = False, **kwargs: Any
+    ) -> None:
         super().__init__(*args, **kwargs)
         self.n_reward_shares = n_reward_shares
+        self.per_arm_networks = per_arm_networks
 
     def build(self, key: jax.Array, lr_schedule: Any, qf_learning_rate: float) -> jax.Array:
         key = super().build(key, lr_schedule, qf_learning_rate)
         key, qf_key, dropout_key = jax.random.split(key, 3)
         obs = jnp.array([self.observation_space.sample()])
         action = jnp.array([self.action_space.sample()])
-        self.qf = VectorCritic(
-            dropout_rate=self.dropout_rate,
-            use_layer_norm=self.layer_norm,
-            net_arch=self.net_arch_qf,
-            n_critics=self.n_critics,
-            activation_fn=self.activation_fn,
-            output_dim=self.n_reward_shares,
-        )
+        if self.per_arm_networks:
+            key, actor_key = jax.random.split(key)
+            self._build_per_arm_actor(actor_key, obs, lr_schedule)
+            self.qf = PerArmCritic(
+                net_arch=self.net_arch_qf,
+                n_arms=self.n_reward_shares,
+                n_critics=self.n_critics,
+                use_layer_norm=self.layer_norm,
+                dropout_rate=self.dropout_rate,
+                activation_fn=self.activation_fn,
+            )
+        else:
+            self.qf = VectorCritic(
+                dropout_rate=self.dropout_rate,
+                use_layer_norm=self.layer_norm,
+                net_arch=self.net_arch_qf,
+                n_critics=self.n_critics,
+                activation_fn=self.activation_fn,
+                output_dim=self.n_reward_shares,
+            )
         params = self.qf.init({"params": qf_key, "dropout": dropout_key}, obs, action)
         self.qf_state = RLTrainState.create(
             apply_fn=self.qf.apply,
@@ -133,6 +211,27 @@ class PerArmTD3Policy(TD3Policy):
         )
         return key
 
+    def _build_per_arm_actor(self, key: jax.Array, obs: jax.Array, lr_schedule: Any) -> None:
+        action_dim = int(np.prod(self.action_space.shape))
+        if action_dim % self.n_reward_shares:
+            raise ValueError(
+                f"{action_dim} actions do not split into {self.n_reward_shares} equal arm blocks"
+            )
+        self.actor = PerArmActor(
+            net_arch=self.net_arch_pi,
+            arm_action_dim=action_dim // self.n_reward_shares,
+            n_arms=self.n_reward_shares,
+            activation_fn=self.activation_fn,
+        )
+        params = self.actor.init(key, obs)
+        self.actor_state = RLTrainState.create(
+            apply_fn=self.actor.apply,
+            params=params,
+            target_params=params,
+            tx=self.optimizer_class(learning_rate=lr_schedule(1), **self.optimizer_kwargs),
+        )
+        self.actor.apply = jax.jit(self.actor.apply)  # type: ignore[method-assign]
+
 
 class PerArmTD3(TD3):
     """SBX's TD3 with per-arm critic outputs (module docstring); same constructor arguments.
@@ -143,19 +242,24 @@ class PerArmTD3(TD3):
 
     Args:
         n_reward_shares: A, the number of arms whose reward shares the critics learn.
+        per_arm_networks: one actor and one twin critic pair per arm (:class:`PerArmTD3Policy`).
     """
 
     policy_aliases: ClassVar[dict[str, type[TD3Policy]]] = {"MlpPolicy": PerArmTD3Policy}
 
     def __init__(self, policy: Any, env: Any, *args: Any, n_reward_shares: int = 2,
+                 per_arm_networks: bool = False,
                  replay_buffer_kwargs: dict[str, Any] | None = None,
                  policy_kwargs: dict[str, Any] | None = None, **kwargs: Any) -> None:
         self.n_reward_shares = n_reward_shares
+        policy_kwargs = {**(policy_kwargs or {}), "n_reward_shares": n_reward_shares}
+        if per_arm_networks:  # (absent otherwise: models saved before the option load alike)
+            policy_kwargs["per_arm_networks"] = True
         super().__init__(
             policy, env, *args,
             replay_buffer_class=RewardShareReplayBuffer,
             replay_buffer_kwargs={**(replay_buffer_kwargs or {}), "n_shares": n_reward_shares},
-            policy_kwargs={**(policy_kwargs or {}), "n_reward_shares": n_reward_shares},
+            policy_kwargs=policy_kwargs,
             **kwargs,
         )
 

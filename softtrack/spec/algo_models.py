@@ -62,6 +62,15 @@ class AlgoSpec(SpecModel):
         "and controller centralized only)",
         "-",
     )
+    per_arm_networks: bool = unit_field(
+        False,
+        "with critic: per_arm, one actor network per arm (full observation → that arm's 12 "
+        "actions) and one twin critic pair per arm (full observation and all 24 actions → that "
+        "arm's Q), each with policy_kwargs.net_arch: the independent baseline's per-arm networks "
+        "with the centralized observation; false = one actor and one twin critic pair with an "
+        "output per arm",
+        "-",
+    )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
     learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
     batch_size: Int = unit_field(
@@ -158,7 +167,7 @@ class AlgoSpec(SpecModel):
 
         Only keys that algorithm accepts are included (with ``critic: per_arm``, the
         :class:`softtrack.rl.per_arm_td3.PerArmTD3` class, which also takes
-        ``n_reward_shares``). Left out on purpose: ``env`` and
+        ``n_reward_shares`` and ``per_arm_networks``). Left out on purpose: ``env`` and
         ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
         ``noise_std``, which needs the action shape) and ``normalize`` (a VecNormalize wrapper).
 
@@ -194,6 +203,7 @@ class AlgoSpec(SpecModel):
         kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
         if self.critic == "per_arm":
             kwargs["n_reward_shares"] = 2  # the centralized dual-arm scene
+            kwargs["per_arm_networks"] = self.per_arm_networks
         if self.backend == "sb3":
             kwargs["device"] = self.device
         policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())

@@ -148,6 +148,7 @@ def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
 _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "target", "speed_min"): None,
     ("algo", "critic"): "joint",
+    ("algo", "per_arm_networks"): False,
 }
 
 

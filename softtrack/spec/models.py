@@ -214,6 +214,12 @@ class ExperimentSpec(SpecModel):
             )
         if a.critic == "per_arm":
             _check_per_arm_critic(self)
+        elif a.per_arm_networks:
+            raise custom_error(
+                "per_arm_networks splits the networks by the per-arm reward shares, which only "
+                "critic 'per_arm' learns; set algo.critic: per_arm or per_arm_networks: false",
+                "algo.per_arm_networks",
+            )
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(
