@@ -18,7 +18,10 @@ Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX 
 td3-sbx, td3-sbx-speeds and td3-sbx-arm-bonus ~30 min per seed, td3-sbx-128 ~65 min per seed
 (~1,060 env steps/s), td3-sbx-1e7 ~75 min, independent-td3-sbx ~60 min (two arms of 4e6),
 independent-td3-sbx-2e6 ~30 min per seed (two arms of 2e6), ddpg-sbx ~6 min per seed (1e6 steps),
-ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s).
+ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s). On the slower CPU of later sessions
+(~1/3 of these rates): td3-sbx-per-arm 2.3 h per seed (481 env steps/s), td3-sbx-128-per-arm
+3.9 h per seed (~290-380 env steps/s with a second training on the other core),
+td3-sbx-per-arm-nets ~380-600 env steps/s in its first 700k steps beside another training.
 """
 
 from __future__ import annotations
