@@ -179,26 +179,19 @@ class PerArmTD3Policy(TD3Policy):
         key, qf_key, dropout_key = jax.random.split(key, 3)
         obs = jnp.array([self.observation_space.sample()])
         action = jnp.array([self.action_space.sample()])
+        critic: dict[str, Any] = {
+            "net_arch": self.net_arch_qf,
+            "n_critics": self.n_critics,
+            "use_layer_norm": self.layer_norm,
+            "dropout_rate": self.dropout_rate,
+            "activation_fn": self.activation_fn,
+        }
         if self.per_arm_networks:
             key, actor_key = jax.random.split(key)
             self._build_per_arm_actor(actor_key, obs, lr_schedule)
-            self.qf = PerArmCritic(
-                net_arch=self.net_arch_qf,
-                n_arms=self.n_reward_shares,
-                n_critics=self.n_critics,
-                use_layer_norm=self.layer_norm,
-                dropout_rate=self.dropout_rate,
-                activation_fn=self.activation_fn,
-            )
+            self.qf = PerArmCritic(n_arms=self.n_reward_shares, **critic)
         else:
-            self.qf = VectorCritic(
-                dropout_rate=self.dropout_rate,
-                use_layer_norm=self.layer_norm,
-                net_arch=self.net_arch_qf,
-                n_critics=self.n_critics,
-                activation_fn=self.activation_fn,
-                output_dim=self.n_reward_shares,
-            )
+            self.qf = VectorCritic(output_dim=self.n_reward_shares, **critic)
         params = self.qf.init({"params": qf_key, "dropout": dropout_key}, obs, action)
         self.qf_state = RLTrainState.create(
             apply_fn=self.qf.apply,

@@ -389,10 +389,9 @@ class RunStore:
         entry in ``sessions`` (call it with the run's lock held)."""
         now = utc_now()
         info = self.get_run(run_id).info
-        sessions = info.sessions
-        if sessions and "ended" not in sessions[-1]:  # its process died unrecorded
-            last_sign = {"ended": info.heartbeat, "end_step": info.global_step, "status": "lost"}
-            sessions = [*sessions[:-1], {**sessions[-1], **last_sign}]
+        sessions = _close_last_session(  # open: its process died unrecorded
+            info.sessions, ended=info.heartbeat, end_step=info.global_step, status="lost"
+        )
         commit, dirty = git_info()
         session = {
             "started": now,
@@ -446,22 +445,24 @@ class RunStore:
         if error is not None:
             error = " ".join(str(error).split())
         info = self.get_run(run_id).info
-        sessions = info.sessions
-        if sessions and "ended" not in sessions[-1]:
-            sessions = [
-                *sessions[:-1],
-                {
-                    **sessions[-1],
-                    "ended": now,
-                    "end_step": int(fields.get("global_step", info.global_step)),
-                    "status": status,
-                    "steps_per_second": fields.get("steps_per_second", info.steps_per_second),
-                },
-            ]
+        sessions = _close_last_session(
+            info.sessions,
+            ended=now,
+            end_step=int(fields.get("global_step", info.global_step)),
+            status=status,
+            steps_per_second=fields.get("steps_per_second", info.steps_per_second),
+        )
         return self.update_run(
             run_id, status=status, ended=now, heartbeat=now, error=error, sessions=sessions,
             **fields,
         )
+
+
+def _close_last_session(sessions: list[dict[str, Any]], **end: Any) -> list[dict[str, Any]]:
+    """``sessions`` with ``end`` added to the last one if it is still open (no ``ended``)."""
+    if sessions and "ended" not in sessions[-1]:
+        return [*sessions[:-1], {**sessions[-1], **end}]
+    return sessions
 
 
 # ---- liveness -------------------------------------------------------------------------------
