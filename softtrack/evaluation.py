@@ -17,6 +17,7 @@ import pandas as pd
 
 from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
+from softtrack.env.observation import arm_view_columns
 from softtrack.metrics import AXES, action_statistics, moment_rms, tracking_metrics
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
@@ -38,8 +39,6 @@ STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
 # A policy maps one observation (obs_dim,) to one action (act_dim,).
 Policy = Callable[[np.ndarray], np.ndarray]
 
-_ARM_OBS = 37
-_TARGET_OBS = 7
 _ARM_ACTIONS = 2 * N_CONTROL_POINTS  # per arm: 6 normal, then 6 binormal control points
 
 
@@ -75,10 +74,9 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
     """
 
     def act(observation: np.ndarray) -> np.ndarray:
-        target = observation[-_TARGET_OBS:]
         actions = []
         for k, policy in enumerate(arm_policies):
-            arm_obs = np.concatenate([observation[_ARM_OBS * k:_ARM_OBS * (k + 1)], target])
+            arm_obs = observation[arm_view_columns(k, len(arm_policies), len(observation))]
             actions.append(np.asarray(policy(arm_obs), dtype=np.float64).reshape(-1))
         return np.concatenate(actions)
 

@@ -7,7 +7,12 @@ import re
 import numpy as np
 import pytest
 
-from softtrack.env.observation import build_observation, observation_labels, observation_size
+from softtrack.env.observation import (
+    arm_view_columns,
+    build_observation,
+    observation_labels,
+    observation_size,
+)
 
 
 def _hand_built_state() -> tuple[np.ndarray, ...]:
@@ -86,6 +91,19 @@ def test_labels() -> None:
     for index, name in expected.items():
         assert labels[index] == name, index
     assert observation_labels(1)[37:] == labels[74:]
+
+
+def test_arm_view_columns_are_the_single_arm_layout() -> None:
+    labels, single = observation_labels(2), observation_labels(1)
+    for arm in (0, 1):
+        columns = arm_view_columns(arm, 2, 81)
+        assert len(columns) == 44
+        seen = [labels[c].replace(f"arm{arm + 1}.", "arm1.") for c in columns]
+        assert seen == single
+    with pytest.raises(ValueError, match="no arm 2"):
+        arm_view_columns(2, 2, 81)
+    with pytest.raises(ValueError, match="80-value"):
+        arm_view_columns(0, 2, 80)
 
 
 def test_labels_describe_the_values() -> None:

@@ -117,7 +117,7 @@ def test_each_critic_output_learns_its_own_arms_reward(per_arm_networks: bool) -
     np.testing.assert_allclose(q[..., 1], -2.0, atol=0.05)
 
 
-def _spec(tmp_path: Path, per_arm_networks: bool = False) -> Path:
+def _spec(tmp_path: Path, per_arm_networks: bool = False, actor_observation: str = "full") -> Path:
     data = {
         "name": "tiny-per-arm",
         "seeds": [0],
@@ -126,6 +126,7 @@ def _spec(tmp_path: Path, per_arm_networks: bool = False) -> Path:
             "name": "td3", "backend": "sbx", "critic": "per_arm", "batch_size": 16,
             "learning_starts": 50, "buffer_size": 5000, "gradient_steps": 2,
             "policy_kwargs": {"net_arch": [16, 16]}, "per_arm_networks": per_arm_networks,
+            "actor_observation": actor_observation,
         },
         "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 200},
     }
@@ -134,10 +135,15 @@ def _spec(tmp_path: Path, per_arm_networks: bool = False) -> Path:
     return path
 
 
-@pytest.mark.parametrize("per_arm_networks", [False, True])
-def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path, per_arm_networks: bool) -> None:
+@pytest.mark.parametrize(
+    ("per_arm_networks", "actor_observation"),
+    [(False, "full"), (True, "full"), (True, "own_arm")],
+)
+def test_train_checkpoint_and_evaluate_a_per_arm_run(
+    tmp_path: Path, per_arm_networks: bool, actor_observation: str
+) -> None:
     runs_dir = tmp_path / "runs"
-    spec = _spec(tmp_path, per_arm_networks)
+    spec = _spec(tmp_path, per_arm_networks, actor_observation)
     result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(runs_dir)], env={"CI": "1"})
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
@@ -147,6 +153,7 @@ def test_train_checkpoint_and_evaluate_a_per_arm_run(tmp_path: Path, per_arm_net
     model = algo_class("td3", "sbx", "per_arm").load(str(record.model_path))
     assert isinstance(model, PerArmTD3) and model.n_reward_shares == 2
     assert model.policy.per_arm_networks == per_arm_networks
+    assert model.policy.actor_observation == actor_observation
     obs = np.zeros((1, 81), np.float32)
     assert model.policy.qf_state.apply_fn(
         model.policy.qf_state.params, obs, np.zeros((1, 24), np.float32)
@@ -174,5 +181,29 @@ SHIPPED = Path(__file__).resolve().parents[1] / "models" / "td3-sbx-per-arm-4e6-
 def test_a_model_saved_before_per_arm_networks_loads_as_one_network() -> None:
     model = algo_class("td3", "sbx", "per_arm").load(str(SHIPPED / "model.zip"))
     assert model.policy.per_arm_networks is False
+    assert model.policy.actor_observation == "full"
     action, _ = model.predict(np.zeros((1, 81), np.float32), deterministic=True)
     assert action.shape == (1, 24) and np.isfinite(action).all()
+
+
+def test_own_arm_actors_see_only_their_arm_and_the_target() -> None:
+    venv = TrackingVecEnv(2, reward_shares=True, episode_duration=0.01)
+    model = PerArmTD3("MlpPolicy", venv, learning_starts=10, policy_kwargs={"net_arch": [16, 16]},
+                      seed=0, per_arm_networks=True, actor_observation="own_arm")
+    actor = model.policy.actor_state
+    rng = np.random.default_rng(2)
+    obs = rng.normal(size=(4, 81)).astype(np.float32)
+    base = np.asarray(actor.apply_fn(actor.params, obs))
+    assert base.shape == (4, 24)
+    for arm in (0, 1):
+        mine, others = slice(12 * arm, 12 * arm + 12), slice(12 - 12 * arm, 24 - 12 * arm)
+        moved_obs = obs.copy()
+        moved_obs[:, 37 * arm:37 * (arm + 1)] += 1.0  # this arm's block only
+        moved = np.asarray(actor.apply_fn(actor.params, moved_obs))
+        assert not np.allclose(moved[:, mine], base[:, mine])
+        np.testing.assert_array_equal(moved[:, others], base[:, others])
+    moved_obs = obs.copy()
+    moved_obs[:, -7:] += 1.0  # the target moves every arm's actions
+    moved = np.asarray(actor.apply_fn(actor.params, moved_obs))
+    assert not np.allclose(moved[:, :12], base[:, :12])
+    assert not np.allclose(moved[:, 12:], base[:, 12:])

@@ -219,6 +219,11 @@ ERROR_CASES = {
         [],
         ["algo.per_arm_networks", "set algo.critic: per_arm"],
     ),
+    "own-arm-actors-without-per-arm-networks": (
+        "algo: {actor_observation: own_arm, critic: per_arm, backend: sbx}\n",
+        [],
+        ["algo.actor_observation", "set algo.per_arm_networks: true"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",
@@ -436,6 +441,11 @@ def test_spec_hash() -> None:
     assert spec_hash(per_arm) != spec_hash(parse_spec({"algo": {"backend": "sbx"}}))
     nets = {"backend": "sbx", "critic": "per_arm", "per_arm_networks": True}
     assert spec_hash(parse_spec({"algo": nets})) != spec_hash(per_arm)
+    own_arm = {**nets, "actor_observation": "own_arm"}
+    assert spec_hash(parse_spec({"algo": own_arm})) != spec_hash(parse_spec({"algo": nets}))
+    assert spec_hash(parse_spec({"algo": {**nets, "actor_observation": "full"}})) == spec_hash(
+        parse_spec({"algo": nets})
+    )
     nets["per_arm_networks"] = False
     assert spec_hash(parse_spec({"algo": nets})) == spec_hash(per_arm)
 

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["build_observation", "observation_labels", "observation_size"]
+__all__ = ["arm_view_columns", "build_observation", "observation_labels", "observation_size"]
 
 _TARGET_SIZE = 7
 
@@ -35,6 +35,28 @@ def _n_sampled_nodes(n_nodes: int) -> int:
 def observation_size(n_arms: int, n_nodes: int = 21) -> int:
     """Length of the observation: n_arms·(3·⌈n_nodes/2⌉ + 4) + 7 (81 for the default 2 arms)."""
     return n_arms * (3 * _n_sampled_nodes(n_nodes) + 4) + _TARGET_SIZE
+
+
+def arm_view_columns(arm: int, n_arms: int, observation_dim: int) -> np.ndarray:
+    """Indices of what one arm sees on its own: its 37-value block, then the target's 7.
+
+    That is the single-arm observation (44 values for 21 nodes) inside the A-arm one.
+
+    Args:
+        arm: the arm, 0 … n_arms − 1.
+        n_arms: A, arms in the observation.
+        observation_dim: length of the A-arm observation (81 for two arms).
+
+    Returns:
+        (observation_dim − (A − 1)·block,) int64 column indices, block = the per-arm length.
+    """
+    block, rest = divmod(observation_dim - _TARGET_SIZE, n_arms)
+    if rest or block < 1 or not 0 <= arm < n_arms:
+        raise ValueError(
+            f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms"
+        )
+    target = np.arange(observation_dim - _TARGET_SIZE, observation_dim)
+    return np.concatenate([np.arange(block * arm, block * (arm + 1)), target])
 
 
 def observation_labels(n_arms: int, n_nodes: int = 21) -> list[str]:

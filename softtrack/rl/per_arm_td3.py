@@ -14,7 +14,10 @@ evaluation are those of plain TD3.
 With ``per_arm_networks`` the networks are split by arm as well: arm i's actions come from its
 own actor MLP and its Q-values from its own twin critic MLPs, each seeing the full observation
 (and the critics all A·12 actions). That is the independent baseline's per-arm networks and
-capacity, with the centralized observation and the shared reward's credit.
+capacity, with the centralized observation and the shared reward's credit. With
+``actor_observation: own_arm`` as well, arm i's actor sees only arm i's 37 observation values
+and the target's 7 (the independent baseline's input) while its critics still see everything:
+centralized training, decentralized execution.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from sbx.td3.policies import Actor, TD3Policy
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
+from softtrack.env.observation import arm_view_columns
 from softtrack.env.vec_env import REWARD_SHARES_KEY
 
 __all__ = [
@@ -110,24 +114,35 @@ class RewardShareReplayBuffer(ReplayBuffer):
 
 class PerArmActor(nn.Module):
     """One actor MLP per arm: observations (batch, obs) → actions (batch, n_arms·arm_action_dim),
-    arm i's block from its own network (SBX's TD3 :class:`~sbx.td3.policies.Actor`)."""
+    arm i's block from its own network (SBX's TD3 :class:`~sbx.td3.policies.Actor`).
+
+    Attributes:
+        arm_inputs: None = every network sees the whole observation; otherwise
+            (n_arms, k) observation columns, row i what arm i's network sees.
+    """
 
     net_arch: Any
     arm_action_dim: int
     n_arms: int
     activation_fn: Any = nn.relu
+    arm_inputs: tuple[tuple[int, ...], ...] | None = None
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
+        if self.arm_inputs is None:
+            inputs, in_axis = x, None
+        else:
+            columns = jnp.asarray(self.arm_inputs)  # (n_arms, k)
+            inputs, in_axis = jnp.moveaxis(jnp.take(x, columns, axis=-1), -2, 0), 0
         actors = nn.vmap(
             Actor,
             variable_axes={"params": 0},
             split_rngs={"params": True},
-            in_axes=None,
+            in_axes=in_axis,
             out_axes=0,
             axis_size=self.n_arms,
         )(net_arch=self.net_arch, action_dim=self.arm_action_dim, activation_fn=self.activation_fn)
-        per_arm = actors(x)  # (n_arms, batch, arm_action_dim)
+        per_arm = actors(inputs)  # (n_arms, batch, arm_action_dim)
         return jnp.concatenate(list(per_arm), axis=-1)
 
 
@@ -162,17 +177,25 @@ class PerArmTD3Policy(TD3Policy):
         n_reward_shares: A, outputs per critic (one per arm).
         per_arm_networks: one actor MLP and one twin critic pair per arm (module docstring)
             instead of one actor and one twin critic pair with A outputs.
+        actor_observation: with per_arm_networks, ``full`` (each actor sees the whole
+            observation) or ``own_arm`` (its arm's block and the target's, module docstring).
         (the others as :class:`sbx.td3.policies.TD3Policy`.)
     """
 
-    per_arm_networks: bool = False  # what policies pickled before the option unpickle with
+    # what policies pickled before these options unpickle with
+    per_arm_networks: bool = False
+    actor_observation: str = "full"
 
     def __init__(
-        self, *args: Any, n_reward_shares: int = 2, per_arm_networks: bool = False, **kwargs: Any
+        self, *args: Any, n_reward_shares: int = 2, per_arm_networks: bool = False,
+        actor_observation: str = "full", **kwargs: Any
     ) -> None:
         super().__init__(*args, **kwargs)
+        if actor_observation not in ("full", "own_arm"):
+            raise ValueError(f"actor_observation {actor_observation!r} is not full or own_arm")
         self.n_reward_shares = n_reward_shares
         self.per_arm_networks = per_arm_networks
+        self.actor_observation = actor_observation
 
     def build(self, key: jax.Array, lr_schedule: Any, qf_learning_rate: float) -> jax.Array:
         key = super().build(key, lr_schedule, qf_learning_rate)
@@ -210,11 +233,19 @@ class PerArmTD3Policy(TD3Policy):
             raise ValueError(
                 f"{action_dim} actions do not split into {self.n_reward_shares} equal arm blocks"
             )
+        arm_inputs = None
+        if self.actor_observation == "own_arm":
+            obs_dim = int(obs.shape[-1])
+            arm_inputs = tuple(
+                tuple(int(c) for c in arm_view_columns(arm, self.n_reward_shares, obs_dim))
+                for arm in range(self.n_reward_shares)
+            )
         self.actor = PerArmActor(
             net_arch=self.net_arch_pi,
             arm_action_dim=action_dim // self.n_reward_shares,
             n_arms=self.n_reward_shares,
             activation_fn=self.activation_fn,
+            arm_inputs=arm_inputs,
         )
         params = self.actor.init(key, obs)
         self.actor_state = RLTrainState.create(
@@ -236,18 +267,25 @@ class PerArmTD3(TD3):
     Args:
         n_reward_shares: A, the number of arms whose reward shares the critics learn.
         per_arm_networks: one actor and one twin critic pair per arm (:class:`PerArmTD3Policy`).
+        actor_observation: what each arm's actor sees, ``full`` or ``own_arm``
+            (:class:`PerArmTD3Policy`).
     """
 
     policy_aliases: ClassVar[dict[str, type[TD3Policy]]] = {"MlpPolicy": PerArmTD3Policy}
 
     def __init__(self, policy: Any, env: Any, *args: Any, n_reward_shares: int = 2,
-                 per_arm_networks: bool = False,
+                 per_arm_networks: bool = False, actor_observation: str = "full",
                  replay_buffer_kwargs: dict[str, Any] | None = None,
                  policy_kwargs: dict[str, Any] | None = None, **kwargs: Any) -> None:
         self.n_reward_shares = n_reward_shares
         policy_kwargs = {**(policy_kwargs or {}), "n_reward_shares": n_reward_shares}
-        if per_arm_networks:  # (absent otherwise: models saved before the option load alike)
+        # absent at their defaults: models saved before the options load alike
+        if per_arm_networks:
             policy_kwargs["per_arm_networks"] = True
+        if actor_observation != "full":
+            if not per_arm_networks:
+                raise ValueError("actor_observation other than full needs per_arm_networks")
+            policy_kwargs["actor_observation"] = actor_observation
         super().__init__(
             policy, env, *args,
             replay_buffer_class=RewardShareReplayBuffer,

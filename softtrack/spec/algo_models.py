@@ -71,6 +71,14 @@ class AlgoSpec(SpecModel):
         "output per arm",
         "-",
     )
+    actor_observation: Literal["full", "own_arm"] = unit_field(
+        "full",
+        "with per_arm_networks, what each arm's actor sees: full = the whole observation; "
+        "own_arm = its own arm's 37 values and the target's 7, the independent baseline's "
+        "input, while the critics still see both arms and all actions (centralized training, "
+        "decentralized execution)",
+        "-",
+    )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
     learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
     batch_size: Int = unit_field(
@@ -167,7 +175,7 @@ class AlgoSpec(SpecModel):
 
         Only keys that algorithm accepts are included (with ``critic: per_arm``, the
         :class:`softtrack.rl.per_arm_td3.PerArmTD3` class, which also takes
-        ``n_reward_shares`` and ``per_arm_networks``). Left out on purpose: ``env`` and
+        ``n_reward_shares``, ``per_arm_networks`` and ``actor_observation``). Left out on purpose: ``env`` and
         ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
         ``noise_std``, which needs the action shape) and ``normalize`` (a VecNormalize wrapper).
 
@@ -204,6 +212,7 @@ class AlgoSpec(SpecModel):
         if self.critic == "per_arm":
             kwargs["n_reward_shares"] = 2  # the centralized dual-arm scene
             kwargs["per_arm_networks"] = self.per_arm_networks
+            kwargs["actor_observation"] = self.actor_observation
         if self.backend == "sb3":
             kwargs["device"] = self.device
         policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())

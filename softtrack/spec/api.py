@@ -149,6 +149,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "target", "speed_min"): None,
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,
+    ("algo", "actor_observation"): "full",
 }
 
 

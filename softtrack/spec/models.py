@@ -220,6 +220,13 @@ class ExperimentSpec(SpecModel):
                 "critic 'per_arm' learns; set algo.critic: per_arm or per_arm_networks: false",
                 "algo.per_arm_networks",
             )
+        if a.actor_observation != "full" and not a.per_arm_networks:
+            raise custom_error(
+                f"actor_observation '{a.actor_observation}' gives each arm's own actor network "
+                "part of the observation; set algo.per_arm_networks: true (with critic: per_arm) "
+                "or actor_observation: full",
+                "algo.actor_observation",
+            )
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(
