@@ -62,6 +62,7 @@ JOBS: tuple[Job, ...] = (
     Job("td3-sbx-per-arm", 0, "td3-sbx-per-arm-4e6-seed0"),
     *(Job("td3-sbx-128-per-arm", s, f"td3-sbx-128-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-per-arm-nets", s, f"td3-sbx-per-arm-nets-4e6-seed{s}") for s in (0, 1, 2)),
+    *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (0, 1, 2)),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
     *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
@@ -69,8 +70,8 @@ JOBS: tuple[Job, ...] = (
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
-    "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "independent-td3-sbx",
-    "independent-td3-sbx-2e6", "ddpg-sbx", "ppo-sbx",
+    "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "td3-sbx-own-arm-actors",
+    "independent-td3-sbx", "independent-td3-sbx-2e6", "ddpg-sbx", "ppo-sbx",
 )
 
 
