@@ -179,8 +179,11 @@ def evaluate(
     runs_dir: str | os.PathLike[str] | None = None,
     on_episode: Callable[..., None] | None = None,
     write: bool = True,
+    random_episodes: int = 0,
+    on_random: Callable[..., None] | None = None,
 ) -> pd.DataFrame:
-    """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories.
+    """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
+    and optionally on held-out episodes of their random training target.
 
     Every run is resolved and its spec checked before any episode runs, so a bad reference
     fails without writing anything.
@@ -189,11 +192,14 @@ def evaluate(
         trajectories: subset of circle, rectangle, figure8 (default: all three).
         on_episode: called with (record, episode, metrics) after each trajectory.
         write: store the tables in each run (``False``: only return the metrics).
+        random_episodes: random-target episodes per run after the trajectories (0: none;
+            :func:`softtrack.eval_runs.evaluate_random_targets`, table ``eval_random``).
+        on_random: called with (record, rows of its random-target episodes) per run.
 
     Returns:
-        The metrics rows (one per run, trajectory and arm).
+        The metrics rows of the trajectories (one per run, trajectory and arm).
     """
-    from softtrack.eval_runs import evaluate_run, resolve_run
+    from softtrack.eval_runs import evaluate_random_targets, evaluate_run, resolve_run
     from softtrack.evaluation import EVAL_TRAJECTORIES
     from softtrack.rl.policy import model_paths
 
@@ -202,6 +208,9 @@ def evaluate(
     if unknown:
         raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}",
                         f"choose from {', '.join(EVAL_TRAJECTORIES)} or all")
+    if random_episodes < 0:
+        raise SpecError("--random", f"{random_episodes} random-target episodes",
+                        "give 0 (none) or more")
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     records = [resolve_run(ref, runs_dir) for ref in references]
@@ -213,7 +222,13 @@ def evaluate(
                 f"{missing[0]}: run {record.run_id} has no trained model (status "
                 f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
             )
-    frames = [evaluate_run(record, chosen, on_episode, write=write) for record in records]
+    frames = []
+    for record in records:
+        frames.append(evaluate_run(record, chosen, on_episode, write=write))
+        if random_episodes:
+            rows = evaluate_random_targets(record, random_episodes, write=write)
+            if on_random is not None:
+                on_random(record, rows)
     return pd.concat(frames, ignore_index=True)
 
 

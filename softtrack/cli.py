@@ -422,17 +422,27 @@ def evaluate(
         typer.Option("--trajectory", "-t", help="Target trajectory to evaluate on.",
                      case_sensitive=False),
     ] = TrajectoryChoice.all,
+    random: Annotated[
+        int,
+        typer.Option("--random", metavar="N",
+                     help="Also run N episodes on the run's random training target, from "
+                          "seeds training never uses (table eval_random)."),
+    ] = 0,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Evaluate runs on the circle, rectangle and figure-eight targets.
 
     Runs each run's deterministic policy for 10 s per trajectory from the straight initial
-    state and stores the tables eval_trajectories, eval_metrics and eval_moments. Prints the 3-D RMSE of each arm per run and trajectory (m).
+    state and stores the tables eval_trajectories, eval_metrics and eval_moments. Prints the
+    3-D RMSE of each arm per run and trajectory (m). With --random N, also N episodes on the
+    random target the run was trained on (seeds 1,000,000 + k, the same for every run), and
+    their mean 3-D RMSE per arm.
     """
     chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
 
     with _user_errors():
-        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode)
+        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
+                     random_episodes=random, on_random=_print_random)
 
 
 def _print_episode(record: object, episode: object, metrics: object) -> None:
@@ -443,6 +453,22 @@ def _print_episode(record: object, episode: object, metrics: object) -> None:
     typer.echo(
         f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]
         f"(t ≥ 1 s: {steady} m){note}"
+    )
+
+
+def _print_random(record: object, rows: object) -> None:
+    per_arm = rows.groupby("arm")["rmse_3d"]  # type: ignore[attr-defined]
+    means, stds = per_arm.mean(), per_arm.std()
+    cells = " / ".join(
+        f"{means[a]:.4f}" + ("" if math.isnan(stds[a]) else f" ± {stds[a]:.4f}")
+        for a in sorted(means.index)
+    )
+    n = int(rows["episode"].nunique())  # type: ignore[index]
+    diverged = int(rows.groupby("episode")["terminated"].any().sum())  # type: ignore[attr-defined]
+    note = f"  ({diverged} diverged)" if diverged else ""
+    typer.echo(
+        f"{record.run_id}  random     3-D RMSE arm 1 / arm 2: {cells} m "  # type: ignore[attr-defined]
+        f"(mean ± std over {n} episodes){note}"
     )
 
 

@@ -10,6 +10,12 @@ trajectories it evaluated and keeping the others):
   tables written before these were added lack them, and readers treat them as optional);
 * ``eval_moments.parquet``: spatial-RMS and peak element torques per step, arm and direction,
   with the element torques themselves.
+
+``evaluate_random_targets`` runs N episodes on the run's own random training target instead,
+from seeds that training never uses (:data:`softtrack.evaluation.RANDOM_TARGET_SEED` + k),
+and writes their metrics, one row per episode and arm, to ``eval_random.parquet`` (replacing
+the table): how well the policy tracks the target it was trained on, beside how well it
+tracks the closed-form paths.
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import pandas as pd
 
 from softtrack.evaluation import (
     EVAL_TRAJECTORIES,
+    RANDOM_TARGET_SEED,
     Episode,
     metrics_table,
     moments_table,
@@ -31,9 +38,17 @@ from softtrack.evaluation import (
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
 
-__all__ = ["EVAL_TABLES", "evaluate_run", "has_evaluation", "resolve_run"]
+__all__ = [
+    "EVAL_TABLES",
+    "RANDOM_TABLE",
+    "evaluate_random_targets",
+    "evaluate_run",
+    "has_evaluation",
+    "resolve_run",
+]
 
 EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments")
+RANDOM_TABLE = "eval_random"
 
 
 def resolve_run(reference: str, runs_dir: str | os.PathLike[str] | None = None) -> RunRecord:
@@ -105,3 +120,50 @@ def evaluate_run(
     for name, parts in frames.items() if write else ():
         _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True), trajectories)
     return pd.concat(frames["eval_metrics"], ignore_index=True)
+
+
+def evaluate_random_targets(
+    record: RunRecord,
+    episodes: int,
+    on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
+    *,
+    write: bool = True,
+) -> pd.DataFrame:
+    """Evaluate one run on ``episodes`` random-target episodes (module docstring).
+
+    Each episode lasts ``training.eval_duration`` from the straight initial state; episode k
+    uses seed ``RANDOM_TARGET_SEED + k``, so every run meets the same target paths when their
+    specs share the target settings.
+
+    Args:
+        episodes: number of episodes, ≥ 1.
+        on_episode: called after each episode with the run, the episode and its metrics.
+        write: store ``eval_random.parquet`` in the run (``False``: only return the rows).
+
+    Returns:
+        One row per episode and arm: ``episode``, ``seed`` and the columns of
+        :func:`softtrack.evaluation.metrics_table` (``trajectory`` is ``random``).
+    """
+    from softtrack.rl.factory import env_config
+    from softtrack.rl.policy import load_policy
+
+    if episodes < 1:
+        raise ValueError(f"episodes={episodes} must be at least 1")
+    spec = record.load_spec()
+    policy = load_policy(record, spec)
+    config = env_config(spec)
+    duration = float(spec.training.eval_duration)
+    parts = []
+    for k in range(episodes):
+        seed = RANDOM_TARGET_SEED + k
+        episode = run_episode(policy, config, "random", duration, seed=seed)
+        metrics = metrics_table(record.run_id, episode)
+        metrics.insert(2, "episode", k)
+        metrics.insert(3, "seed", seed)
+        parts.append(metrics)
+        if on_episode is not None:
+            on_episode(record, episode, metrics)
+    table = pd.concat(parts, ignore_index=True)
+    if write:
+        write_table(record.table_path(RANDOM_TABLE), table)
+    return table

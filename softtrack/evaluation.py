@@ -23,6 +23,7 @@ from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
     "EVAL_TRAJECTORIES",
+    "RANDOM_TARGET_SEED",
     "STEADY_START",
     "Episode",
     "Policy",
@@ -35,6 +36,9 @@ __all__ = [
 
 EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")
 STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
+# Random-target evaluation episode k draws its target path from seed RANDOM_TARGET_SEED + k.
+# Training seeds environment i of a run with seed run_seed + i (small), so these never recur.
+RANDOM_TARGET_SEED = 1_000_000
 
 # A policy maps one observation (obs_dim,) to one action (act_dim,).
 Policy = Callable[[np.ndarray], np.ndarray]
@@ -84,14 +88,16 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
 
 
 def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
-                duration: float = 10.0) -> Episode:
+                duration: float = 10.0, seed: int = 0) -> Episode:
     """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
 
     Args:
         policy: observation (obs_dim,) → action (act_dim,), deterministic.
         config: the environment settings of the run (physics, reward, target parameters).
-        trajectory: ``circle``, ``rectangle``, ``figure8`` (or ``fixed``).
+        trajectory: ``circle``, ``rectangle``, ``figure8``, ``fixed`` or ``random`` (the
+            training target of ``config``: random start and redirections).
         duration: episode length, s.
+        seed: seed of the episode's random numbers (only the ``random`` target uses them).
     """
     eval_config = dataclasses.replace(
         config,
@@ -99,7 +105,7 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
         episode_duration=float(duration),
     )
     core = TrackingCore(1, eval_config)
-    obs = core.reset([0], [np.random.default_rng(0)])[0]
+    obs = core.reset([0], [np.random.default_rng(seed)])[0]
     n_steps = eval_config.max_episode_steps
     tips = np.full((n_steps, core.n_arms, 3), np.nan)
     target = np.full((n_steps, 3), np.nan)

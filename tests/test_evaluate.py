@@ -142,6 +142,49 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
     assert "### Policy actions" in (out / "index.md").read_text(encoding="utf-8")
 
 
+def test_random_target_episodes_are_held_out_seeded_and_reported(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
+    from softtrack.eval_runs import evaluate_random_targets
+    from softtrack.evaluation import RANDOM_TARGET_SEED
+
+    runs, run_id = trained
+    fresh = tmp_path / "runs"
+    shutil.copytree(runs / run_id, fresh / run_id)
+    result = runner.invoke(
+        app, ["evaluate", run_id, "-t", "circle", "--random", "2", "--runs-dir", str(fresh)]
+    )
+    assert result.exit_code == 0, result.output
+    line = next(x for x in result.output.splitlines() if " random " in x)
+    assert "(mean ± std over 2 episodes)" in line
+    table = read_table(fresh / run_id / "tables" / "eval_random.parquet")
+    assert len(table) == 4 and set(table["trajectory"]) == {"random"}
+    assert sorted(set(table["seed"])) == [RANDOM_TARGET_SEED, RANDOM_TARGET_SEED + 1]
+    arm1 = table[table["arm"] == 0].sort_values("episode")["rmse_3d"].to_numpy()
+    assert arm1[0] != arm1[1]  # two different target paths
+    assert f"{arm1.mean():.4f} ± {arm1.std(ddof=1):.4f} /" in line
+
+    # the stored rows are the metrics of the episodes, and repeat exactly
+    record = RunStore(fresh).get_run(run_id)
+    episodes: list[Any] = []
+    again = evaluate_random_targets(
+        record, 2, lambda _r, episode, _m: episodes.append(episode), write=False
+    )
+    np.testing.assert_array_equal(again["rmse_3d"].to_numpy(), table["rmse_3d"].to_numpy())
+    for k, episode in enumerate(episodes):
+        expected = tracking_metrics(episode.tips[:, 1], episode.target)["rmse_3d"]
+        stored = table[(table["episode"] == k) & (table["arm"] == 1)]["rmse_3d"].item()
+        assert stored == pytest.approx(expected, rel=1e-12)
+    assert not np.allclose(episodes[0].target, episodes[1].target)
+
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(fresh), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    index = (out / "index.md").read_text(encoding="utf-8")
+    assert "### Random training targets (held-out episodes)" in index
+    assert f"| {arm1.mean():.4f} |" in index
+
+
 def test_a_copied_run_directory_evaluates(trained: tuple[Path, str], tmp_path: Path) -> None:
     runs, run_id = trained
     copy = tmp_path / "elsewhere" / run_id
@@ -180,6 +223,7 @@ def test_independent_run_evaluates_with_one_policy_per_arm(tmp_path: Path) -> No
     [
         (["evaluate", "NOSUCHRUN"], "no run"),
         (["evaluate", "X", "-t", "spiral"], "spiral"),
+        (["evaluate", "X", "--random", "-1"], "--random"),
         (["report", "nothing-here"], ""),
     ],
 )

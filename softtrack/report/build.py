@@ -31,6 +31,7 @@ from softtrack.report.evaluation_sections import (
     actions_section,
     errors_section,
     moments_section,
+    random_targets_section,
     trajectories_section,
 )
 from softtrack.report.select import EmptySelectionError, select_runs
@@ -106,6 +107,7 @@ def build_report(
     final_section(doc, ctx)
     summary = metrics_summary(ctx.groups)
     errors_section(doc, ctx, summary, trajectories)
+    random_targets_section(doc, ctx)
     actions_section(doc, ctx, summary, trajectories)
     trajectories_section(doc, ctx, trajectories)
     moments_section(doc, ctx, trajectories)

@@ -48,6 +48,7 @@ _MOMENT_COLUMNS = (
     "rms_moment",
     "max_abs_moment",
 )
+_RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3}
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
 
@@ -65,6 +66,7 @@ class RunData:
         metrics: ``eval_metrics`` (one row per trajectory and arm, m; the action statistics
             columns are absent from tables written before they were added).
         moments: ``eval_moments`` without the per-element torques (N·m).
+        random: ``eval_random`` (one row per random-target episode and arm, m).
         problems: one line per unreadable table.
     """
 
@@ -74,6 +76,7 @@ class RunData:
     trajectories: pd.DataFrame | None
     metrics: pd.DataFrame | None
     moments: pd.DataFrame | None
+    random: pd.DataFrame | None = None
     problems: tuple[str, ...] = ()
 
     @property
@@ -154,6 +157,7 @@ def load_run(record: RunRecord) -> RunData:
         trajectories=_read(record, "eval_trajectories", problems),
         metrics=_read(record, "eval_metrics", problems),
         moments=_read(record, "eval_moments", problems, _MOMENT_COLUMNS),
+        random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
         problems=tuple(problems),
     )
 

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import pandas as pd
 
+from softtrack.evaluation import RANDOM_TARGET_SEED
 from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
 from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
@@ -22,10 +23,16 @@ from softtrack.report.reference import (
     study_peak_moment,
     study_rmse_3d,
 )
-from softtrack.report.summaries import moment_peaks, summary_row
+from softtrack.report.summaries import moment_peaks, random_target_summary, summary_row
 from softtrack.report.text import mean_pm_std
 
-__all__ = ["actions_section", "errors_section", "moments_section", "trajectories_section"]
+__all__ = [
+    "actions_section",
+    "errors_section",
+    "moments_section",
+    "random_targets_section",
+    "trajectories_section",
+]
 
 
 def _cell(row: pd.Series, metric: str) -> str:
@@ -123,6 +130,44 @@ def errors_section(
     path, rel = ctx.figure("rmse_comparison.png")
     fg.rmse_comparison_figure(summary, study, trajectories, path, ctx.footer())
     doc.img(rel, "3-D RMSE per trajectory and arm against the study")
+
+
+def random_targets_section(doc: Doc, ctx: Context) -> None:
+    """3-D RMSE per group and arm on held-out episodes of the random training target (only
+    when some run has ``eval_random``)."""
+    summary = random_target_summary(ctx.groups)
+    if summary.empty:
+        return
+    doc.h(3, "Random training targets (held-out episodes)")
+    rows = []
+    evaluated = []
+    for group in ctx.groups:
+        cells = summary[summary["group"] == group.label].set_index("arm")
+        if cells.empty:
+            continue
+        evaluated.append(group)
+        row = [group.label, str(int(cells["n"].max())), str(int(cells["episodes"].min()))]
+        for arm in (0, 1):
+            if arm in cells.index:
+                c = cells.loc[arm]
+                row.append(mean_pm_std(c["rmse_3d_mean"], c["rmse_3d_std"], 4))
+            else:
+                row.append("no data")
+        row.append(str(int(cells["terminated"].max())))  # an episode ends for both arms
+        rows.append(row)
+    header = ["controller", "seeds", "episodes per seed", "3-D RMSE arm 1 (m)",
+              "3-D RMSE arm 2 (m)", "diverged episodes"]
+    doc.table(header, rows)
+    missing = [g.label for g in ctx.groups if g not in evaluated]
+    doc.p(
+        "Each seed's deterministic policy on episodes of the random target it was trained on "
+        f"(`softtrack evaluate RUN --random N`): episode k from seed {RANDOM_TARGET_SEED:,} + k, which "
+        "training never uses, so runs with the same target settings meet the same paths. "
+        "A seed's value is its mean over the episodes; mean ± sample std across seeds. The "
+        "study reports no such figure."
+        + (f" Not evaluated this way: {', '.join(missing)}." if missing else "")
+    )
+    doc.p(ctx.provenance(evaluated))
 
 
 def actions_section(

@@ -10,7 +10,7 @@ import pandas as pd
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group
 
-__all__ = ["metrics_summary", "moment_peaks", "summary_row"]
+__all__ = ["metrics_summary", "moment_peaks", "random_target_summary", "summary_row"]
 
 
 # ---- evaluation metrics ---------------------------------------------------------------------
@@ -68,6 +68,35 @@ def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) ->
         (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
     ]
     return None if sel.empty else sel.iloc[0]
+
+
+def random_target_summary(groups: Sequence[Group]) -> pd.DataFrame:
+    """3-D RMSE on the random-target episodes (``eval_random``) per group and arm.
+
+    A run's value is the mean over its episodes; columns: group, arm, ``rmse_3d_mean`` and
+    ``rmse_3d_std`` (mean and sample std of the runs' values across seeds, m), n (runs),
+    episodes (the fewest episodes of a run), terminated (episodes that ended early). Groups
+    without the table are left out.
+    """
+    rows = []
+    for group in groups:
+        per_run = [run.random for run in group.runs if run.random is not None]
+        for arm in (0, 1):
+            parts = [r[r["arm"] == arm] for r in per_run]
+            parts = [p for p in parts if len(p)]
+            if not parts:
+                continue
+            values = np.array([p["rmse_3d"].mean() for p in parts], dtype=float)
+            rows.append({
+                "group": group.label,
+                "arm": arm,
+                "rmse_3d_mean": float(values.mean()),
+                "rmse_3d_std": float(values.std(ddof=1)) if len(values) >= 2 else np.nan,
+                "n": len(values),
+                "episodes": min(len(p) for p in parts),
+                "terminated": int(sum(p["terminated"].astype(bool).sum() for p in parts)),
+            })
+    return pd.DataFrame(rows)
 
 
 def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:
