@@ -189,7 +189,8 @@ def evaluate(
     fails without writing anything.
 
     Args:
-        trajectories: subset of circle, rectangle, figure8 (default: all three).
+        trajectories: subset of circle, rectangle, figure8 (default None: all three; empty:
+            none, only the random-target episodes).
         on_episode: called with (record, episode, metrics) after each trajectory.
         write: store the tables in each run (``False``: only return the metrics).
         random_episodes: random-target episodes per run after the trajectories (0: none;
@@ -203,7 +204,7 @@ def evaluate(
     from softtrack.evaluation import EVAL_TRAJECTORIES
     from softtrack.rl.policy import model_paths
 
-    chosen = list(trajectories) if trajectories else list(EVAL_TRAJECTORIES)
+    chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
     if unknown:
         raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}",
@@ -211,6 +212,9 @@ def evaluate(
     if random_episodes < 0:
         raise SpecError("--random", f"{random_episodes} random-target episodes",
                         "give 0 (none) or more")
+    if not chosen and not random_episodes:
+        raise SpecError("--trajectory", "nothing to evaluate",
+                        "name a trajectory, or add --random N to --trajectory none")
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     records = [resolve_run(ref, runs_dir) for ref in references]
@@ -224,12 +228,13 @@ def evaluate(
             )
     frames = []
     for record in records:
-        frames.append(evaluate_run(record, chosen, on_episode, write=write))
+        if chosen:
+            frames.append(evaluate_run(record, chosen, on_episode, write=write))
         if random_episodes:
             rows = evaluate_random_targets(record, random_episodes, write=write)
             if on_random is not None:
                 on_random(record, rows)
-    return pd.concat(frames, ignore_index=True)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
 def export(

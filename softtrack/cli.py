@@ -408,6 +408,7 @@ class TrajectoryChoice(str, enum.Enum):
     rectangle = "rectangle"
     figure8 = "figure8"
     all = "all"
+    none = "none"
 
 
 @app.command()
@@ -436,9 +437,12 @@ def evaluate(
     state and stores the tables eval_trajectories, eval_metrics and eval_moments. Prints the
     3-D RMSE of each arm per run and trajectory (m). With --random N, also N episodes on the
     random target the run was trained on (seeds 1,000,000 + k, the same for every run), and
-    their mean 3-D RMSE per arm.
+    their mean 3-D RMSE per arm (--trajectory none --random N: only those).
     """
-    chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
+    if trajectory is TrajectoryChoice.all:
+        chosen: list[str] | None = None
+    else:
+        chosen = [] if trajectory is TrajectoryChoice.none else [trajectory.value]
 
     with _user_errors():
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,

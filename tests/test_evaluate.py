@@ -151,10 +151,14 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     runs, run_id = trained
     fresh = tmp_path / "runs"
     shutil.copytree(runs / run_id, fresh / run_id)
+    for table in (fresh / run_id / "tables").glob("eval_*.parquet"):
+        table.unlink()
     result = runner.invoke(
-        app, ["evaluate", run_id, "-t", "circle", "--random", "2", "--runs-dir", str(fresh)]
+        app, ["evaluate", run_id, "-t", "none", "--random", "2", "--runs-dir", str(fresh)]
     )
     assert result.exit_code == 0, result.output
+    assert "circle" not in result.output  # -t none: only the random-target episodes
+    assert not (fresh / run_id / "tables" / "eval_metrics.parquet").exists()
     line = next(x for x in result.output.splitlines() if " random " in x)
     assert "(mean ± std over 2 episodes)" in line
     table = read_table(fresh / run_id / "tables" / "eval_random.parquet")
@@ -224,6 +228,7 @@ def test_independent_run_evaluates_with_one_policy_per_arm(tmp_path: Path) -> No
         (["evaluate", "NOSUCHRUN"], "no run"),
         (["evaluate", "X", "-t", "spiral"], "spiral"),
         (["evaluate", "X", "--random", "-1"], "--random"),
+        (["evaluate", "X", "-t", "none"], "add --random N"),
         (["report", "nothing-here"], ""),
     ],
 )
