@@ -11,7 +11,8 @@ experiment, seed and spec: a completed one is exported, an interrupted or lost o
 (`softtrack train --resume`), and without one a new run is trained. So the script can be
 stopped at any time and started again; a training continues from its last checkpoint.
 Finished runs are exported with `softtrack export` (no checkpoints or replay buffers) and
-evaluated with `softtrack evaluate`; the report is then rebuilt from ``models/`` with
+evaluated with `softtrack evaluate --random 20` (the three trajectories and 20 episodes of
+the random training target); the report is then rebuilt from ``models/`` with
 `softtrack report ... --runs-dir models --out reports/study`.
 
 Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX backend):
@@ -42,6 +43,7 @@ from softtrack.store.runs import RunStore, resolve_runs_dir
 ROOT = Path(__file__).resolve().parent.parent
 SOFTTRACK = [sys.executable, "-m", "softtrack.cli"]
 REPORT_DIR = "reports/study"
+RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,7 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
             return
         if status != "completed":
             _softtrack("train", "--resume", run_id, *runs, taskset=core)
-    _softtrack("evaluate", run_id, *runs, taskset=core)
+    _softtrack("evaluate", run_id, "--random", str(RANDOM_EPISODES), *runs, taskset=core)
     _softtrack("export", run_id, f"models/{job.dest}", *runs)
 
 
