@@ -26,10 +26,12 @@ from pathlib import Path
 
 import pandas as pd
 
+from softtrack.env.config import TrackingConfig
 from softtrack.evaluation import (
     EVAL_TRAJECTORIES,
     RANDOM_TARGET_SEED,
     Episode,
+    Policy,
     metrics_table,
     moments_table,
     run_episode,
@@ -82,6 +84,16 @@ def _replace_rows(path: Path, new: pd.DataFrame, trajectories: Sequence[str]) ->
     write_table(path, new.reset_index(drop=True))
 
 
+def _episode_setup(record: RunRecord) -> tuple[Policy, TrackingConfig, float]:
+    """The run's deterministic policy, its environment settings and its evaluation episode
+    length (``training.eval_duration``, s)."""
+    from softtrack.rl.factory import env_config
+    from softtrack.rl.policy import load_policy
+
+    spec = record.load_spec()
+    return load_policy(record, spec), env_config(spec), float(spec.training.eval_duration)
+
+
 def evaluate_run(
     record: RunRecord,
     trajectories: Sequence[str] = EVAL_TRAJECTORIES,
@@ -101,13 +113,7 @@ def evaluate_run(
     Raises:
         RunStoreError: the run has no readable model; SpecError: its spec no longer validates.
     """
-    from softtrack.rl.factory import env_config
-    from softtrack.rl.policy import load_policy
-
-    spec = record.load_spec()
-    policy = load_policy(record, spec)
-    config = env_config(spec)
-    duration = float(spec.training.eval_duration)
+    policy, config, duration = _episode_setup(record)
     frames: dict[str, list[pd.DataFrame]] = {name: [] for name in EVAL_TABLES}
     for trajectory in trajectories:
         episode = run_episode(policy, config, trajectory, duration)
@@ -144,15 +150,9 @@ def evaluate_random_targets(
         One row per episode and arm: ``episode``, ``seed`` and the columns of
         :func:`softtrack.evaluation.metrics_table` (``trajectory`` is ``random``).
     """
-    from softtrack.rl.factory import env_config
-    from softtrack.rl.policy import load_policy
-
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")
-    spec = record.load_spec()
-    policy = load_policy(record, spec)
-    config = env_config(spec)
-    duration = float(spec.training.eval_duration)
+    policy, config, duration = _episode_setup(record)
     parts = []
     for k in range(episodes):
         seed = RANDOM_TARGET_SEED + k

@@ -46,6 +46,22 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     return _train_tiny(tmp_path_factory.mktemp("eval"))
 
 
+def _own_copy(trained: tuple[Path, str], tmp_path: Path) -> Path:
+    """A runs directory under ``tmp_path`` holding a copy of the trained run (its tables
+    included), for a test that changes them."""
+    runs, run_id = trained
+    fresh = tmp_path / "runs"
+    shutil.copytree(runs / run_id, fresh / run_id)
+    return fresh
+
+
+def _report_index(run_id: str, runs: Path, out: Path) -> str:
+    """``softtrack report`` of one run into ``out``; the text of its index.md."""
+    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(runs), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return (out / "index.md").read_text(encoding="utf-8")
+
+
 def test_evaluate_writes_tables_and_metrics_match_trajectories(trained: tuple[Path, str]) -> None:
     runs, run_id = trained
     result = runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(runs)])
@@ -120,9 +136,8 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
     from softtrack.eval_runs import has_evaluation
     from softtrack.store.tables import write_table
 
-    runs, run_id = trained
-    fresh = tmp_path / "runs"
-    shutil.copytree(runs / run_id, fresh / run_id)
+    run_id = trained[1]
+    fresh = _own_copy(trained, tmp_path)
     assert runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(fresh)]).exit_code == 0
     path = fresh / run_id / "tables" / "eval_metrics.parquet"
     write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))  # as written before
@@ -136,10 +151,7 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
     assert len(metrics) == 6 and metrics.loc[circle, "action_rms"].notna().all()
     assert metrics.loc[~circle, list(ACTION_STATISTICS)].isna().all().all()
     assert has_evaluation(record)
-    out = tmp_path / "report"
-    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(fresh), "--out", str(out)])
-    assert result.exit_code == 0, result.output
-    assert "### Policy actions" in (out / "index.md").read_text(encoding="utf-8")
+    assert "### Policy actions" in _report_index(run_id, fresh, tmp_path / "report")
 
 
 def test_random_target_episodes_are_held_out_seeded_and_reported(
@@ -148,9 +160,8 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     from softtrack.eval_runs import evaluate_random_targets
     from softtrack.evaluation import RANDOM_TARGET_SEED
 
-    runs, run_id = trained
-    fresh = tmp_path / "runs"
-    shutil.copytree(runs / run_id, fresh / run_id)
+    run_id = trained[1]
+    fresh = _own_copy(trained, tmp_path)
     for table in (fresh / run_id / "tables").glob("eval_*.parquet"):
         table.unlink()
     result = runner.invoke(
@@ -181,10 +192,7 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
         assert stored == pytest.approx(expected, rel=1e-12)
     assert not np.allclose(episodes[0].target, episodes[1].target)
 
-    out = tmp_path / "report"
-    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(fresh), "--out", str(out)])
-    assert result.exit_code == 0, result.output
-    index = (out / "index.md").read_text(encoding="utf-8")
+    index = _report_index(run_id, fresh, tmp_path / "report")
     assert "### Random training targets (held-out episodes)" in index
     assert f"| {arm1.mean():.4f} |" in index
 
@@ -200,16 +208,12 @@ def test_a_copied_run_directory_evaluates(trained: tuple[Path, str], tmp_path: P
 
 
 def test_report_evaluates_runs_without_evaluation(trained: tuple[Path, str], tmp_path: Path) -> None:
-    runs, run_id = trained
-    fresh = tmp_path / "runs"
-    shutil.copytree(runs / run_id, fresh / run_id)
-    shutil.rmtree(fresh / run_id / "tables" / "eval_metrics.parquet", ignore_errors=True)
+    run_id = trained[1]
+    fresh = _own_copy(trained, tmp_path)
     (fresh / run_id / "tables" / "eval_metrics.parquet").unlink(missing_ok=True)
     out = tmp_path / "report"
-    result = runner.invoke(app, ["report", run_id, "--runs-dir", str(fresh), "--out", str(out)])
-    assert result.exit_code == 0, result.output
+    index = _report_index(run_id, fresh, out)
     assert (fresh / run_id / "tables" / "eval_metrics.parquet").is_file()
-    index = (out / "index.md").read_text(encoding="utf-8")
     assert "0.065" in index  # the study's circle value beside the measured one
     assert (out / "figures" / "training_curves.png").is_file()
 
