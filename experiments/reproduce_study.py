@@ -65,6 +65,10 @@ JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx-128-per-arm", s, f"td3-sbx-128-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-per-arm-nets", s, f"td3-sbx-per-arm-nets-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (0, 1, 2)),
+    *(job for s in (0, 1, 2) for job in (
+        Job("td3-sbx-128-val", s, f"td3-sbx-128-val-4e6-seed{s}"),
+        Job("independent-td3-sbx-2e6-val", s, f"independent-td3-sbx-2e6-val-seed{s}"),
+    )),
     Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
     *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
@@ -73,7 +77,8 @@ JOBS: tuple[Job, ...] = (
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
     "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "td3-sbx-own-arm-actors",
-    "independent-td3-sbx", "independent-td3-sbx-2e6", "ddpg-sbx", "ppo-sbx",
+    "td3-sbx-128-val", "independent-td3-sbx", "independent-td3-sbx-2e6",
+    "independent-td3-sbx-2e6-val", "ddpg-sbx", "ppo-sbx",
 )
 
 

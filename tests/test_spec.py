@@ -224,6 +224,16 @@ ERROR_CASES = {
         [],
         ["algo.actor_observation", "set algo.per_arm_networks: true"],
     ),
+    "best-validated-without-validation": (
+        "training: {final_policy: best_validated}\n",
+        [],
+        ["training.final_policy", "set training.validation_episodes to at least 1"],
+    ),
+    "best-validated-without-checkpoints": (
+        "training: {final_policy: best_validated, validation_episodes: 5, checkpoint_interval: 0}\n",
+        [],
+        ["training.checkpoint_interval", "checkpoint_interval 0 gives none"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",
@@ -448,6 +458,12 @@ def test_spec_hash() -> None:
     )
     nets["per_arm_networks"] = False
     assert spec_hash(parse_spec({"algo": nets})) == spec_hash(per_arm)
+    neutral = {"validation_episodes": 0, "final_policy": "last"}
+    assert spec_hash(parse_spec({"training": neutral})) == spec_hash(base)
+    validated = parse_spec({"training": {"validation_episodes": 10}})
+    assert spec_hash(validated) != spec_hash(base)
+    best = parse_spec({"training": {"validation_episodes": 10, "final_policy": "best_validated"}})
+    assert spec_hash(best) != spec_hash(validated)
 
 
 @pytest.mark.parametrize("run_dir", sorted((REPO / "models").glob("*/")), ids=lambda p: p.name)

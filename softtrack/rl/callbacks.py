@@ -10,7 +10,8 @@
   ``training.checkpoint_interval`` env steps: ``model.zip``, ``replay_buffer.pkl``
   (off-policy, if ``training.save_replay_buffer``), ``vecnormalize.pkl`` (if normalising) and
   ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
-  ``training.keep_checkpoints`` are deleted.
+  ``training.keep_checkpoints`` are deleted. An ``after_save`` hook (validation, see
+  :mod:`softtrack.rl.validation`) runs after each periodic checkpoint.
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
   latest episode return) on a terminal or prints a progress line every
   :data:`PROGRESS_LINE_INTERVAL_S` seconds otherwise (a log file, a cluster job), and stops
@@ -168,7 +169,8 @@ def save_checkpoint(
 
 
 class Checkpointer(BaseCallback):
-    """Save a checkpoint whenever ``num_timesteps`` crosses a multiple of ``interval``."""
+    """Save a checkpoint whenever ``num_timesteps`` crosses a multiple of ``interval``, then
+    call ``after_save(model)`` (if given) with the model just saved."""
 
     def __init__(
         self,
@@ -178,6 +180,7 @@ class Checkpointer(BaseCallback):
         interval: int,
         keep: int,
         save_replay_buffer: bool,
+        after_save: Callable[[Any], Any] | None = None,
     ) -> None:
         super().__init__(verbose=0)
         self.policy = policy
@@ -186,6 +189,7 @@ class Checkpointer(BaseCallback):
         self.interval = int(interval)
         self.keep = int(keep)
         self.save_replay_buffer = save_replay_buffer
+        self.after_save = after_save
         self._last_bucket: int | None = None
 
     def _on_training_start(self) -> None:
@@ -198,7 +202,8 @@ class Checkpointer(BaseCallback):
         bucket = self.num_timesteps // self.interval
         if self._last_bucket is not None and bucket > self._last_bucket:
             self._last_bucket = bucket
-            self.save()
+            if self.save() is not None and self.after_save is not None:
+                self.after_save(self.model)
         return True
 
     def save(self) -> Path | None:

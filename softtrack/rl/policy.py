@@ -2,6 +2,8 @@
 
 A centralized run keeps ``model.zip`` (and ``vecnormalize.pkl`` when observations were
 normalised) in its directory; an independent run keeps one per arm under ``models/arm<k>/``.
+With ``training.final_policy: best_validated`` the run's policy is each policy directory's
+best-validated model (``best/step-…/model.zip``) instead.
 """
 
 from __future__ import annotations
@@ -15,16 +17,36 @@ import numpy as np
 from softtrack.evaluation import Policy, independent_policy
 from softtrack.rl.factory import model_class
 from softtrack.spec import ExperimentSpec
+from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["load_policy", "model_paths"]
+__all__ = ["deterministic_policy", "load_policy", "model_paths"]
 
 
 def model_paths(record: RunRecord, spec: ExperimentSpec) -> list[Path]:
-    """The model file(s) of a run: one for a centralized run, one per arm otherwise."""
-    if spec.controller == "independent":
-        return [record.path / "models" / f"arm{k}" / "model.zip" for k in range(2)]
-    return [record.model_path]
+    """The model file(s) of the run's policy: one for a centralized run, one per arm otherwise
+    (the best-validated ones with ``training.final_policy: best_validated``)."""
+    arms: list[int | None] = [0, 1] if spec.controller == "independent" else [None]
+    policies = [PolicyDir.of_run(record.path, arm) for arm in arms]
+    if spec.training.final_policy == "best_validated":
+        return [policy.best_model_path for policy in policies]
+    return [policy.model_path for policy in policies]
+
+
+def deterministic_policy(model: Any, normalizer: Any = None) -> Policy:
+    """``model``'s deterministic action for one observation: (obs_dim,) → (act_dim,).
+
+    Args:
+        model: an SB3 or sbx model.
+        normalizer: a ``VecNormalize`` whose (frozen) statistics scale the observation first.
+    """
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        obs = observation if normalizer is None else normalizer.normalize_obs(observation)
+        action, _ = model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float64)
+
+    return act
 
 
 def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
@@ -44,13 +66,7 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
         with stats.open("rb") as handle:
             normalizer = pickle.load(handle)
         normalizer.training = False
-
-    def act(observation: np.ndarray) -> np.ndarray:
-        obs = observation if normalizer is None else normalizer.normalize_obs(observation)
-        action, _ = model.predict(obs, deterministic=True)
-        return np.asarray(action, dtype=np.float64)
-
-    return act
+    return deterministic_policy(model, normalizer)
 
 
 def load_policy(record: RunRecord, spec: ExperimentSpec) -> Policy:

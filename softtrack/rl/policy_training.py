@@ -32,6 +32,7 @@ from softtrack.rl.callbacks import (
     save_checkpoint,
 )
 from softtrack.rl.factory import build_model, load_model, make_vec_env
+from softtrack.rl.validation import Validator, truncate_validation, validated_steps
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import atomic_path, atomic_write_json
 from softtrack.store.layout import PolicyDir
@@ -124,15 +125,8 @@ def finished_state(job: PolicyJob, record: RunRecord) -> dict[str, Any] | None:
     }
 
 
-def _job_mask(df: Any, job: PolicyJob) -> Any:
-    """Rows of ``df`` that belong to ``job`` (all rows for the centralized policy)."""
-    if job.arm is None or "arm" not in df.columns:
-        return np.ones(len(df), dtype=bool) if job.arm is None else np.zeros(len(df), bool)
-    return (df["arm"] == job.arm).to_numpy()
-
-
 def _job_rows(df: Any, job: PolicyJob) -> Any:
-    return df[_job_mask(df, job)] if len(df) else df
+    return df[job.policy.row_mask(df)] if len(df) else df
 
 
 def _truncate_episodes(
@@ -145,7 +139,7 @@ def _truncate_episodes(
     if not path.exists():
         return 0
     df = read_table(path)
-    mine = _job_mask(df, job)
+    mine = job.policy.row_mask(df)
     keep = ~mine if step is None else ~mine | (df["global_step"] <= step).to_numpy()
     if episodes is not None and step is not None:
         keep &= ~mine | (df["episode"] < episodes).to_numpy()
@@ -269,6 +263,7 @@ class PolicyTrainer:
         training = spec.training
         episodes = EpisodeLogger(record, clock, next_episode, columns=job.columns)
         self.episodes = episodes
+        validator = self._validator(state)
         checkpointer = Checkpointer(
             job.policy,
             episodes,
@@ -276,6 +271,7 @@ class PolicyTrainer:
             training.checkpoint_interval,
             training.keep_checkpoints,
             training.save_replay_buffer,
+            after_save=None if validator is None else validator.validate,
         )
         self.monitor = ProgressMonitor(
             self.store,
@@ -317,6 +313,24 @@ class PolicyTrainer:
         return PolicyResult(
             int(self.model.num_timesteps), episodes.next_episode, clock.elapsed(), sps, finished
         )
+
+    def _validator(self, state: dict[str, Any] | None) -> Validator | None:
+        """The policy's :class:`Validator` (``None`` without ``training.validation_episodes``),
+        after matching its table and best models to where training (re)starts; a restored
+        periodic checkpoint whose validation was cut short is validated now."""
+        training, job = self.spec.training, self.job
+        if state is None:
+            truncate_validation(self.record, job.policy, None)
+        else:
+            truncate_validation(self.record, job.policy, int(self.model.num_timesteps))
+        if training.validation_episodes < 1:
+            return None
+        validator = Validator(self.record, self.spec, job.policy, self.stop_requested)
+        step = int(self.model.num_timesteps)
+        periodic = training.checkpoint_interval > 0 and step % training.checkpoint_interval == 0
+        if state is not None and periodic and step not in validated_steps(self.record, job.policy):
+            validator.validate(self.model)
+        return validator
 
     def _save_final(self, clock: TrainingClock) -> None:
         """``vecnormalize.pkl``, (for an arm) ``state.json``, then ``model.zip``: the model

@@ -150,6 +150,8 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,
     ("algo", "actor_observation"): "full",
+    ("training", "validation_episodes"): 0,
+    ("training", "final_policy"): "last",
 }
 
 

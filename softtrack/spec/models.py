@@ -72,6 +72,21 @@ class TrainingSpec(SpecModel):
         "-",
     )
     eval_duration: Float = unit_field(10.0, "length of each evaluation episode", "s", gt=0)
+    validation_episodes: Int = unit_field(
+        0,
+        "held-out random-target episodes (eval_duration each) run on each periodic "
+        "checkpoint's model; their metrics go to tables/validation.parquet and the model with "
+        "the lowest mean 3-D RMSE so far to best/; 0 = no validation",
+        "episodes",
+        ge=0,
+    )
+    final_policy: Literal["last", "best_validated"] = unit_field(
+        "last",
+        "the run's policy for evaluation, reports and export: 'last' the model at the end of "
+        "training, 'best_validated' the checkpoint model with the lowest validation 3-D RMSE "
+        "(needs validation_episodes ≥ 1)",
+        "-",
+    )
     final_stage_fraction: Float = unit_field(
         0.1,
         "the final-stage return averages episodes in this last fraction of total_timesteps "
@@ -114,6 +129,23 @@ class ClusterSpec(SpecModel):
 # ------------------------------------------------------------------------------------------
 # experiment
 # ------------------------------------------------------------------------------------------
+
+
+def _check_validation(t: TrainingSpec) -> None:
+    """Raise the spec error of the first setting that leaves ``best_validated`` no model."""
+    if t.validation_episodes < 1:
+        raise custom_error(
+            "final_policy 'best_validated' picks a checkpoint by its validation episodes; set "
+            "training.validation_episodes to at least 1 (e.g. 10) or final_policy: last",
+            "training.final_policy",
+        )
+    if not 0 < t.checkpoint_interval <= t.total_timesteps:
+        raise custom_error(
+            f"final_policy 'best_validated' validates each periodic checkpoint, but "
+            f"checkpoint_interval {t.checkpoint_interval} gives none within total_timesteps "
+            f"{t.total_timesteps}; set checkpoint_interval between 1 and total_timesteps",
+            "training.checkpoint_interval",
+        )
 
 
 def _check_per_arm_critic(spec: ExperimentSpec) -> None:
@@ -227,6 +259,8 @@ class ExperimentSpec(SpecModel):
                 "or actor_observation: full",
                 "algo.actor_observation",
             )
+        if t.final_policy == "best_validated":
+            _check_validation(t)
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

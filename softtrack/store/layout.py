@@ -9,12 +9,20 @@ A centralized run has one policy, stored in the run directory itself; an indepen
 An arm directory also holds ``state.json`` (the arm's final step count, episode count and
 training wall time), written just before ``model.zip``: an arm is finished exactly when its
 ``model.zip`` exists.
+
+With ``training.validation_episodes`` a policy also keeps its best-validated model in
+``best/step-<step>/`` (``model.zip``, ``vecnormalize.pkl`` when normalising, ``state.json``
+with the step and validation score; see :mod:`softtrack.rl.validation`). Each directory is
+written atomically and only when it beats the previous one, so the newest is the best.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from softtrack.store.atomic import is_temp_file
 
@@ -68,15 +76,48 @@ class PolicyDir:
 
     def list_checkpoints(self) -> list[Path]:
         """Complete checkpoint directories, oldest first (temporary ones skipped)."""
-        if not self.checkpoints_dir.is_dir():
-            return []
-        return sorted(
-            p
-            for p in self.checkpoints_dir.iterdir()
-            if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
-        )
+        return _step_dirs(self.checkpoints_dir)
+
+    @property
+    def best_dir(self) -> Path:
+        """``best/``: the best-validated models, one ``step-<12-digit step>/`` each."""
+        return self.path / "best"
+
+    def best_step_dir(self, step: int) -> Path:
+        """``best/step-<12-digit step>/``; write it with ``atomic_dir``."""
+        return self.best_dir / f"step-{int(step):012d}"
+
+    def list_best(self) -> list[Path]:
+        """Complete best-model directories, oldest (and worst) first."""
+        return _step_dirs(self.best_dir)
+
+    @property
+    def best_model_path(self) -> Path:
+        """``model.zip`` of the newest (so best) validated model; ``best/model.zip``, which
+        never exists, while there is none."""
+        best = self.list_best()
+        return (best[-1] if best else self.best_dir) / "model.zip"
+
+    def row_mask(self, df: Any) -> np.ndarray:
+        """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of
+        an independent run, ``validation``) are this policy's: all rows for the centralized
+        policy, those with ``arm`` equal to its arm otherwise. (n_rows,) bool."""
+        if self.arm is None:
+            return np.ones(len(df), dtype=bool)
+        if "arm" not in df.columns:
+            return np.zeros(len(df), dtype=bool)
+        return (df["arm"] == self.arm).to_numpy(dtype=bool, copy=True)
 
     @property
     def label(self) -> str:
         """``arm0``/``arm1``, or ``""`` for the centralized policy."""
         return "" if self.arm is None else f"arm{self.arm}"
+
+
+def _step_dirs(parent: Path) -> list[Path]:
+    """``step-…`` directories in ``parent``, oldest first (temporary ones skipped)."""
+    if not parent.is_dir():
+        return []
+    return sorted(
+        p for p in parent.iterdir() if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
+    )

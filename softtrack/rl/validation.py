@@ -1,0 +1,208 @@
+"""Validation during training: held-out random-target episodes on each checkpoint's model.
+
+With ``training.validation_episodes: K`` (K ≥ 1), every periodic checkpoint of a policy
+(each ``training.checkpoint_interval`` env steps) is followed by K deterministic episodes of
+``training.eval_duration`` on the policy's own random training target, from seeds
+:data:`VALIDATION_SEED` + k. Training seeds its environments with the run seed + env index and
+``softtrack evaluate --random`` uses ``RANDOM_TARGET_SEED`` + k, so validation episodes are
+held out from both. The centralized policy is validated in the dual-arm scene; an independent
+run's arm policy in the single-arm scene of its arm.
+
+* ``tables/validation.parquet`` gets one row per checkpoint, episode and arm: ``global_step``
+  (the policy's env steps), ``episode``, ``seed`` and the columns of
+  :func:`softtrack.evaluation.metrics_table`, with ``arm`` the arm's index in the dual-arm
+  scene (an independent arm's rows carry its own index).
+* The checkpoint's **validation score** is the mean 3-D RMSE over its rows (m), or ∞ if an
+  episode went non-finite.
+* A model whose score is below every earlier one of its policy is saved to
+  ``<policy>/best/step-<step>/`` (:class:`~softtrack.store.layout.PolicyDir`): ``model.zip``,
+  ``vecnormalize.pkl`` when normalising, ``state.json`` (``global_step``, ``score``,
+  ``episodes``). With ``training.final_policy: best_validated`` the newest such model is the
+  run's policy.
+
+Resuming from a checkpoint at step S drops the policy's rows and best models of steps after S
+(:func:`truncate_validation`), and validates the restored checkpoint if that was cut short.
+(Only a fallback past a corrupt checkpoint can drop the best model; only the newest is kept,
+so the best then restarts from the next validation.)
+Validation does not draw from training's random generators, so it leaves training unchanged.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import shutil
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import pandas as pd
+
+from softtrack.evaluation import metrics_table, run_episode
+from softtrack.rl.factory import env_config
+from softtrack.rl.policy import deterministic_policy
+from softtrack.spec import ExperimentSpec
+from softtrack.store.atomic import atomic_dir, atomic_write_json
+from softtrack.store.layout import PolicyDir
+from softtrack.store.runs import RunRecord, utc_now
+from softtrack.store.tables import append_rows, read_table, write_table
+
+__all__ = [
+    "VALIDATION_SEED",
+    "VALIDATION_TABLE",
+    "BestModel",
+    "Validator",
+    "best_model",
+    "truncate_validation",
+    "validated_steps",
+    "validation_score",
+]
+
+# Validation episode k draws its target path from seed VALIDATION_SEED + k.
+VALIDATION_SEED = 2_000_000
+VALIDATION_TABLE = "validation"
+
+
+@dataclass(frozen=True)
+class BestModel:
+    """The best-validated model of a policy so far.
+
+    Attributes:
+        step: the policy's env steps at its checkpoint.
+        score: its validation score, mean 3-D RMSE, m.
+    """
+
+    step: int
+    score: float
+
+
+def validation_score(rows: pd.DataFrame) -> float:
+    """Mean ``rmse_3d`` of one checkpoint's validation rows (m); ∞ if an episode terminated."""
+    if len(rows) == 0 or rows["terminated"].any():
+        return math.inf
+    return float(rows["rmse_3d"].mean())
+
+
+def best_model(policy: PolicyDir) -> BestModel | None:
+    """The newest readable entry of ``policy``'s ``best/``, or ``None`` if it has none."""
+    for directory in reversed(policy.list_best()):
+        with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
+            state = json.loads((directory / "state.json").read_text(encoding="utf-8"))
+            if (directory / "model.zip").is_file():
+                return BestModel(int(state["global_step"]), float(state["score"]))
+    return None
+
+
+def truncate_validation(record: RunRecord, policy: PolicyDir, step: int | None) -> None:
+    """Drop ``policy``'s validation rows and best models of steps after ``step`` (all of them
+    for ``step=None``: the policy starts over). Other arms' rows are kept."""
+    for directory in policy.list_best():
+        if step is None or int(directory.name.split("-")[1]) > step:
+            shutil.rmtree(directory, ignore_errors=True)
+    path = record.table_path(VALIDATION_TABLE)
+    if not path.exists():
+        return
+    df = read_table(path)
+    drop = policy.row_mask(df)
+    if step is not None:
+        drop &= (df["global_step"] > step).to_numpy()
+    if not drop.any():
+        return
+    if drop.all():
+        path.unlink()
+    else:
+        write_table(path, df[~drop].reset_index(drop=True))
+
+
+def validated_steps(record: RunRecord, policy: PolicyDir) -> set[int]:
+    """The steps of ``policy``'s checkpoints that have validation rows."""
+    path = record.table_path(VALIDATION_TABLE)
+    if not path.exists():
+        return set()
+    df = read_table(path, columns=["global_step", "arm"])
+    return {int(s) for s in df.loc[policy.row_mask(df), "global_step"]}
+
+
+class Validator:
+    """Validate one policy of a run after its checkpoints (module docstring).
+
+    Args:
+        record, spec: the run and its spec (``training.validation_episodes`` ≥ 1).
+        policy: the policy's directory (its arm selects the scene).
+        stop_requested: a callable; when it turns true, validation stops between episodes
+            and writes nothing (the checkpoint is validated when training resumes).
+        log: where the one-line summary of each validation goes (default: stderr).
+    """
+
+    def __init__(
+        self,
+        record: RunRecord,
+        spec: ExperimentSpec,
+        policy: PolicyDir,
+        stop_requested: Callable[[], bool] = lambda: False,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        self.record = record
+        self.policy = policy
+        self.episodes = int(spec.training.validation_episodes)
+        self.duration = float(spec.training.eval_duration)
+        self.config = env_config(spec, policy.arm)
+        self.stop_requested = stop_requested
+        self.log = log or (lambda line: print(line, file=sys.stderr, flush=True))
+        self.best = best_model(policy)
+
+    def validate(self, model: Any) -> float | None:
+        """Run the validation episodes of ``model`` at its current step, append their rows,
+        keep it in ``best/`` if it beats the best so far, and return its score (m); ``None``
+        if a stop request cut the episodes short."""
+        step = int(model.num_timesteps)
+        normalizer = model.get_vec_normalize_env()
+        act = deterministic_policy(model, normalizer)
+        parts = []
+        for k in range(self.episodes):
+            if self.stop_requested():
+                return None
+            seed = VALIDATION_SEED + k
+            metrics = metrics_table(
+                self.record.run_id, run_episode(act, self.config, "random", self.duration, seed)
+            )
+            if self.policy.arm is not None:
+                metrics["arm"] = self.policy.arm
+            metrics.insert(1, "global_step", step)
+            metrics.insert(3, "episode", k)
+            metrics.insert(4, "seed", seed)
+            parts.append(metrics)
+        rows = pd.concat(parts, ignore_index=True)
+        append_rows(self.record.table_path(VALIDATION_TABLE), rows.to_dict("records"))
+        score = validation_score(rows)
+        improved = self.best is None or score < self.best.score
+        if improved:
+            self._save_best(model, normalizer, step, score)
+        assert self.best is not None
+        name = f"{self.record.run_id[-8:]} {self.policy.label}".rstrip()
+        self.log(
+            f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
+            f"episodes{' (new best)' if improved else ''}; best {self.best.score:.4f} m at "
+            f"{self.best.step:,}"
+        )
+        return score
+
+    def _save_best(self, model: Any, normalizer: Any, step: int, score: float) -> None:
+        target = self.policy.best_step_dir(step)
+        if target.exists():  # validated again after a resume: replace it
+            shutil.rmtree(target)
+        with atomic_dir(target) as tmp:
+            model.save(tmp / "model.zip")
+            if normalizer is not None:
+                normalizer.save(str(tmp / "vecnormalize.pkl"))
+            atomic_write_json(
+                tmp / "state.json",
+                {"global_step": step, "score": score, "episodes": self.episodes,
+                 "saved": utc_now()},
+                fsync=False,
+            )
+        for older in self.policy.list_best()[:-1]:
+            shutil.rmtree(older, ignore_errors=True)
+        self.best = BestModel(step, score)

@@ -1,0 +1,198 @@
+"""Validation during training (``training.validation_episodes``): the table, the best model,
+``final_policy: best_validated``, resume, and the independent baseline's arms."""
+
+from __future__ import annotations
+
+import json
+import signal
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from test_train import SBX_TD3, _latest_step, _spec, _start, _wait_for_checkpoint
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.evaluation import metrics_table, run_episode
+from softtrack.rl.factory import algo_class, env_config
+from softtrack.rl.policy import deterministic_policy, model_paths
+from softtrack.rl.validation import VALIDATION_SEED, truncate_validation, validation_score
+from softtrack.store.layout import PolicyDir
+from softtrack.store.runs import RunRecord, RunStore
+from softtrack.store.tables import read_table, write_table
+
+runner = CliRunner()
+
+EPISODES = 2
+VALIDATED = {"validation_episodes": EPISODES, "eval_duration": 0.1}
+
+
+def _train(spec: Path, runs_dir: Path, seed: int = 0) -> RunRecord:
+    result = runner.invoke(
+        app, ["train", str(spec), "--runs-dir", str(runs_dir), "--seed", str(seed)],
+        env={"CI": "1"},
+    )
+    assert result.exit_code == 0, result.output
+    return RunStore(runs_dir).get_run(result.stdout.strip())
+
+
+def _validation(record: RunRecord) -> pd.DataFrame:
+    return read_table(record.table_path("validation"))
+
+
+def _check_rows(table: pd.DataFrame, steps: list[int], arms: list[int]) -> dict[int, float]:
+    """Every step validated once: episodes 0..EPISODES-1 from the validation seeds, each
+    with a row per arm. Returns each step's score."""
+    assert sorted(set(table["global_step"])) == steps
+    for _step, rows in table.groupby("global_step"):
+        assert sorted(zip(rows["episode"], rows["arm"], strict=True)) == [
+            (k, arm) for k in range(EPISODES) for arm in arms
+        ]
+        assert (rows["seed"] == VALIDATION_SEED + rows["episode"]).all()
+        assert (rows["trajectory"] == "random").all()
+    return {int(s): validation_score(rows) for s, rows in table.groupby("global_step")}
+
+
+def _best_of(scores: dict[int, float]) -> int:
+    """The step kept as best: the first one strictly below all earlier scores that nothing
+    later beats."""
+    best_step, best = None, np.inf
+    for step in sorted(scores):
+        if scores[step] < best:
+            best_step, best = step, scores[step]
+    assert best_step is not None
+    return best_step
+
+
+def _episode_metrics(model_file: Path, spec: Any, arm: int | None, trajectory: str,
+                     seed: int = 0) -> pd.DataFrame:
+    model = algo_class("td3").load(str(model_file), device="cpu")
+    policy = deterministic_policy(model)
+    episode = run_episode(policy, env_config(spec, arm), trajectory, 0.1, seed=seed)
+    return metrics_table("x", episode)
+
+
+def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) -> None:
+    spec = _spec(tmp_path, total_timesteps=800, final_policy="best_validated", **VALIDATED)
+    record = _train(spec, tmp_path / "runs")
+    run_spec = record.load_spec()
+    scores = _check_rows(_validation(record), [200, 400, 600, 800], [0, 1])
+    best_step = _best_of(scores)
+    policy = PolicyDir.of_run(record.path)
+    assert [p.name for p in policy.list_best()] == [f"step-{best_step:012d}"]
+    state = json.loads((policy.list_best()[0] / "state.json").read_text())
+    assert state["global_step"] == best_step and state["score"] == scores[best_step]
+    assert model_paths(record, run_spec) == [policy.best_model_path]
+
+    # the kept model is the one validated at that step: its episode repeats the stored rows
+    rows = _validation(record)
+    stored = rows[(rows["global_step"] == best_step) & (rows["episode"] == 1)]
+    again = _episode_metrics(policy.best_model_path, run_spec, None, "random", VALIDATION_SEED + 1)
+    np.testing.assert_allclose(again["rmse_3d"], stored["rmse_3d"], rtol=1e-12)
+
+    # `softtrack evaluate` tracks with the best model, not the last one
+    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--runs-dir",
+                                 str(tmp_path / "runs")], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    evaluated = read_table(record.table_path("eval_metrics"))
+    expected = _episode_metrics(policy.best_model_path, run_spec, None, "circle")
+    np.testing.assert_allclose(evaluated["rmse_3d"], expected["rmse_3d"], rtol=1e-12)
+
+    # an export keeps best/ (no checkpoints) and evaluates the same
+    out = tmp_path / "exported"
+    result = runner.invoke(app, ["export", record.run_id, str(out), "--runs-dir",
+                                 str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    assert (out / "best" / f"step-{best_step:012d}" / "model.zip").is_file()
+    assert not (out / "checkpoints").exists()
+    result = runner.invoke(app, ["evaluate", str(out), "-t", "circle"], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    exported = read_table(out / "tables" / "eval_metrics.parquet")
+    np.testing.assert_allclose(exported["rmse_3d"], expected["rmse_3d"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("algo, backend", [("td3", "sb3"), SBX_TD3])
+def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend: str) -> None:
+    plain = _train(_spec(tmp_path, algo, backend, total_timesteps=600), tmp_path / "a")
+    validated_spec = tmp_path / "validated.yaml"
+    data = yaml.safe_load(_spec(tmp_path, algo, backend, total_timesteps=600,
+                                **VALIDATED).read_text())
+    validated_spec.write_text(yaml.safe_dump(data))
+    validated = _train(validated_spec, tmp_path / "b")
+    returns = [read_table(r.table_path("train_episodes"))["return"] for r in (plain, validated)]
+    np.testing.assert_array_equal(returns[0], returns[1])
+    assert not plain.table_path("validation").exists()
+    _check_rows(_validation(validated), [200, 400, 600], [0, 1])
+    # final_policy last: the run's policy stays model.zip even though best/ exists
+    assert model_paths(validated, validated.load_spec()) == [validated.model_path]
+    assert PolicyDir.of_run(validated.path).list_best()
+
+
+def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None:
+    total = 2400
+    spec = _spec(tmp_path, total_timesteps=total, n_envs=4, **VALIDATED)
+    runs_dir = tmp_path / "runs"
+    proc = _start(spec, runs_dir)
+    run_dir = _wait_for_checkpoint(proc, runs_dir)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert 0 < _latest_step(run_dir) < total
+    result = runner.invoke(app, ["train", "--resume", run_dir.name, "--runs-dir", str(runs_dir)],
+                           env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    record = RunStore(runs_dir).get_run(run_dir.name)
+    scores = _check_rows(_validation(record), list(range(200, total + 1, 200)), [0, 1])
+    assert [int(p.name.split("-")[1]) for p in record.policy_dir(None).list_best()] == [
+        _best_of(scores)
+    ]
+
+
+def test_truncate_validation_keeps_other_arms_and_earlier_steps(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    record = RunRecord("r", run_dir, None)  # type: ignore[arg-type]  # (run.json unused)
+    rows = pd.DataFrame({
+        "run_id": "r", "global_step": [100, 200, 300, 100, 200, 300], "episode": 0,
+        "arm": [0, 0, 0, 1, 1, 1], "rmse_3d": 0.1, "terminated": False,
+    })
+    write_table(record.table_path("validation"), rows)
+    arm0 = PolicyDir.of_run(run_dir, 0)
+    for step in (100, 300):
+        arm0.best_step_dir(step).mkdir(parents=True)
+    truncate_validation(record, arm0, 200)
+    left = read_table(record.table_path("validation"))
+    assert list(zip(left["arm"], left["global_step"], strict=True)) == [
+        (0, 100), (0, 200), (1, 100), (1, 200), (1, 300)
+    ]
+    assert [p.name for p in arm0.list_best()] == [f"step-{100:012d}"]
+    truncate_validation(record, PolicyDir.of_run(run_dir, 1), None)
+    assert set(read_table(record.table_path("validation"))["arm"]) == {0}
+    assert not arm0.best_model_path.is_file()  # a best directory without a model is not one
+
+
+def test_independent_arms_validate_in_their_own_scene(tmp_path: Path) -> None:
+    spec = _spec(tmp_path, total_timesteps=400, final_policy="best_validated", **VALIDATED)
+    data = yaml.safe_load(spec.read_text())
+    data["controller"] = "independent"
+    spec.write_text(yaml.safe_dump(data))
+    record = _train(spec, tmp_path / "runs")
+    table = _validation(record)
+    assert (np.diff(table["arm"].to_numpy()) >= 0).all()  # arm 0's rows, then arm 1's
+    run_spec = record.load_spec()
+    paths = []
+    for arm in (0, 1):
+        scores = _check_rows(table[table["arm"] == arm], [200, 400], [arm])
+        policy = PolicyDir.of_run(record.path, arm)
+        assert [p.name for p in policy.list_best()] == [f"step-{_best_of(scores):012d}"]
+        rows = table[(table["arm"] == arm) & (table["global_step"] == _best_of(scores))]
+        again = _episode_metrics(policy.best_model_path, run_spec, arm, "random", VALIDATION_SEED)
+        np.testing.assert_allclose(again["rmse_3d"], rows[rows["episode"] == 0]["rmse_3d"],
+                                   rtol=1e-12)
+        paths.append(policy.best_model_path)
+    assert model_paths(record, run_spec) == paths
+    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--runs-dir",
+                                 str(tmp_path / "runs")], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
