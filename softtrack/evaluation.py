@@ -9,6 +9,7 @@ controller is two single-arm policies, each fed its arm's 37 values plus the tar
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -25,6 +26,7 @@ __all__ = [
     "EVAL_TRAJECTORIES",
     "RANDOM_TARGET_SEED",
     "STEADY_START",
+    "VALIDATION_SEED",
     "Episode",
     "Policy",
     "independent_policy",
@@ -32,6 +34,7 @@ __all__ = [
     "moments_table",
     "run_episode",
     "trajectory_table",
+    "validation_score",
 ]
 
 EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")
@@ -39,6 +42,8 @@ STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
 # Random-target evaluation episode k draws its target path from seed RANDOM_TARGET_SEED + k.
 # Training seeds environment i of a run with seed run_seed + i (small), so these never recur.
 RANDOM_TARGET_SEED = 1_000_000
+# Validation episode k during training (softtrack.rl.validation) uses VALIDATION_SEED + k.
+VALIDATION_SEED = 2_000_000
 
 # A policy maps one observation (obs_dim,) to one action (act_dim,).
 Policy = Callable[[np.ndarray], np.ndarray]
@@ -194,3 +199,11 @@ def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
         "max_abs_moment": np.abs(torques).max(axis=-1).reshape(-1),
         "element_torques": list(flat),
     })
+
+
+def validation_score(rows: pd.DataFrame) -> float:
+    """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
+    (one per episode and arm): the mean ``rmse_3d`` (m), or ∞ if an episode terminated."""
+    if len(rows) == 0 or rows["terminated"].astype(bool).any():
+        return math.inf
+    return float(rows["rmse_3d"].mean())

@@ -248,6 +248,7 @@ def test_report_has_every_figure_and_table(report: Path, store: RunStore) -> Non
     ):
         assert f"## {heading}" in md or f"### {heading}" in md, heading
         assert heading in page
+    assert "Model selection" not in md  # no run has validation episodes
     manifest = json.loads((out / "report.json").read_text())
     assert sorted(manifest["files"]) == sorted(
         ["index.md", "index.html", *[f"figures/{n}" for n in EXPECTED_FIGURES]]

@@ -75,6 +75,18 @@ def _episode_metrics(model_file: Path, spec: Any, arm: int | None, trajectory: s
     return metrics_table("x", episode)
 
 
+def _report_rows(record: RunRecord, tmp_path: Path) -> list[str]:
+    """The rows of the report's model-selection table for ``record``'s experiment."""
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["report", record.info.name, "--runs-dir", str(record.path.parent),
+                                 "--out", str(out)], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    assert (out / "figures" / "validation.png").read_bytes()[:4] == b"\x89PNG"
+    md = (out / "index.md").read_text(encoding="utf-8")
+    block = md.split("## Model selection (validation during training)\n", 1)[1]
+    return [line for line in block.split("\n\n", 1)[0].splitlines() if line.startswith("|")][2:]
+
+
 def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) -> None:
     spec = _spec(tmp_path, total_timesteps=800, final_policy="best_validated", **VALIDATED)
     record = _train(spec, tmp_path / "runs")
@@ -112,6 +124,12 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     assert result.exit_code == 0, result.output
     exported = read_table(out / "tables" / "eval_metrics.parquet")
     np.testing.assert_allclose(exported["rmse_3d"], expected["rmse_3d"], rtol=1e-12)
+
+    # the report names the kept checkpoint and plots every validation
+    rows = _report_rows(record, tmp_path)
+    expected_row = (f"| TD3 | 0 | both arms | 4 | {best_step:,} | {scores[best_step]:.4f} | 800 "
+                    f"| {scores[800]:.4f} | best |")
+    assert rows == [expected_row]
 
 
 @pytest.mark.parametrize("algo, backend", [("td3", "sb3"), SBX_TD3])
@@ -196,3 +214,5 @@ def test_independent_arms_validate_in_their_own_scene(tmp_path: Path) -> None:
     result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--runs-dir",
                                  str(tmp_path / "runs")], env={"CI": "1"})
     assert result.exit_code == 0, result.output
+    policies = [row.split(" | ")[2] for row in _report_rows(record, tmp_path)]
+    assert policies == ["arm 1 policy", "arm 2 policy"]

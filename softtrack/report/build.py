@@ -36,7 +36,12 @@ from softtrack.report.evaluation_sections import (
 )
 from softtrack.report.select import EmptySelectionError, select_runs
 from softtrack.report.summaries import metrics_summary
-from softtrack.report.training_sections import final_section, runs_section, training_section
+from softtrack.report.training_sections import (
+    final_section,
+    runs_section,
+    training_section,
+    validation_section,
+)
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 
@@ -105,6 +110,7 @@ def build_report(
     runs_section(doc, ctx, runs)
     training_section(doc, ctx)
     final_section(doc, ctx)
+    validation_section(doc, ctx)
     summary = metrics_summary(ctx.groups)
     errors_section(doc, ctx, summary, trajectories)
     random_targets_section(doc, ctx)

@@ -49,6 +49,7 @@ _MOMENT_COLUMNS = (
     "max_abs_moment",
 )
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
+_VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3}
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
 
@@ -67,6 +68,7 @@ class RunData:
             columns are absent from tables written before they were added).
         moments: ``eval_moments`` without the per-element torques (N·m).
         random: ``eval_random`` (one row per random-target episode and arm, m).
+        validation: ``validation`` (one row per validated checkpoint, episode and arm, m).
         problems: one line per unreadable table.
     """
 
@@ -77,6 +79,7 @@ class RunData:
     metrics: pd.DataFrame | None
     moments: pd.DataFrame | None
     random: pd.DataFrame | None = None
+    validation: pd.DataFrame | None = None
     problems: tuple[str, ...] = ()
 
     @property
@@ -158,6 +161,7 @@ def load_run(record: RunRecord) -> RunData:
         metrics=_read(record, "eval_metrics", problems),
         moments=_read(record, "eval_moments", problems, _MOMENT_COLUMNS),
         random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
+        validation=_read(record, "validation", problems, _VALIDATION_COLUMNS),
         problems=tuple(problems),
     )
 

@@ -32,6 +32,7 @@ __all__ = [
     "tracking_errors_figure",
     "training_curves_figure",
     "trajectory_3d_figure",
+    "validation_figure",
 ]
 
 DPI = 150
@@ -440,4 +441,46 @@ def rmse_comparison_figure(
     ax.set_title(f"{title} (bars: mean ± sample std across seeds)")
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return _save(fig, path, footer)
+
+
+def validation_figure(
+    scores: Mapping[tuple[str, int, int], pd.DataFrame],
+    path: str | os.PathLike[str],
+    footer: str | None = None,
+) -> Path:
+    """Validation score against env steps, one line per (group, seed, policy) with the selected
+    checkpoint circled; colour by group, dashed for an independent run's arm-2 policy.
+
+    Args:
+        scores: (group label, seed, policy) → rows ``global_step``, ``score`` (m) of
+            :func:`softtrack.report.summaries.validation_scores`; policy -1 is a centralized
+            run's, 0/1 an independent run's arm.
+    """
+    if not scores:
+        return no_data_figure(path, "Validation", "no selected run has validation episodes",
+                              footer)
+    fig = _new(9, 5.2)
+    ax = fig.add_subplot()
+    colors: dict[str, str] = {}
+    labelled: set[tuple[str, int]] = set()
+    for (group, _seed, policy), rows in scores.items():
+        color = colors.setdefault(group, GROUP_COLORS[len(colors) % len(GROUP_COLORS)])
+        finite = rows[np.isfinite(rows["score"])]
+        label = None
+        if (group, policy) not in labelled:
+            labelled.add((group, policy))
+            label = group if policy < 0 else f"{group}, arm {policy + 1} policy"
+        ax.plot(finite["global_step"], finite["score"], "--" if policy == 1 else "-",
+                color=color, lw=1.3, alpha=0.8, marker=".", label=label)
+        if len(finite):
+            best = finite.loc[finite["score"].idxmin()]
+            ax.plot(best["global_step"], best["score"], "o", mfc="none", mec=color, ms=10)
+    ax.set_xlabel("environment steps (of the policy)")
+    ax.set_ylabel("validation 3-D RMSE (m)")
+    ax.set_title("Validation: mean 3-D RMSE on held-out random-target episodes per checkpoint\n"
+                 "(one line per seed; circled: the checkpoint kept as best)", fontsize=11)
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=9)
     return _save(fig, path, footer)

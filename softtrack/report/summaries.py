@@ -1,4 +1,5 @@
-"""Evaluation metrics and actuation-moment peaks of run groups: mean and std across seeds."""
+"""Evaluation metrics and actuation-moment peaks of run groups (mean and std across seeds), and
+the checkpoints their validation selected."""
 
 from __future__ import annotations
 
@@ -7,10 +8,18 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
+from softtrack.evaluation import validation_score
 from softtrack.metrics import ACTION_STATISTICS
-from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group
+from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group, RunData
 
-__all__ = ["metrics_summary", "moment_peaks", "random_target_summary", "summary_row"]
+__all__ = [
+    "metrics_summary",
+    "moment_peaks",
+    "random_target_summary",
+    "summary_row",
+    "validation_scores",
+    "validation_summary",
+]
 
 
 # ---- evaluation metrics ---------------------------------------------------------------------
@@ -96,6 +105,56 @@ def random_target_summary(groups: Sequence[Group]) -> pd.DataFrame:
                 "episodes": min(len(p) for p in parts),
                 "terminated": int(sum(p["terminated"].astype(bool).sum() for p in parts)),
             })
+    return pd.DataFrame(rows)
+
+
+def validation_scores(run: RunData) -> pd.DataFrame:
+    """Validation score per policy and checkpoint of one run (``tables/validation.parquet``).
+
+    Columns: ``policy`` (-1 for a centralized run's one policy, else the arm of an independent
+    run's policy), ``global_step`` (the policy's env steps), ``score`` (m, see
+    :func:`softtrack.evaluation.validation_score`). Empty without the table.
+    """
+    columns = ["policy", "global_step", "score"]
+    df = run.validation
+    if df is None:
+        return pd.DataFrame(columns=columns)
+    independent = run.record.info.controller == "independent"
+    policy = df["arm"] if independent else pd.Series(-1, index=df.index)
+    rows = [
+        {"policy": int(k), "global_step": int(step), "score": validation_score(part)}
+        for (k, step), part in df.groupby([policy, df["global_step"]], sort=True)
+    ]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def validation_summary(groups: Sequence[Group]) -> pd.DataFrame:
+    """The checkpoint each validated policy selects, per group, run and policy.
+
+    Columns: group, seed, run_id, policy (as in :func:`validation_scores`), checkpoints
+    (validated), best_step and best_score (the lowest score, the earliest on ties: the model
+    ``best/`` keeps), last_step and last_score (the last validated checkpoint), uses_best
+    (``training.final_policy: best_validated``: the best model is the run's policy). Runs
+    without the table are left out.
+    """
+    rows = []
+    for group in groups:
+        for run in group.runs:
+            scores = validation_scores(run)
+            training = run.record.raw_spec().get("training") if len(scores) else None
+            uses_best = isinstance(training, dict) and (
+                training.get("final_policy") == "best_validated")
+            for k, part in scores.groupby("policy", sort=True):
+                part = part.sort_values("global_step")
+                best = part.loc[part["score"].idxmin()]
+                last = part.iloc[-1]
+                rows.append({
+                    "group": group.label, "seed": run.seed, "run_id": run.run_id,
+                    "policy": int(k), "checkpoints": len(part),
+                    "best_step": int(best["global_step"]), "best_score": float(best["score"]),
+                    "last_step": int(last["global_step"]), "last_score": float(last["score"]),
+                    "uses_best": uses_best,
+                })
     return pd.DataFrame(rows)
 
 

@@ -1,5 +1,6 @@
-"""Report sections on the runs themselves: the runs table, training curves (study Fig. 3) and
-final-stage returns (study Table 3).
+"""Report sections on the runs themselves: the runs table, training curves (study Fig. 3),
+final-stage returns (study Table 3) and, for runs validated during training, the checkpoint
+each selected.
 
 Each section appends its headings, tables, figures and provenance lines to a
 :class:`~softtrack.report.document.Doc`.
@@ -9,13 +10,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from softtrack.evaluation import VALIDATION_SEED
 from softtrack.report import figures as fg
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import RunData
 from softtrack.report.document import NOT_IN_SPEC, Context, Doc, commit_text, seeds_text
+from softtrack.report.summaries import validation_scores, validation_summary
 from softtrack.report.text import mean_pm_std
 
-__all__ = ["final_section", "runs_section", "training_section"]
+__all__ = ["final_section", "runs_section", "training_section", "validation_section"]
 
 
 def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
@@ -149,3 +152,50 @@ def final_section(doc: Doc, ctx: Context) -> None:
     path, rel = ctx.figure("final_returns.png")
     fg.final_returns_figure(table, path, ctx.footer())
     doc.img(rel, "Final-stage return per algorithm")
+
+
+def validation_section(doc: Doc, ctx: Context) -> None:
+    """Per validated policy: the checkpoint its validation kept, against the last one (only
+    when some run has ``tables/validation.parquet``)."""
+    summary = validation_summary(ctx.groups)
+    if summary.empty:
+        return
+    doc.h(2, "Model selection (validation during training)")
+    rows = []
+    for row in summary.itertuples():
+        rows.append([
+            row.group,
+            str(row.seed),
+            "both arms" if row.policy < 0 else f"arm {row.policy + 1} policy",
+            str(row.checkpoints),
+            f"{row.best_step:,}",
+            f"{row.best_score:.4f}",
+            f"{row.last_step:,}",
+            f"{row.last_score:.4f}",
+            "best" if row.uses_best else "last",
+        ])
+    doc.table(
+        ["controller", "seed", "policy", "validated checkpoints", "best checkpoint (env steps)",
+         "its validation 3-D RMSE (m)", "last checkpoint (env steps)",
+         "its validation 3-D RMSE (m)", "run's policy"],
+        rows,
+    )
+    doc.p(
+        "Each periodic checkpoint's deterministic policy on held-out episodes of the random "
+        f"training target (`training.validation_episodes`; episode k from seed "
+        f"{VALIDATION_SEED:,} + k, which neither training nor `evaluate --random` uses); its "
+        "score is the mean 3-D RMSE over the episodes and arms (an independent run validates "
+        "each arm's policy in its own single-arm scene). \"run's policy\": `best` where "
+        "`training.final_policy: best_validated` makes the best checkpoint the policy that "
+        "every evaluation in this report uses, `last` where the final model is used."
+    )
+    scores = {
+        (g.label, r.seed, int(k)): part
+        for g in ctx.groups
+        for r in g.runs
+        for k, part in validation_scores(r).groupby("policy", sort=True)
+    }
+    path, rel = ctx.figure("validation.png")
+    fg.validation_figure(scores, path, ctx.footer())
+    doc.img(rel, "Validation 3-D RMSE against environment steps")
+    doc.p(ctx.provenance([g for g in ctx.groups if any(r.validation is not None for r in g.runs)]))

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import shutil
 import sys
 from collections.abc import Callable
@@ -40,7 +39,7 @@ from typing import Any
 
 import pandas as pd
 
-from softtrack.evaluation import metrics_table, run_episode
+from softtrack.evaluation import VALIDATION_SEED, metrics_table, run_episode, validation_score
 from softtrack.rl.factory import env_config
 from softtrack.rl.policy import deterministic_policy
 from softtrack.spec import ExperimentSpec
@@ -60,8 +59,6 @@ __all__ = [
     "validation_score",
 ]
 
-# Validation episode k draws its target path from seed VALIDATION_SEED + k.
-VALIDATION_SEED = 2_000_000
 VALIDATION_TABLE = "validation"
 
 
@@ -76,13 +73,6 @@ class BestModel:
 
     step: int
     score: float
-
-
-def validation_score(rows: pd.DataFrame) -> float:
-    """Mean ``rmse_3d`` of one checkpoint's validation rows (m); ∞ if an episode terminated."""
-    if len(rows) == 0 or rows["terminated"].any():
-        return math.inf
-    return float(rows["rmse_3d"].mean())
 
 
 def best_model(policy: PolicyDir) -> BestModel | None:
