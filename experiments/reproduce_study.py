@@ -64,7 +64,7 @@ JOBS: tuple[Job, ...] = (
     Job("td3-sbx-per-arm", 0, "td3-sbx-per-arm-4e6-seed0"),
     *(Job("td3-sbx-128-per-arm", s, f"td3-sbx-128-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job("td3-sbx-per-arm-nets", s, f"td3-sbx-per-arm-nets-4e6-seed{s}") for s in (0, 1)),
-    *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (0, 1, 2)),
+    Job("td3-sbx-own-arm-actors", 0, "td3-sbx-own-arm-actors-4e6-seed0"),
     *(job for s in (0, 1, 2) for job in (
         Job("td3-sbx-128-val", s, f"td3-sbx-128-val-4e6-seed{s}"),
         Job("independent-td3-sbx-2e6-val", s, f"independent-td3-sbx-2e6-val-seed{s}"),
@@ -73,7 +73,9 @@ JOBS: tuple[Job, ...] = (
     *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
     *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
-    Job("td3-sbx-per-arm-nets", 2, "td3-sbx-per-arm-nets-4e6-seed2"),  # after the -val runs
+    # after the -val runs:
+    *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (1, 2)),
+    Job("td3-sbx-per-arm-nets", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
