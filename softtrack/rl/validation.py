@@ -33,6 +33,7 @@ import contextlib
 import json
 import shutil
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -137,6 +138,9 @@ class Validator:
         self.record = record
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
+        if self.episodes < 1:
+            raise ValueError(f"training.validation_episodes is {self.episodes}; a Validator needs "
+                             "at least 1")
         self.duration = float(spec.training.eval_duration)
         self.config = env_config(spec, policy.arm)
         self.stop_requested = stop_requested
@@ -148,6 +152,7 @@ class Validator:
         keep it in ``best/`` if it beats the best so far, and return its score (m); ``None``
         if a stop request cut the episodes short."""
         step = int(model.num_timesteps)
+        started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
         act = deterministic_policy(model, normalizer)
         parts = []
@@ -174,8 +179,8 @@ class Validator:
         name = f"{self.record.run_id[-8:]} {self.policy.label}".rstrip()
         self.log(
             f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
-            f"episodes{' (new best)' if improved else ''}; best {self.best.score:.4f} m at "
-            f"{self.best.step:,}"
+            f"episodes in {time.monotonic() - started:.0f} s{' (new best)' if improved else ''}; "
+            f"best {self.best.score:.4f} m at {self.best.step:,}"
         )
         return score
 
