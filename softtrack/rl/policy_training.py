@@ -316,20 +316,20 @@ class PolicyTrainer:
 
     def _validator(self, state: dict[str, Any] | None) -> Validator | None:
         """The policy's :class:`Validator` (``None`` without ``training.validation_episodes``),
-        after matching its table and best models to where training (re)starts; a restored
-        periodic checkpoint whose validation was cut short is validated now."""
+        after matching its table and best models to where training (re)starts. When the
+        restored checkpoint lies in a checkpoint interval that has no validation yet (a
+        validation cut short by a stop or a kill), it is validated now."""
         training, job = self.spec.training, self.job
-        if state is None:
-            truncate_validation(self.record, job.policy, None)
-        else:
-            truncate_validation(self.record, job.policy, int(self.model.num_timesteps))
+        step = int(self.model.num_timesteps)
+        truncate_validation(self.record, job.policy, None if state is None else step)
         if training.validation_episodes < 1:
             return None
         validator = Validator(self.record, self.spec, job.policy, self.stop_requested)
-        step = int(self.model.num_timesteps)
-        periodic = training.checkpoint_interval > 0 and step % training.checkpoint_interval == 0
-        if state is not None and periodic and step not in validated_steps(self.record, job.policy):
-            validator.validate(self.model)
+        interval = training.checkpoint_interval
+        if state is not None and interval > 0 and step >= interval:
+            done = {s // interval for s in validated_steps(self.record, job.policy)}
+            if step // interval not in done:
+                validator.validate(self.model)
         return validator
 
     def _save_final(self, clock: TrainingClock) -> None:
