@@ -223,6 +223,17 @@ def _wait_for_checkpoint(proc: subprocess.Popen[str], runs_dir: Path, timeout: f
     raise AssertionError("no checkpoint appeared")
 
 
+def _interrupt(spec: Path, runs_dir: Path) -> tuple[Path, str, str]:
+    """Start training ``spec``, SIGINT it after its first checkpoint; (run dir, stdout, stderr)
+    of the process, which exited with 130."""
+    proc = _start(spec, runs_dir)
+    run_dir = _wait_for_checkpoint(proc, runs_dir)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    return run_dir, out, err
+
+
 def _latest_step(run_dir: Path) -> int:
     steps = [
         int(p.name.split("-")[1])
@@ -271,11 +282,7 @@ def test_interrupt_and_resume(tmp_path: Path, algo: str, backend: str) -> None:
     spec = _spec(tmp_path, algo, backend, total_timesteps=total, n_envs=n_envs,
                  checkpoint_interval=200)
     runs_dir = tmp_path / "runs"
-    proc = _start(spec, runs_dir)
-    run_dir = _wait_for_checkpoint(proc, runs_dir)
-    proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
+    run_dir, out, err = _interrupt(spec, runs_dir)
     run_id = out.strip()
     assert run_id == run_dir.name
     assert "--resume" in err and "Traceback" not in err

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import json
-import signal
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from test_train import SBX_TD3, _latest_step, _spec, _start, _wait_for_checkpoint
+from test_train import SBX_TD3, _interrupt, _latest_step, _spec
 from typer.testing import CliRunner
 
 from softtrack.cli import app
@@ -153,11 +152,7 @@ def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None
     total = 2400
     spec = _spec(tmp_path, total_timesteps=total, n_envs=4, **VALIDATED)
     runs_dir = tmp_path / "runs"
-    proc = _start(spec, runs_dir)
-    run_dir = _wait_for_checkpoint(proc, runs_dir)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
+    run_dir, _, _ = _interrupt(spec, runs_dir)
     split = _latest_step(run_dir)
     assert 200 <= split < total
     # as if the stop had cut the validation of the checkpoint interval it fell in short

@@ -128,33 +128,35 @@ def validation_scores(run: RunData) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=columns)
 
 
-def validation_summary(groups: Sequence[Group]) -> pd.DataFrame:
-    """The checkpoint each validated policy selects, per group, run and policy.
+def validation_summary(
+    scores: Sequence[tuple[Group, RunData, int, pd.DataFrame]],
+) -> pd.DataFrame:
+    """The checkpoint each validated policy selects.
 
-    Columns: group, seed, run_id, policy (as in :func:`validation_scores`), checkpoints
-    (validated), best_step and best_score (the lowest score, the earliest on ties: the model
-    ``best/`` keeps), last_step and last_score (the last validated checkpoint), uses_best
-    (``training.final_policy: best_validated``: the best model is the run's policy). Runs
-    without the table are left out.
+    Args:
+        scores: (group, run, policy, that policy's rows of :func:`validation_scores`).
+
+    Returns:
+        One row per entry: group (label), seed, run_id, policy (as in
+        :func:`validation_scores`), checkpoints (validated), best_step and best_score (the
+        lowest score, the earliest on ties: the model ``best/`` keeps), last_step and
+        last_score (the last validated checkpoint), uses_best (``training.final_policy:
+        best_validated``: the best model is the run's policy).
     """
     rows = []
-    for group in groups:
-        for run in group.runs:
-            scores = validation_scores(run)
-            training = run.record.raw_spec().get("training") if len(scores) else None
-            uses_best = isinstance(training, dict) and (
-                training.get("final_policy") == "best_validated")
-            for k, part in scores.groupby("policy", sort=True):
-                part = part.sort_values("global_step")
-                best = part.loc[part["score"].idxmin()]
-                last = part.iloc[-1]
-                rows.append({
-                    "group": group.label, "seed": run.seed, "run_id": run.run_id,
-                    "policy": int(k), "checkpoints": len(part),
-                    "best_step": int(best["global_step"]), "best_score": float(best["score"]),
-                    "last_step": int(last["global_step"]), "last_score": float(last["score"]),
-                    "uses_best": uses_best,
-                })
+    for group, run, policy, part in scores:
+        part = part.sort_values("global_step")
+        best = part.loc[part["score"].idxmin()]
+        last = part.iloc[-1]
+        training = run.record.raw_spec().get("training")
+        rows.append({
+            "group": group.label, "seed": run.seed, "run_id": run.run_id,
+            "policy": int(policy), "checkpoints": len(part),
+            "best_step": int(best["global_step"]), "best_score": float(best["score"]),
+            "last_step": int(last["global_step"]), "last_score": float(last["score"]),
+            "uses_best": isinstance(training, dict)
+            and training.get("final_policy") == "best_validated",
+        })
     return pd.DataFrame(rows)
 
 

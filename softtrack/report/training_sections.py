@@ -157,9 +157,15 @@ def final_section(doc: Doc, ctx: Context) -> None:
 def validation_section(doc: Doc, ctx: Context) -> None:
     """Per validated policy: the checkpoint its validation kept, against the last one (only
     when some run has ``tables/validation.parquet``)."""
-    summary = validation_summary(ctx.groups)
-    if summary.empty:
+    scores = [
+        (g, r, int(k), part)
+        for g in ctx.groups
+        for r in g.runs
+        for k, part in validation_scores(r).groupby("policy", sort=True)
+    ]
+    if not scores:
         return
+    summary = validation_summary(scores)
     doc.h(2, "Model selection (validation during training)")
     rows = []
     for row in summary.itertuples():
@@ -189,13 +195,8 @@ def validation_section(doc: Doc, ctx: Context) -> None:
         "`training.final_policy: best_validated` makes the best checkpoint the policy that "
         "every evaluation in this report uses, `last` where the final model is used."
     )
-    scores = {
-        (g.label, r.seed, int(k)): part
-        for g in ctx.groups
-        for r in g.runs
-        for k, part in validation_scores(r).groupby("policy", sort=True)
-    }
     path, rel = ctx.figure("validation.png")
-    fg.validation_figure(scores, path, ctx.footer())
+    fg.validation_figure({(g.label, r.seed, k): part for g, r, k, part in scores},
+                         path, ctx.footer())
     doc.img(rel, "Validation 3-D RMSE against environment steps")
     doc.p(ctx.provenance([g for g in ctx.groups if any(r.validation is not None for r in g.runs)]))

@@ -170,11 +170,11 @@ class Validator:
             metrics.insert(4, "seed", seed)
             parts.append(metrics)
         rows = pd.concat(parts, ignore_index=True)
-        append_rows(self.record.table_path(VALIDATION_TABLE), rows.to_dict("records"))
         score = validation_score(rows)
         improved = self.best is None or score < self.best.score
-        if improved:
+        if improved:  # before the rows: a kill in between leaves the step to validate again
             self._save_best(model, normalizer, step, score)
+        append_rows(self.record.table_path(VALIDATION_TABLE), rows.to_dict("records"))
         assert self.best is not None
         name = f"{self.record.run_id[-8:]} {self.policy.label}".rstrip()
         self.log(
@@ -186,7 +186,7 @@ class Validator:
 
     def _save_best(self, model: Any, normalizer: Any, step: int, score: float) -> None:
         target = self.policy.best_step_dir(step)
-        if target.exists():  # validated again after a resume: replace it
+        if target.exists():  # saved before a kill cut its rows: validated again
             shutil.rmtree(target)
         with atomic_dir(target) as tmp:
             model.save(tmp / "model.zip")
