@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from softtrack.env import make_config
 from softtrack.evaluation import (
@@ -24,8 +25,8 @@ from softtrack.evaluation import (
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report import EmptySelectionError, build_report, select_runs
 from softtrack.report.curves import final_stage_table, training_curves
-from softtrack.report.data import group_runs, load_runs
-from softtrack.report.summaries import metrics_summary, moment_peaks
+from softtrack.report.data import Group, group_runs, load_runs
+from softtrack.report.summaries import controller_differences, metrics_summary, moment_peaks
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
@@ -210,6 +211,40 @@ def test_curves_metrics_and_peaks(store: RunStore) -> None:
     assert both.query("direction == 'normal'")["mean"].iloc[0] >= arm_max - 1e-9
 
 
+def test_controller_differences_match_welch_t_test_on_the_seeds() -> None:
+    """Differences from the seed means and stds agree with scipy's t-test on the raw values."""
+    values = {  # (group, trajectory, arm) -> 3-D RMSE of each seed, m
+        ("C", "circle", 0): [0.040, 0.044, 0.047],
+        ("C", "circle", 1): [0.036, 0.038],
+        ("I", "circle", 0): [0.035, 0.036, 0.041],
+        ("I", "circle", 1): [0.045],
+        ("D", "circle", 0): [0.14, 0.15],
+        ("D", "circle", 1): [0.13, 0.12],
+    }
+    summary = pd.DataFrame([
+        {"group": g, "trajectory": t, "arm": a, "rmse_3d_mean": np.mean(v),
+         "rmse_3d_std": np.std(v, ddof=1) if len(v) > 1 else np.nan, "rmse_3d_n": len(v)}
+        for (g, t, a), v in values.items()
+    ])
+    groups = [
+        Group(algo, controller, label, "0" * 12, label, label)
+        for algo, controller, label in (
+            ("td3", "centralized", "C"), ("td3", "independent", "I"), ("ddpg", "centralized", "D")
+        )
+    ]
+    diff = controller_differences(summary, groups)
+    assert list(diff["group"]) == ["C", "C"] and set(diff["reference"]) == {"I"}
+    arm0 = diff[diff["arm"] == 0].iloc[0]
+    c, i = values[("C", "circle", 0)], values[("I", "circle", 0)]
+    assert arm0["difference"] == pytest.approx(np.mean(c) - np.mean(i))
+    welch = stats.ttest_ind(c, i, equal_var=False)
+    assert arm0["p_value"] == pytest.approx(welch.pvalue)
+    assert arm0["difference"] / arm0["se"] == pytest.approx(welch.statistic)
+    arm1 = diff[diff["arm"] == 1].iloc[0]
+    assert arm1["difference"] == pytest.approx(0.037 - 0.045)
+    assert np.isnan(arm1["se"]) and np.isnan(arm1["p_value"]) and arm1["n_reference"] == 1
+
+
 # ---- the report -----------------------------------------------------------------------------
 EXPECTED_FIGURES = [
     "training_curves.png",
@@ -274,8 +309,18 @@ def test_report_tables_show_the_study_values(report: Path) -> None:
     independent = _table_after(md, "### TD3 (independent)\n")
     assert "| 0.059 |" in next(r for r in independent if r.startswith("| circle | arm 2 |"))
     side = _table_after(md, "### Centralized against independent controllers\n")
-    assert "TD3 (independent) 3-D RMSE (m)" in side[0] and "study independent TD3" in side[0]
-    assert "| 0.065 | 0.054 |" in next(r for r in side if r.startswith("| circle | arm 1 |"))
+    assert side[0].startswith("| controller | seeds | circle arm 1 (m) | circle arm 2 (m) |")
+    assert next(r for r in side if r.startswith("| TD3 | 2 |")).count(" ± ") == 6
+    assert next(r for r in side if r.startswith("| TD3 (independent) | 1 |")).count(" ± ") == 0
+    assert "| 0.065 | 0.043 |" in next(r for r in side if r.startswith("| study centralized TD3 |"))
+    assert "| 0.054 | 0.059 |" in next(r for r in side if r.startswith("| study independent TD3 |"))
+    diff = _table_after(
+        md,
+        "**Centralized minus TD3 (independent)** (m; negative: the centralized controller "
+        "tracks better):\n",
+    )
+    assert [r.split(" | ")[0] for r in diff[2:]] == ["| TD3"]  # not DDPG: another algorithm
+    assert re.fullmatch(r"\| TD3 \| 2 \|( [+-]0\.\d{4} \|){6}", diff[2])  # no se: one seed
     peaks = _table_after(md, "### Peak element moments\n")
     assert any(
         r.startswith("| TD3 | figure-eight | normal |") and r.endswith("| 138.9 |") for r in peaks
@@ -347,8 +392,8 @@ def test_every_table_has_provenance(report: Path, store: RunStore) -> None:
     md = report.read_text(encoding="utf-8")
     blocks = md.split("\n\n")
     tables = [i for i, b in enumerate(blocks) if b.startswith("|")]
-    # runs, final, 3 error tables, side by side, policy actions, peaks
-    assert len(tables) == 1 + 1 + 3 + 1 + 1 + 1
+    # runs, final, 3 error tables, side by side, its differences, policy actions, peaks
+    assert len(tables) == 1 + 1 + 3 + 1 + 1 + 1 + 1
     for i in tables:
         after = "\n\n".join(blocks[i + 1 : i + 3])
         assert "*Behind these numbers*" in after, blocks[i][:80]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import pandas as pd
 
 from softtrack.evaluation import RANDOM_TARGET_SEED
@@ -23,7 +24,12 @@ from softtrack.report.reference import (
     study_peak_moment,
     study_rmse_3d,
 )
-from softtrack.report.summaries import moment_peaks, random_target_summary, summary_row
+from softtrack.report.summaries import (
+    controller_differences,
+    moment_peaks,
+    random_target_summary,
+    summary_row,
+)
 from softtrack.report.text import mean_pm_std
 
 __all__ = [
@@ -103,26 +109,27 @@ def errors_section(
         )
         doc.p(ctx.provenance([group]))
     doc.h(3, "Centralized against independent controllers")
-    header = ["trajectory", "arm"]
-    for group in ctx.groups:
-        header.append(f"{group.label} 3-D RMSE (m)")
-    header += ["study centralized TD3 (m)", "study independent TD3 (m)"]
+    cells = [(t, arm) for t in trajectories for arm in (0, 1)]
+    header = ["controller", "seeds"] + [
+        f"{TRAJECTORY_TITLES.get(t, t)} arm {arm + 1} (m)" for t, arm in cells
+    ]
     rows = []
-    for trajectory in trajectories:
-        for arm in (0, 1):
-            row = [TRAJECTORY_TITLES.get(trajectory, trajectory), f"arm {arm + 1}"]
-            for group in ctx.groups:
-                cell = summary_row(summary, group.label, trajectory, arm)
-                row.append(
-                    "no data"
-                    if cell is None
-                    else mean_pm_std(cell["rmse_3d_mean"], cell["rmse_3d_std"], 4)
-                )
-            row.append(study_text(study_rmse_3d("td3", "centralized", trajectory, arm), 3))
-            row.append(study_text(study_rmse_3d("td3", "independent", trajectory, arm), 3))
-            rows.append(row)
+    for group in ctx.groups:
+        found = [summary_row(summary, group.label, t, arm) for t, arm in cells]
+        seeds = max((int(r["n"]) for r in found if r is not None), default=0)
+        rows.append([group.label, str(seeds)] + [
+            "no data" if r is None else mean_pm_std(r["rmse_3d_mean"], r["rmse_3d_std"], 4)
+            for r in found
+        ])
+    for controller in ("centralized", "independent"):
+        rows.append([f"study {controller} TD3", "—"] + [
+            study_text(study_rmse_3d("td3", controller, t, arm), 3) for t, arm in cells
+        ])
     doc.table(header, rows)
+    doc.p("3-D RMSE, mean ± sample std across seeds of one deterministic evaluation episode "
+          "per trajectory.")
     doc.p(ctx.provenance())
+    _differences_tables(doc, ctx, controller_differences(summary, ctx.groups), cells)
     study = {
         f"study {controller} TD3": {(t, a): v[a] for t, v in values.items() for a in (0, 1)}
         for controller, values in STUDY_RMSE_3D.items()
@@ -130,6 +137,44 @@ def errors_section(
     path, rel = ctx.figure("rmse_comparison.png")
     fg.rmse_comparison_figure(summary, study, trajectories, path, ctx.footer())
     doc.img(rel, "3-D RMSE per trajectory and arm against the study")
+
+
+def _difference_text(row: pd.Series) -> str:
+    """``+0.0053 ± 0.0039 (p 0.27)``: a :func:`controller_differences` row (m)."""
+    text = f"{row['difference']:+.4f}"
+    if np.isfinite(row["se"]):
+        text += f" ± {row['se']:.4f}"
+    if np.isfinite(row["p_value"]):
+        text += f" (p {row['p_value']:.2f})"
+    return text
+
+
+def _differences_tables(
+    doc: Doc, ctx: Context, differences: pd.DataFrame, cells: Sequence[tuple[str, int]]
+) -> None:
+    """One table per independent group: each centralized group's 3-D RMSE minus its own."""
+    for reference, part in differences.groupby("reference", sort=False):
+        doc.p(f"**Centralized minus {reference}** (m; negative: the centralized controller "
+              "tracks better):")
+        header = ["controller", "seeds"] + [
+            f"{TRAJECTORY_TITLES.get(t, t)} arm {arm + 1}" for t, arm in cells
+        ]
+        rows = []
+        for group, rows_of_group in part.groupby("group", sort=False):
+            by_cell = {(r["trajectory"], int(r["arm"])): r for _, r in rows_of_group.iterrows()}
+            rows.append([str(group), str(rows_of_group["n"].max())] + [
+                _difference_text(by_cell[c]) if c in by_cell else "no data" for c in cells
+            ])
+        doc.table(header, rows)
+        n_reference = int(part["n_reference"].max())
+        doc.p(
+            f"Difference of the seed means; ± its standard error; p: Welch's two-sided t-test "
+            f"over the seeds' values ({reference}: {n_reference} seed"
+            f"{'' if n_reference == 1 else 's'}). Both only where both controllers have at "
+            "least 2 seeds. Across this many cells a few p below 0.05 are expected by chance."
+        )
+        labels = {reference, *part["group"]}
+        doc.p(ctx.provenance([g for g in ctx.groups if g.label in labels]))
 
 
 def random_targets_section(doc: Doc, ctx: Context) -> None:

@@ -7,12 +7,14 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from softtrack.evaluation import validation_score
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group, RunData
 
 __all__ = [
+    "controller_differences",
     "metrics_summary",
     "moment_peaks",
     "random_target_summary",
@@ -77,6 +79,50 @@ def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) ->
         (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
     ]
     return None if sel.empty else sel.iloc[0]
+
+
+def controller_differences(summary: pd.DataFrame, groups: Sequence[Group]) -> pd.DataFrame:
+    """3-D RMSE of each centralized group minus that of each independent group of the same
+    algorithm, per trajectory and arm, from their seed means (``summary``:
+    :func:`metrics_summary`).
+
+    Columns: reference (the independent group's label), group, trajectory, arm, difference
+    (centralized − independent mean, m; negative: the centralized controller tracks better),
+    se (standard error of that difference, sqrt(s₁²/n₁ + s₂²/n₂), m), p_value (Welch's
+    two-sided t-test of the seeds' values), n and n_reference (seeds). se and p_value are NaN
+    unless both groups have at least 2 seeds with a value.
+    """
+    columns = ["reference", "group", "trajectory", "arm", "difference", "se", "p_value", "n",
+               "n_reference"]
+    if summary.empty:
+        return pd.DataFrame(columns=columns)
+    rows = []
+    for reference in (g for g in groups if g.controller == "independent"):
+        for group in groups:
+            if group.controller == "independent" or group.algo != reference.algo:
+                continue
+            ref_rows = summary[summary["group"] == reference.label]
+            for _, ref in ref_rows.iterrows():
+                row = summary_row(summary, group.label, ref["trajectory"], int(ref["arm"]))
+                if row is None:
+                    continue
+                n, n_ref = int(row["rmse_3d_n"]), int(ref["rmse_3d_n"])
+                se = p_value = np.nan
+                if n >= 2 and n_ref >= 2:
+                    var, var_ref = row["rmse_3d_std"] ** 2 / n, ref["rmse_3d_std"] ** 2 / n_ref
+                    se = float(np.sqrt(var + var_ref))
+                    if se > 0:
+                        p_value = float(stats.ttest_ind_from_stats(
+                            row["rmse_3d_mean"], row["rmse_3d_std"], n,
+                            ref["rmse_3d_mean"], ref["rmse_3d_std"], n_ref, equal_var=False,
+                        ).pvalue)
+                rows.append({
+                    "reference": reference.label, "group": group.label,
+                    "trajectory": ref["trajectory"], "arm": int(ref["arm"]),
+                    "difference": float(row["rmse_3d_mean"] - ref["rmse_3d_mean"]),
+                    "se": se, "p_value": p_value, "n": n, "n_reference": n_ref,
+                })
+    return pd.DataFrame(rows, columns=columns)
 
 
 def random_target_summary(groups: Sequence[Group]) -> pd.DataFrame:
