@@ -110,9 +110,7 @@ def errors_section(
         doc.p(ctx.provenance([group]))
     doc.h(3, "Centralized against independent controllers")
     cells = [(t, arm) for t in trajectories for arm in (0, 1)]
-    header = ["controller", "seeds"] + [
-        f"{TRAJECTORY_TITLES.get(t, t)} arm {arm + 1} (m)" for t, arm in cells
-    ]
+    header = ["controller", "seeds"] + [f"{_cell_title(t, arm)} (m)" for t, arm in cells]
     rows = []
     for group in ctx.groups:
         found = [summary_row(summary, group.label, t, arm) for t, arm in cells]
@@ -139,6 +137,11 @@ def errors_section(
     doc.img(rel, "3-D RMSE per trajectory and arm against the study")
 
 
+def _cell_title(trajectory: str, arm: int) -> str:
+    """``figure-eight arm 2`` (``arm`` 0-indexed)."""
+    return f"{TRAJECTORY_TITLES.get(trajectory, trajectory)} arm {arm + 1}"
+
+
 def _difference_text(row: pd.Series) -> str:
     """``+0.0053 ± 0.0039 (p 0.27)``: a :func:`controller_differences` row (m)."""
     text = f"{row['difference']:+.4f}"
@@ -156,9 +159,7 @@ def _differences_tables(
     for reference, part in differences.groupby("reference", sort=False):
         doc.p(f"**Centralized minus {reference}** (m; negative: the centralized controller "
               "tracks better):")
-        header = ["controller", "seeds"] + [
-            f"{TRAJECTORY_TITLES.get(t, t)} arm {arm + 1}" for t, arm in cells
-        ]
+        header = ["controller", "seeds"] + [_cell_title(t, arm) for t, arm in cells]
         rows = []
         for group, rows_of_group in part.groupby("group", sort=False):
             by_cell = {(r["trajectory"], int(r["arm"])): r for _, r in rows_of_group.iterrows()}

@@ -98,10 +98,10 @@ def controller_differences(summary: pd.DataFrame, groups: Sequence[Group]) -> pd
         return pd.DataFrame(columns=columns)
     rows = []
     for reference in (g for g in groups if g.controller == "independent"):
+        ref_rows = summary[summary["group"] == reference.label]
         for group in groups:
             if group.controller == "independent" or group.algo != reference.algo:
                 continue
-            ref_rows = summary[summary["group"] == reference.label]
             for _, ref in ref_rows.iterrows():
                 row = summary_row(summary, group.label, ref["trajectory"], int(ref["arm"]))
                 if row is None:
