@@ -38,6 +38,7 @@ from softtrack.store.status import (
 from softtrack.store.tables import TableError
 
 if TYPE_CHECKING:
+    from softtrack.rl.policy import ModelChoice
     from softtrack.rl.train import TrainOutcome
 
 __all__ = [
@@ -181,6 +182,7 @@ def evaluate(
     write: bool = True,
     random_episodes: int = 0,
     on_random: Callable[..., None] | None = None,
+    model: ModelChoice = "policy",
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
@@ -196,13 +198,16 @@ def evaluate(
         random_episodes: random-target episodes per run after the trajectories (0: none;
             :func:`softtrack.eval_runs.evaluate_random_targets`, table ``eval_random``).
         on_random: called with (record, rows of its random-target episodes) per run.
+        model: which model of each run (:data:`softtrack.rl.policy.ModelChoice`): ``policy``
+            (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
+            so another model's results are only returned, never stored.
 
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
     """
     from softtrack.eval_runs import evaluate_random_targets, evaluate_run, resolve_run
     from softtrack.evaluation import EVAL_TRAJECTORIES
-    from softtrack.rl.policy import model_paths
+    from softtrack.rl.policy import MODEL_CHOICES, model_paths
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
@@ -212,26 +217,38 @@ def evaluate(
     if random_episodes < 0:
         raise SpecError("--random", f"{random_episodes} random-target episodes",
                         "give 0 (none) or more")
+    if model not in MODEL_CHOICES:
+        raise SpecError("--model", f"unknown model {model!r}",
+                        f"choose from {', '.join(MODEL_CHOICES)}")
     if not chosen and not random_episodes:
         raise SpecError("--trajectory", "nothing to evaluate",
                         "name a trajectory, or add --random N to --trajectory none")
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     records = [resolve_run(ref, runs_dir) for ref in references]
+    stores = []
     for record in records:
         spec = record.load_spec()
-        missing = [p for p in model_paths(record, spec) if not p.is_file()]
+        if model == "best" and spec.training.validation_episodes < 1:
+            raise RunStoreError(
+                f"run {record.run_id} was trained without validation "
+                "(training.validation_episodes: 0), so it has no best-validated model; "
+                "evaluate its last model with --model last"
+            )
+        paths = model_paths(record, spec, model)
+        missing = [p for p in paths if not p.is_file()]
         if missing:
             raise RunStoreError(
                 f"{missing[0]}: run {record.run_id} has no trained model (status "
                 f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
             )
+        stores.append(write and paths == model_paths(record, spec))
     frames = []
-    for record in records:
+    for record, store in zip(records, stores, strict=True):
         if chosen:
-            frames.append(evaluate_run(record, chosen, on_episode, write=write))
+            frames.append(evaluate_run(record, chosen, on_episode, write=store, model=model))
         if random_episodes:
-            rows = evaluate_random_targets(record, random_episodes, write=write)
+            rows = evaluate_random_targets(record, random_episodes, write=store, model=model)
             if on_random is not None:
                 on_random(record, rows)
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()

@@ -411,6 +411,12 @@ class TrajectoryChoice(str, enum.Enum):
     none = "none"
 
 
+class ModelOption(str, enum.Enum):
+    policy = "policy"
+    last = "last"
+    best = "best"
+
+
 @app.command()
 def evaluate(
     references: Annotated[
@@ -429,6 +435,13 @@ def evaluate(
                      help="Also run N episodes on the run's random training target, from "
                           "seeds training never uses (table eval_random)."),
     ] = 0,
+    model: Annotated[
+        ModelOption,
+        typer.Option("--model", "-m", case_sensitive=False,
+                     help="Which model of each run: its policy (training.final_policy), the "
+                          "last model of training, or the best-validated one. Only the "
+                          "policy's results are stored."),
+    ] = ModelOption.policy,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Evaluate runs on the circle, rectangle and figure-eight targets.
@@ -438,6 +451,10 @@ def evaluate(
     3-D RMSE of each arm per run and trajectory (m). With --random N, also N episodes on the
     random target the run was trained on (seeds 1,000,000 + k, the same for every run), and
     their mean 3-D RMSE per arm (--trajectory none --random N: only those).
+
+    --model last (or best) evaluates another of the run's models, e.g. the last model of a
+    run that keeps its best-validated one, and only prints its results: the tables keep the
+    evaluation of the run's policy.
     """
     if trajectory is TrajectoryChoice.all:
         chosen: list[str] | None = None
@@ -446,7 +463,7 @@ def evaluate(
 
     with _user_errors():
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
-                     random_episodes=random, on_random=_print_random)
+                     random_episodes=random, on_random=_print_random, model=model.value)
 
 
 def _print_episode(record: object, episode: object, metrics: object) -> None:

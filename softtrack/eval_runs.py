@@ -16,6 +16,9 @@ from seeds that training never uses (:data:`softtrack.evaluation.RANDOM_TARGET_S
 and writes their metrics, one row per episode and arm, to ``eval_random.parquet`` (replacing
 the table): how well the policy tracks the target it was trained on, beside how well it
 tracks the closed-form paths.
+
+Both evaluate the run's policy unless told another of its models (``model``:
+:data:`softtrack.rl.policy.ModelChoice`, e.g. ``last`` beside a kept best-validated policy).
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
@@ -39,6 +43,9 @@ from softtrack.evaluation import (
 )
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
+
+if TYPE_CHECKING:
+    from softtrack.rl.policy import ModelChoice
 
 __all__ = [
     "EVAL_TABLES",
@@ -84,14 +91,16 @@ def _replace_rows(path: Path, new: pd.DataFrame, trajectories: Sequence[str]) ->
     write_table(path, new.reset_index(drop=True))
 
 
-def _episode_setup(record: RunRecord) -> tuple[Policy, TrackingConfig, float]:
-    """The run's deterministic policy, its environment settings and its evaluation episode
-    length (``training.eval_duration``, s)."""
+def _episode_setup(
+    record: RunRecord, model: ModelChoice = "policy"
+) -> tuple[Policy, TrackingConfig, float]:
+    """The deterministic policy of the run's ``model``, its environment settings and its
+    evaluation episode length (``training.eval_duration``, s)."""
     from softtrack.rl.factory import env_config
     from softtrack.rl.policy import load_policy
 
     spec = record.load_spec()
-    return load_policy(record, spec), env_config(spec), float(spec.training.eval_duration)
+    return load_policy(record, spec, model), env_config(spec), float(spec.training.eval_duration)
 
 
 def evaluate_run(
@@ -100,12 +109,14 @@ def evaluate_run(
     on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
     *,
     write: bool = True,
+    model: ModelChoice = "policy",
 ) -> pd.DataFrame:
     """Evaluate one run on ``trajectories`` and write its tables (``write=False``: only return
     the metrics, leaving the run directory untouched, e.g. for a committed run under models/).
 
     Args:
         on_episode: called after each trajectory with the run, the episode and its metrics.
+        model: the run's model to evaluate (default its policy).
 
     Returns:
         The metrics rows of this evaluation (one per trajectory and arm).
@@ -113,7 +124,7 @@ def evaluate_run(
     Raises:
         RunStoreError: the run has no readable model; SpecError: its spec no longer validates.
     """
-    policy, config, duration = _episode_setup(record)
+    policy, config, duration = _episode_setup(record, model)
     frames: dict[str, list[pd.DataFrame]] = {name: [] for name in EVAL_TABLES}
     for trajectory in trajectories:
         episode = run_episode(policy, config, trajectory, duration)
@@ -134,6 +145,7 @@ def evaluate_random_targets(
     on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
     *,
     write: bool = True,
+    model: ModelChoice = "policy",
 ) -> pd.DataFrame:
     """Evaluate one run on ``episodes`` random-target episodes (module docstring).
 
@@ -145,6 +157,7 @@ def evaluate_random_targets(
         episodes: number of episodes, ≥ 1.
         on_episode: called after each episode with the run, the episode and its metrics.
         write: store ``eval_random.parquet`` in the run (``False``: only return the rows).
+        model: the run's model to evaluate (default its policy).
 
     Returns:
         One row per episode and arm: ``episode``, ``seed`` and the columns of
@@ -152,7 +165,7 @@ def evaluate_random_targets(
     """
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")
-    policy, config, duration = _episode_setup(record)
+    policy, config, duration = _episode_setup(record, model)
     parts = []
     for k in range(episodes):
         seed = RANDOM_TARGET_SEED + k

@@ -124,6 +124,16 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     exported = read_table(out / "tables" / "eval_metrics.parquet")
     np.testing.assert_allclose(exported["rmse_3d"], expected["rmse_3d"], rtol=1e-12)
 
+    # --model last tracks with the last model and only prints: the tables keep the policy's
+    assert model_paths(record, run_spec, "last") == [policy.model_path]
+    stored = read_table(record.table_path("eval_metrics"))
+    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--model", "last",
+                                 "--runs-dir", str(tmp_path / "runs")], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    last = _episode_metrics(policy.model_path, run_spec, None, "circle").sort_values("arm")
+    assert " / ".join(f"{v:.4f}" for v in last["rmse_3d"]) in result.stdout
+    pd.testing.assert_frame_equal(read_table(record.table_path("eval_metrics")), stored)
+
     # the report names the kept checkpoint and plots every validation
     rows = _report_rows(record, tmp_path)
     expected_row = (f"| TD3 | 0 | both arms | 4 | {best_step:,} | {scores[best_step]:.4f} | 800 "
@@ -146,6 +156,14 @@ def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend
     # final_policy last: the run's policy stays model.zip even though best/ exists
     assert model_paths(validated, validated.load_spec()) == [validated.model_path]
     assert PolicyDir.of_run(validated.path).list_best()
+    best = PolicyDir.of_run(validated.path).best_model_path
+    assert model_paths(validated, validated.load_spec(), "best") == [best]
+    # a run trained without validation has no best model to evaluate
+    result = runner.invoke(app, ["evaluate", plain.run_id, "--model", "best", "--runs-dir",
+                                 str(tmp_path / "a")], env={"CI": "1"})
+    assert result.exit_code == 2
+    assert "trained without validation" in result.output and "--model last" in result.output
+    assert not plain.table_path("eval_metrics").exists()
 
 
 def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None:

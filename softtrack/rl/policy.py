@@ -3,14 +3,15 @@
 A centralized run keeps ``model.zip`` (and ``vecnormalize.pkl`` when observations were
 normalised) in its directory; an independent run keeps one per arm under ``models/arm<k>/``.
 With ``training.final_policy: best_validated`` the run's policy is each policy directory's
-best-validated model (``best/step-…/model.zip``) instead.
+best-validated model (``best/step-…/model.zip``) instead. Either model can also be chosen
+explicitly (:data:`ModelChoice`), e.g. to compare the last model with the kept one.
 """
 
 from __future__ import annotations
 
 import pickle
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -20,15 +21,28 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["deterministic_policy", "load_policy", "model_paths"]
+__all__ = ["MODEL_CHOICES", "ModelChoice", "deterministic_policy", "load_policy", "model_paths"]
+
+ModelChoice = Literal["policy", "last", "best"]
+"""Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
+``last``, the model at the end of training; ``best``, the best-validated model (runs trained
+with ``training.validation_episodes`` ≥ 1)."""
+
+MODEL_CHOICES: tuple[ModelChoice, ...] = ("policy", "last", "best")
 
 
-def model_paths(record: RunRecord, spec: ExperimentSpec) -> list[Path]:
-    """The model file(s) of the run's policy: one for a centralized run, one per arm otherwise
-    (the best-validated ones with ``training.final_policy: best_validated``)."""
+def model_paths(
+    record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
+) -> list[Path]:
+    """The model file(s) of ``model`` (:data:`ModelChoice`): one for a centralized run, one per
+    arm otherwise. The files need not exist (an unfinished run, a run without validation)."""
+    if model not in MODEL_CHOICES:
+        raise ValueError(f"model={model!r}; choose from {', '.join(MODEL_CHOICES)}")
     arms: list[int | None] = [0, 1] if spec.controller == "independent" else [None]
     policies = [PolicyDir.of_run(record.path, arm) for arm in arms]
-    if spec.training.final_policy == "best_validated":
+    if model == "policy":
+        model = "best" if spec.training.final_policy == "best_validated" else "last"
+    if model == "best":
         return [policy.best_model_path for policy in policies]
     return [policy.model_path for policy in policies]
 
@@ -69,8 +83,11 @@ def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
     return deterministic_policy(model, normalizer)
 
 
-def load_policy(record: RunRecord, spec: ExperimentSpec) -> Policy:
-    """The run's deterministic dual-arm policy: observation (81,) → action (24,).
+def load_policy(
+    record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
+) -> Policy:
+    """The run's deterministic dual-arm policy: observation (81,) → action (24,), from the
+    model(s) ``model`` picks (:func:`model_paths`).
 
     Raises:
         RunStoreError: a model file is missing or unreadable.
@@ -78,7 +95,7 @@ def load_policy(record: RunRecord, spec: ExperimentSpec) -> Policy:
     import torch
 
     torch.set_num_threads(1)
-    policies = [_load_single(spec, path) for path in model_paths(record, spec)]
+    policies = [_load_single(spec, path) for path in model_paths(record, spec, model)]
     if spec.controller == "independent":
         return independent_policy(policies)
     return policies[0]
