@@ -23,6 +23,8 @@ ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s). On the slower CPU of la
 (~1/3 of these rates): td3-sbx-per-arm 2.3 h per seed (481 env steps/s), td3-sbx-128-per-arm
 3.9 h per seed (~290-380 env steps/s with a second training on the other core),
 td3-sbx-per-arm-nets ~380-600 env steps/s in its first 700k steps beside another training.
+On the later 2-core AVX-512 machine, two td3-sbx-own-arm-actors seeds side by side: 1.6 h
+(686 env steps/s) and 83 min (807 env steps/s, pinned to one core).
 """
 
 from __future__ import annotations
