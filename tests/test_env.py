@@ -283,6 +283,31 @@ def test_reward_and_info_every_step(kind: str) -> None:
     assert bonus_seen
 
 
+def test_each_arm_moves_only_with_its_own_actions() -> None:
+    """The arms share no force: arm 1's state is the same whatever arm 2 does, and the same as
+    in arm 1's single-arm environment (why a centralized policy has no physical coupling to use).
+    """
+    own = _actions(60, 12, seed=4, scale=1.0)
+    arm1_blocks, arm1_tips = [], []
+    for other_seed in (5, 6):
+        env = DualArmTrackingEnv(target="circle")
+        env.reset(seed=0)
+        other = _actions(60, 12, seed=other_seed, scale=1.0)
+        blocks, tips = [], []
+        for a1, a2 in zip(own, other):
+            obs, _, _, _, info = env.step(np.concatenate([a1, a2]))
+            blocks.append(obs[:37])
+            tips.append(info["tip_positions"])
+        arm1_blocks.append(np.array(blocks))
+        arm1_tips.append(np.array(tips))
+    np.testing.assert_array_equal(arm1_blocks[0], arm1_blocks[1])
+    assert np.abs(arm1_tips[0][:, 1] - arm1_tips[1][:, 1]).max() > 0.01  # arm 2 did differ
+    single = SingleArmTrackingEnv(arm=0, target="circle")
+    single.reset(seed=0)
+    single_blocks = np.array([single.step(a1)[0][:37] for a1 in own])
+    np.testing.assert_array_equal(single_blocks, arm1_blocks[0])
+
+
 def test_info_holds_copies() -> None:
     env = DualArmTrackingEnv()
     env.reset(seed=0)
