@@ -78,11 +78,12 @@ JOBS: tuple[Job, ...] = (
     # after the -val runs:
     *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (1, 2)),
     Job("td3-sbx-per-arm-nets", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
+    *(Job("td3-sbx-128-mirror-val", s, f"td3-sbx-128-mirror-val-4e6-seed{s}") for s in (0, 1, 2)),
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
     "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "td3-sbx-own-arm-actors",
-    "td3-sbx-128-val", "independent-td3-sbx", "independent-td3-sbx-2e6",
+    "td3-sbx-128-val", "td3-sbx-128-mirror-val", "independent-td3-sbx", "independent-td3-sbx-2e6",
     "independent-td3-sbx-2e6-val", "ddpg-sbx", "ppo-sbx",
 )
 

@@ -224,6 +224,31 @@ ERROR_CASES = {
         [],
         ["algo.actor_observation", "set algo.per_arm_networks: true"],
     ),
+    "mirror-replay-ppo": (
+        "algo: {name: ppo, mirror_replay: true}\n",
+        [],
+        ["algo.mirror_replay", "needs an off-policy algo", "set algo.mirror_replay: false"],
+    ),
+    "mirror-replay-independent": (
+        "controller: independent\nalgo: {mirror_replay: true}\n",
+        [],
+        ["algo.mirror_replay", "controller: centralized"],
+    ),
+    "mirror-replay-normalize": (
+        "algo: {mirror_replay: true, normalize: true}\n",
+        [],
+        ["algo.mirror_replay", "set algo.normalize: false"],
+    ),
+    "mirror-replay-asymmetric-bases": (
+        "env: {physics: {base_positions: [[-0.1, 0, 0], [0.2, 0, 0]]}}\nalgo: {mirror_replay: true}\n",
+        [],
+        ["algo.mirror_replay", "mirror images in x = 0", "(0.2, 0.0, 0.0)"],
+    ),
+    "mirror-replay-unequal-weights": (
+        "env: {reward: {arm_weights: [1.0, 2.0]}}\nalgo: {mirror_replay: true}\n",
+        [],
+        ["algo.mirror_replay", "equal env.reward.arm_weights", "(1, 2)"],
+    ),
     "best-validated-without-validation": (
         "training: {final_policy: best_validated}\n",
         [],
@@ -456,6 +481,9 @@ def test_spec_hash() -> None:
     assert spec_hash(parse_spec({"algo": {**nets, "actor_observation": "full"}})) == spec_hash(
         parse_spec({"algo": nets})
     )
+    mirrored = parse_spec({"algo": {"mirror_replay": True}})
+    assert spec_hash(mirrored) != spec_hash(base)
+    assert spec_hash(parse_spec({"algo": {"mirror_replay": False}})) == spec_hash(base)
     nets["per_arm_networks"] = False
     assert spec_hash(parse_spec({"algo": nets})) == spec_hash(per_arm)
     neutral = {"validation_episodes": 0, "final_policy": "last"}

@@ -185,6 +185,10 @@ def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise
+    if spec.algo.mirror_replay:
+        from softtrack.rl.mirror import MirrorReplayBuffer
+
+        kwargs["replay_buffer_class"] = MirrorReplayBuffer
     return model_class(spec)(
         env=env, seed=int(seed), verbose=0, **kwargs
     )

@@ -79,6 +79,15 @@ class AlgoSpec(SpecModel):
         "decentralized execution)",
         "-",
     )
+    mirror_replay: bool = unit_field(
+        False,
+        "also store every transition's mirror image (x → −x: arms swapped, normal control "
+        "values negated) in the replay buffer, which the mirror-symmetric scene makes a "
+        "transition it could have produced; each env step then takes two of buffer_size's "
+        "slots (off-policy, controller centralized, critic joint, bases mirror images and "
+        "equal arm weights only)",
+        "-",
+    )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
     learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
     batch_size: Int = unit_field(

@@ -150,6 +150,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,
     ("algo", "actor_observation"): "full",
+    ("algo", "mirror_replay"): False,
     ("training", "validation_episodes"): 0,
     ("training", "final_policy"): "last",
 }

@@ -171,6 +171,38 @@ def _check_per_arm_critic(spec: ExperimentSpec) -> None:
         )
 
 
+def _check_mirror_replay(spec: ExperimentSpec) -> None:
+    """Raise the spec error of the first setting ``algo.mirror_replay`` cannot run with."""
+    a, physics = spec.algo, spec.env.physics
+    hint = "or set algo.mirror_replay: false"
+    if not a.is_off_policy or spec.controller != "centralized" or a.critic != "joint":
+        raise custom_error(
+            "mirror_replay fills the replay buffer of one centralized dual-arm policy; it needs "
+            f"an off-policy algo, controller: centralized and critic: joint, {hint}",
+            "algo.mirror_replay",
+        )
+    if a.normalize:
+        raise custom_error(
+            f"mirror_replay stores raw observations, which VecNormalize rescales; set "
+            f"algo.normalize: false {hint}",
+            "algo.mirror_replay",
+        )
+    (x1, y1, z1), (x2, y2, z2) = physics.base_positions
+    if x1 != -x2 or y1 != y2 or z1 != z2:
+        raise custom_error(
+            f"mirror_replay needs bases that are mirror images in x = 0, e.g. [[-0.1, 0, 0], "
+            f"[0.1, 0, 0]], got {physics.base_positions}; move them {hint}",
+            "algo.mirror_replay",
+        )
+    w1, w2 = spec.env.reward.arm_weights
+    if w1 != w2:
+        raise custom_error(
+            f"mirror_replay swaps the arms, which leaves the reward unchanged only with equal "
+            f"env.reward.arm_weights, got ({w1:g}, {w2:g}); make them equal {hint}",
+            "algo.mirror_replay",
+        )
+
+
 class ExperimentSpec(SpecModel):
     """One experiment: an environment, an algorithm, a budget and a set of seeds.
 
@@ -259,6 +291,8 @@ class ExperimentSpec(SpecModel):
                 "or actor_observation: full",
                 "algo.actor_observation",
             )
+        if a.mirror_replay:
+            _check_mirror_replay(self)
         if t.final_policy == "best_validated":
             _check_validation(t)
         control_dt = self.env.control_dt

@@ -1,0 +1,98 @@
+"""Mirror-image transitions of the dual-arm scene, for a replay buffer that stores both.
+
+The default scene is symmetric under the reflection x → −x: the bases sit at x = ∓0.1, both
+rest along +y with d₁ = +z and d₂ = +x, and the reward weights both arms alike. Reflecting a
+state swaps the arms and negates every x coordinate; reflecting an action swaps the arms'
+blocks and negates the normal values (a couple about d₁ = +z is a pseudovector, so its mirror
+image turns the other way) while the binormal values (couples about +x) stay. The engine is
+equivariant under this map bit for bit (``tests/test_mirror.py``), so every transition
+(s, a, r, s') the environment produces has a twin (m(s), m(a), r, m(s')) that it would have
+produced from the mirrored state: ``algo.mirror_replay`` stores both, so that what one arm
+learns the other can use.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.buffers import ReplayBuffer
+
+__all__ = ["MirrorReplayBuffer", "mirror_action", "mirror_observation"]
+
+ARM_OBS = 37  # per arm: x, y, z of 11 nodes, tip speed, tip velocity direction (3)
+TARGET_OBS = 7  # target position (3), speed, velocity direction (3)
+OBS_DIM = 2 * ARM_OBS + TARGET_OBS
+ACTION_DIM = 24
+_ARM_X = np.r_[0:11, 34]  # node x coordinates and the x of the tip velocity direction
+_TARGET_X = np.array([0, 4])  # target x and the x of its velocity direction
+
+
+def mirror_observation(obs: np.ndarray) -> np.ndarray:
+    """The observation of the mirror-image scene (x → −x, arms swapped).
+
+    Args:
+        obs: (..., 81) dual-arm observations (SPEC §3 layout).
+
+    Returns:
+        (..., 81) array of the same dtype: arm 2's block mirrored in arm 1's place, arm 1's
+        in arm 2's, and the target's x position and x velocity direction negated.
+    """
+    obs = np.asarray(obs)
+    if obs.shape[-1] != OBS_DIM:
+        raise ValueError(f"expected dual-arm observations of {OBS_DIM} values, got {obs.shape}")
+    arm1 = obs[..., :ARM_OBS].copy()
+    arm2 = obs[..., ARM_OBS : 2 * ARM_OBS].copy()
+    target = obs[..., 2 * ARM_OBS :].copy()
+    for block in (arm1, arm2):
+        block[..., _ARM_X] *= -1
+    target[..., _TARGET_X] *= -1
+    return np.concatenate([arm2, arm1, target], axis=-1)
+
+
+def mirror_action(action: np.ndarray) -> np.ndarray:
+    """The action of the mirror-image scene: arms swapped, normal values negated.
+
+    Args:
+        action: (..., 24) control values, [arm1 normal(6), arm1 binormal(6), arm2 normal(6),
+            arm2 binormal(6)].
+
+    Returns:
+        (..., 24) array of the same dtype.
+    """
+    action = np.asarray(action)
+    if action.shape[-1] != ACTION_DIM:
+        raise ValueError(f"expected dual-arm actions of {ACTION_DIM} values, got {action.shape}")
+    blocks = action.reshape(*action.shape[:-1], 2, 2, 6)[..., ::-1, :, :].copy()
+    blocks[..., 0, :] *= -1
+    return blocks.reshape(action.shape)
+
+
+class MirrorReplayBuffer(ReplayBuffer):
+    """An SB3 replay buffer that stores every transition and its mirror image.
+
+    Each :meth:`add` takes two slots, so a buffer of ``buffer_size`` transitions holds the
+    last ``buffer_size / 2`` environment steps. Rewards and episode ends are unchanged by the
+    reflection (the reward is symmetric in the arms when their weights are equal, which the
+    spec checks).
+    """
+
+    def add(  # type: ignore[override]
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        """Store (obs, action, reward, next_obs) and its mirror image; shapes (n_envs, ...)."""
+        super().add(obs, next_obs, action, reward, done, infos)
+        super().add(
+            mirror_observation(obs),
+            mirror_observation(next_obs),
+            mirror_action(action),
+            reward,
+            done,
+            infos,
+        )
