@@ -24,7 +24,9 @@ ppo-sbx ~8 min per seed (4e6 steps, ~9,000 env steps/s). On the slower CPU of la
 3.9 h per seed (~290-380 env steps/s with a second training on the other core),
 td3-sbx-per-arm-nets ~380-600 env steps/s in its first 700k steps beside another training.
 On the later 2-core AVX-512 machine, two td3-sbx-own-arm-actors seeds side by side: 1.6 h
-(686 env steps/s) and 83 min (807 env steps/s, pinned to one core).
+(686 env steps/s) and 83 min (807 env steps/s, pinned to one core); with --jobs 2,
+td3-sbx-per-arm-nets seed 2 81 min (819 env steps/s) beside td3-sbx-128-per-arm seed 2 1.79 h
+(620 env steps/s; training clocks as in the report).
 """
 
 from __future__ import annotations
