@@ -26,7 +26,9 @@ td3-sbx-per-arm-nets ~380-600 env steps/s in its first 700k steps beside another
 On the later 2-core AVX-512 machine, two td3-sbx-own-arm-actors seeds side by side: 1.6 h
 (686 env steps/s) and 83 min (807 env steps/s, pinned to one core); with --jobs 2,
 td3-sbx-per-arm-nets seed 2 81 min (819 env steps/s) beside td3-sbx-128-per-arm seed 2 1.79 h
-(620 env steps/s; training clocks as in the report).
+(620 env steps/s; training clocks as in the report). td3-sbx-128-mirror-val: seeds 0-1 1.72 h
+(~645 env steps/s, beside another training) on that machine; seed 2 2.26 h (491 env steps/s)
+alone on a 2-core Intel Xeon with AVX-512.
 """
 
 from __future__ import annotations
