@@ -4,12 +4,16 @@
     .venv/bin/python experiments/reproduce_study.py --jobs 2   # two runs at once, one core each
     .venv/bin/python experiments/reproduce_study.py --list     # what it would do, and budgets
     .venv/bin/python experiments/reproduce_study.py --only ddpg-sbx --report-only
+    .venv/bin/python experiments/reproduce_study.py --only td3-sbx-128 --no-report
 
 Each job is one (spec, seed). A job whose directory under ``models/`` exists is done. Otherwise
 the script looks in the runs directory (``runs/`` or ``--runs-dir``) for a run of the same
 experiment, seed and spec: a completed one is exported, an interrupted or lost one is resumed
 (`softtrack train --resume`), and without one a new run is trained. So the script can be
 stopped at any time and started again; a training continues from its last checkpoint.
+The ``-confirm`` experiments train exactly like a shipped run and only add a confirmation
+after training (``training.confirm_episodes``), so their runs are derived from the shipped
+ones once every training is done (:func:`derive_run`), then confirmed.
 Finished runs are exported with `softtrack export` (no checkpoints or replay buffers) and
 evaluated with `softtrack evaluate --random 20` (the three trajectories and 20 episodes of
 the random training target); the report is then rebuilt from ``models/`` with
@@ -41,9 +45,14 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from softtrack import api
-from softtrack.spec import spec_hash
+from softtrack.eval_runs import resolve_run
+from softtrack.rl.confirmation import confirm_run
+from softtrack.spec import ExperimentSpec, spec_hash, spec_to_yaml
+from softtrack.store.atomic import atomic_write_text
+from softtrack.store.ids import create_unique_dir
 from softtrack.store.runs import RunStore, resolve_runs_dir
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -54,11 +63,17 @@ RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack eval
 
 @dataclass(frozen=True)
 class Job:
-    """One training: ``experiments/<spec>.yaml`` with ``seed``, kept as ``models/<dest>``."""
+    """One training: ``experiments/<spec>.yaml`` with ``seed``, kept as ``models/<dest>``.
+
+    With ``derive_from``, the spec differs from that shipped run's only in its name and
+    ``training.confirm_episodes``, so its training is that run's: the run is derived from
+    ``models/<derive_from>`` (:func:`derive_run`) instead of trained.
+    """
 
     spec: str
     seed: int
     dest: str
+    derive_from: str | None = None
 
 
 JOBS: tuple[Job, ...] = (
@@ -83,12 +98,18 @@ JOBS: tuple[Job, ...] = (
     *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (1, 2)),
     Job("td3-sbx-per-arm-nets", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
     *(Job("td3-sbx-128-mirror-val", s, f"td3-sbx-128-mirror-val-4e6-seed{s}") for s in (0, 1, 2)),
+    # derived from shipped runs (after all trainings):
+    *(Job("td3-sbx-128-mirror-val-confirm", s, f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}",
+          f"td3-sbx-128-mirror-val-4e6-seed{s}") for s in (0, 1, 2)),
+    *(Job("independent-td3-sbx-2e6-val-confirm", s, f"independent-td3-sbx-2e6-val-confirm-seed{s}",
+          f"independent-td3-sbx-2e6-val-seed{s}") for s in (0, 1, 2)),
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
     "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "td3-sbx-own-arm-actors",
-    "td3-sbx-128-val", "td3-sbx-128-mirror-val", "independent-td3-sbx", "independent-td3-sbx-2e6",
-    "independent-td3-sbx-2e6-val", "ddpg-sbx", "ppo-sbx",
+    "td3-sbx-128-val", "td3-sbx-128-mirror-val", "td3-sbx-128-mirror-val-confirm",
+    "independent-td3-sbx", "independent-td3-sbx-2e6", "independent-td3-sbx-2e6-val",
+    "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
 )
 
 
@@ -121,15 +142,66 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     return newest.run_id, api.effective_status(newest)
 
 
+def _job_spec(job: Job) -> ExperimentSpec:
+    return api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml").with_seed(job.seed)
+
+
+def derive_run(job: Job, runs_dir: Path) -> str:
+    """Create ``job``'s run in ``runs_dir`` from ``models/<job.derive_from>``: its files but the
+    evaluation tables, under a new run id, with ``job``'s spec, and ``notes.derived_from`` in
+    run.json. The two specs must differ only in ``name`` and ``training.confirm_episodes``.
+    Returns the run id."""
+    assert job.derive_from is not None
+    base = resolve_run(str(ROOT / "models" / job.derive_from))
+    spec, base_spec = _job_spec(job), base.load_spec()
+    if _training_fields(spec) != _training_fields(base_spec) or base.info.seed != job.seed:
+        raise SystemExit(f"experiments/{job.spec}.yaml (seed {job.seed}) does not train like "
+                         f"models/{job.derive_from}; train it instead of deriving it")
+    run_id, path = create_unique_dir(runs_dir)
+    for source in base.path.iterdir():
+        if source.is_dir():
+            shutil.copytree(source, path / source.name, dirs_exist_ok=True)
+        elif source.name not in ("run.json", "spec.yaml"):
+            shutil.copy2(source, path / source.name)
+    for source in base.path.glob("tables/*.parquet"):
+        if source.name.startswith("eval_"):
+            (path / "tables" / source.name).unlink()
+    header = (f"# fully resolved spec of run {run_id} (seed {job.seed}), derived from run "
+              f"{base.info.run_id} ({base.info.name})\n")
+    atomic_write_text(path / "spec.yaml", header + spec_to_yaml(spec))
+    info = base.info.model_copy(update={
+        "run_id": run_id, "name": spec.name, "spec_hash": spec_hash(spec),
+        "notes": {**base.info.notes, "derived_from": {
+            "run_id": base.info.run_id, "name": base.info.name, "spec_hash": base.info.spec_hash,
+            "why": "the same training; the spec adds training.confirm_episodes"}},
+    })
+    atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")  # last
+    print(f"derived run {run_id} ({job.spec} seed {job.seed}) from models/{job.derive_from}",
+          flush=True)
+    return run_id
+
+
+def _training_fields(spec: ExperimentSpec) -> dict[str, Any]:
+    """The spec without what a derived run may change (name, the confirmation)."""
+    data = spec.model_dump(mode="json", exclude={"name", "cluster"})
+    data["training"].pop("confirm_episodes")
+    return data
+
+
 def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
-    """Train (or resume) ``job`` if needed, then export and evaluate it into ``models/``."""
+    """Train (or resume, or derive) ``job`` if needed, then export and evaluate it into
+    ``models/``."""
     dest = ROOT / "models" / job.dest
     if dest.is_dir():
         print(f"done: models/{job.dest}", flush=True)
         return
     found = _existing_run(job, runs_dir)
     runs = ["--runs-dir", str(runs_dir)]
-    if found is None:
+    if job.derive_from is not None:
+        run_id = derive_run(job, runs_dir) if found is None else found[0]
+        record = RunStore(runs_dir).get_run(run_id)
+        confirm_run(record, record.load_spec())  # each policy once, also after a kill
+    elif found is None:
         out = _softtrack("train", f"experiments/{job.spec}.yaml", "--seed", str(job.seed), *runs,
                          taskset=core)
         run_id = out.split()[0]
@@ -153,6 +225,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--runs-dir", default=None, help="where runs are trained [runs/]")
     parser.add_argument("--list", action="store_true", help="print the jobs and stop")
     parser.add_argument("--report-only", action="store_true", help="only rebuild the report")
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not rebuild the report (e.g. for two --only processes at once)")
     args = parser.parse_args(argv)
     jobs = [j for j in JOBS if not args.only or j.spec in args.only]
     if args.list:
@@ -160,8 +234,9 @@ def main(argv: list[str] | None = None) -> None:
             spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
             per_arm = " per arm" if spec.controller == "independent" else ""
-            print(f"{job.spec:27s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
-                  f"steps{per_arm}  models/{job.dest}  ({state})")
+            how = f"derived from models/{job.derive_from}, " if job.derive_from else ""
+            print(f"{job.spec:35s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
+                  f"steps{per_arm}  models/{job.dest}  ({how}{state})")
         return
     if not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)
@@ -178,9 +253,15 @@ def main(argv: list[str] | None = None) -> None:
             finally:
                 cores.put(core)
 
-        with ThreadPoolExecutor(n) as pool:
-            for future in [pool.submit(on_free_core, job) for job in jobs]:
-                future.result()
+        for phase in (
+            [job for job in jobs if job.derive_from is None],
+            [job for job in jobs if job.derive_from is not None],  # from the trained runs
+        ):
+            with ThreadPoolExecutor(n) as pool:
+                for future in [pool.submit(on_free_core, job) for job in phase]:
+                    future.result()
+    if args.no_report:
+        return
     shipped = {job.spec for job in JOBS if (ROOT / "models" / job.dest).is_dir()}
     waiting = [name for name in REPORTED if name not in shipped]
     if waiting:

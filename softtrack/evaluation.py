@@ -23,6 +23,7 @@ from softtrack.metrics import AXES, action_statistics, moment_rms, tracking_metr
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
+    "CONFIRM_SEED",
     "EVAL_TRAJECTORIES",
     "RANDOM_TARGET_SEED",
     "STEADY_START",
@@ -44,6 +45,8 @@ STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
 RANDOM_TARGET_SEED = 1_000_000
 # Validation episode k during training (softtrack.rl.validation) uses VALIDATION_SEED + k.
 VALIDATION_SEED = 2_000_000
+# Confirmation episode k after training (softtrack.rl.confirmation) uses CONFIRM_SEED + k.
+CONFIRM_SEED = 3_000_000
 
 # A policy maps one observation (obs_dim,) to one action (act_dim,).
 Policy = Callable[[np.ndarray], np.ndarray]

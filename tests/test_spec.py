@@ -259,6 +259,11 @@ ERROR_CASES = {
         [],
         ["training.checkpoint_interval", "checkpoint_interval 0 gives none"],
     ),
+    "confirm-without-best-validated": (
+        "training: {validation_episodes: 5, confirm_episodes: 20}\n",
+        [],
+        ["training.confirm_episodes", "set final_policy: best_validated or confirm_episodes: 0"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",

@@ -3,7 +3,9 @@
 A centralized run keeps ``model.zip`` (and ``vecnormalize.pkl`` when observations were
 normalised) in its directory; an independent run keeps one per arm under ``models/arm<k>/``.
 With ``training.final_policy: best_validated`` the run's policy is each policy directory's
-best-validated model (``best/step-…/model.zip``) instead. Either model can also be chosen
+best-validated model (``best/step-…/model.zip``) instead, and with ``training.confirm_episodes``
+the one of the two its confirmation chose (``confirmed.json``, :mod:`softtrack.rl.confirmation`;
+the best-validated model until it is written). Either model can also be chosen
 explicitly (:data:`ModelChoice`), e.g. to compare the last model with the kept one.
 """
 
@@ -21,7 +23,8 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["MODEL_CHOICES", "ModelChoice", "deterministic_policy", "load_policy", "model_paths"]
+__all__ = ["MODEL_CHOICES", "ModelChoice", "deterministic_policy", "load_policy", "load_policy_file",
+           "model_paths"]
 
 ModelChoice = Literal["policy", "last", "best"]
 """Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
@@ -40,11 +43,19 @@ def model_paths(
         raise ValueError(f"model={model!r}; choose from {', '.join(MODEL_CHOICES)}")
     arms: list[int | None] = [0, 1] if spec.controller == "independent" else [None]
     policies = [PolicyDir.of_run(record.path, arm) for arm in arms]
-    if model == "policy":
-        model = "best" if spec.training.final_policy == "best_validated" else "last"
-    if model == "best":
+    if model != "policy":
+        return [_candidate_path(policy, model) for policy in policies]
+    if spec.training.final_policy == "last":
+        return [policy.model_path for policy in policies]
+    if spec.training.confirm_episodes < 1:
         return [policy.best_model_path for policy in policies]
-    return [policy.model_path for policy in policies]
+    from softtrack.rl.confirmation import confirmed_choice
+
+    return [_candidate_path(policy, confirmed_choice(policy) or "best") for policy in policies]
+
+
+def _candidate_path(policy: PolicyDir, model: Literal["best", "last"]) -> Path:
+    return policy.best_model_path if model == "best" else policy.model_path
 
 
 def deterministic_policy(model: Any, normalizer: Any = None) -> Policy:
@@ -63,7 +74,13 @@ def deterministic_policy(model: Any, normalizer: Any = None) -> Policy:
     return act
 
 
-def _load_single(spec: ExperimentSpec, path: Path) -> Policy:
+def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
+    """The deterministic policy of one model file of a run with ``spec`` (its
+    ``vecnormalize.pkl`` beside it, if any): observation → action.
+
+    Raises:
+        RunStoreError: the file is missing or unreadable.
+    """
     if not path.is_file():
         raise RunStoreError(
             f"{path}: no trained model in this run (status may be unfinished); "
@@ -95,7 +112,7 @@ def load_policy(
     import torch
 
     torch.set_num_threads(1)
-    policies = [_load_single(spec, path) for path in model_paths(record, spec, model)]
+    policies = [load_policy_file(spec, path) for path in model_paths(record, spec, model)]
     if spec.controller == "independent":
         return independent_policy(policies)
     return policies[0]

@@ -3,7 +3,8 @@
 :func:`train_run` owns the run while it trains: it marks it ``running``, trains its policies
 with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
 
-* ``completed``: every policy's budget is done and its final model saved;
+* ``completed``: every policy's budget is done and its final model saved (and, with
+  ``training.confirm_episodes``, its kept model confirmed: :mod:`softtrack.rl.confirmation`);
 * ``interrupted``: SIGINT or SIGTERM arrived; the current step finished, a checkpoint was
   saved and the pending episodes written (exit code 128 + signal: 130 for SIGINT);
 * ``failed``: an exception; run.json's ``error`` has its one-line summary and ``traceback``
@@ -35,6 +36,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
+from softtrack.rl.confirmation import confirm_run
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy_training import (
     PolicyJob,
@@ -236,6 +238,8 @@ def _train_locked(
             if sps is not None:
                 fields["steps_per_second"] = sps
             step = fields["global_step"]
+            if finished == len(jobs) and not confirm_run(record, spec, flag):
+                finished -= 1  # stopped during the confirmation: resuming confirms again
             if finished < len(jobs):  # only a stop request ends the loop early
                 signum = flag.signum if flag.signum is not None else signal.SIGINT
                 store.mark_finished(record.run_id, "interrupted", **fields)

@@ -40,7 +40,14 @@ from typing import Any
 
 import pandas as pd
 
-from softtrack.evaluation import VALIDATION_SEED, metrics_table, run_episode, validation_score
+from softtrack.env.config import TrackingConfig
+from softtrack.evaluation import (
+    VALIDATION_SEED,
+    Policy,
+    metrics_table,
+    run_episode,
+    validation_score,
+)
 from softtrack.rl.factory import env_config
 from softtrack.rl.policy import deterministic_policy
 from softtrack.spec import ExperimentSpec
@@ -55,6 +62,7 @@ __all__ = [
     "BestModel",
     "Validator",
     "best_model",
+    "held_out_rows",
     "truncate_validation",
     "validated_steps",
     "validation_score",
@@ -116,6 +124,35 @@ def validated_steps(record: RunRecord, policy: PolicyDir) -> set[int]:
     return {int(s) for s in df.loc[policy.row_mask(df), "global_step"]}
 
 
+def held_out_rows(
+    run_id: str,
+    act: Policy,
+    config: TrackingConfig,
+    duration: float,
+    first_seed: int,
+    episodes: int,
+    arm: int | None,
+    stop_requested: Callable[[], bool] = lambda: False,
+) -> pd.DataFrame | None:
+    """Run ``episodes`` deterministic random-target episodes of ``act`` (episode k from seed
+    ``first_seed + k``, ``duration`` s each) and return their metrics: one row per episode
+    and arm, the columns of :func:`softtrack.evaluation.metrics_table` plus ``episode`` and
+    ``seed`` (``arm`` set to ``arm`` for an independent run's arm policy). ``None`` if
+    ``stop_requested`` turned true between two episodes."""
+    parts = []
+    for k in range(episodes):
+        if stop_requested():
+            return None
+        seed = first_seed + k
+        metrics = metrics_table(run_id, run_episode(act, config, "random", duration, seed))
+        if arm is not None:
+            metrics["arm"] = arm
+        metrics.insert(2, "episode", k)
+        metrics.insert(3, "seed", seed)
+        parts.append(metrics)
+    return pd.concat(parts, ignore_index=True)
+
+
 class Validator:
     """Validate one policy of a run after its checkpoints (module docstring).
 
@@ -154,22 +191,13 @@ class Validator:
         step = int(model.num_timesteps)
         started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
-        act = deterministic_policy(model, normalizer)
-        parts = []
-        for k in range(self.episodes):
-            if self.stop_requested():
-                return None
-            seed = VALIDATION_SEED + k
-            metrics = metrics_table(
-                self.record.run_id, run_episode(act, self.config, "random", self.duration, seed)
-            )
-            if self.policy.arm is not None:
-                metrics["arm"] = self.policy.arm
-            metrics.insert(1, "global_step", step)
-            metrics.insert(3, "episode", k)
-            metrics.insert(4, "seed", seed)
-            parts.append(metrics)
-        rows = pd.concat(parts, ignore_index=True)
+        rows = held_out_rows(
+            self.record.run_id, deterministic_policy(model, normalizer), self.config,
+            self.duration, VALIDATION_SEED, self.episodes, self.policy.arm, self.stop_requested,
+        )
+        if rows is None:
+            return None
+        rows.insert(1, "global_step", step)
         score = validation_score(rows)
         improved = self.best is None or score < self.best.score
         if improved:  # before the rows: a kill in between leaves the step to validate again

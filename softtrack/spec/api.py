@@ -153,6 +153,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "mirror_replay"): False,
     ("training", "validation_episodes"): 0,
     ("training", "final_policy"): "last",
+    ("training", "confirm_episodes"): 0,
 }
 
 

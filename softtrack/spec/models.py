@@ -87,6 +87,15 @@ class TrainingSpec(SpecModel):
         "(needs validation_episodes ≥ 1)",
         "-",
     )
+    confirm_episodes: Int = unit_field(
+        0,
+        "with final_policy best_validated: after training, the best-validated and the last "
+        "model of each policy each run this many more held-out random-target episodes, and the "
+        "one with the lower mean 3-D RMSE becomes the policy (tables/confirmation.parquet); "
+        "0 = no confirmation, the best-validated model is the policy",
+        "episodes",
+        ge=0,
+    )
     final_stage_fraction: Float = unit_field(
         0.1,
         "the final-stage return averages episodes in this last fraction of total_timesteps "
@@ -295,6 +304,12 @@ class ExperimentSpec(SpecModel):
             _check_mirror_replay(self)
         if t.final_policy == "best_validated":
             _check_validation(t)
+        elif t.confirm_episodes > 0:
+            raise custom_error(
+                f"confirm_episodes {t.confirm_episodes} confirms the best-validated model, but "
+                "final_policy is 'last'; set final_policy: best_validated or confirm_episodes: 0",
+                "training.confirm_episodes",
+            )
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

@@ -14,6 +14,8 @@ With ``training.validation_episodes`` a policy also keeps its best-validated mod
 ``best/step-<step>/`` (``model.zip``, ``vecnormalize.pkl`` when normalising, ``state.json``
 with the step and validation score; see :mod:`softtrack.rl.validation`). Each directory is
 written atomically and only when it beats the previous one, so the newest is the best.
+With ``training.confirm_episodes`` it also gets ``confirmed.json`` after training, naming the
+model its confirmation kept (:mod:`softtrack.rl.confirmation`).
 """
 
 from __future__ import annotations
@@ -97,6 +99,12 @@ class PolicyDir:
         never exists, while there is none."""
         best = self.list_best()
         return (best[-1] if best else self.best_dir) / "model.zip"
+
+    @property
+    def confirmed_path(self) -> Path:
+        """``confirmed.json``: which candidate the confirmation after training kept
+        (``training.confirm_episodes``, :mod:`softtrack.rl.confirmation`)."""
+        return self.path / "confirmed.json"
 
     def row_mask(self, df: Any) -> np.ndarray:
         """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of
