@@ -32,7 +32,9 @@ On the later 2-core AVX-512 machine, two td3-sbx-own-arm-actors seeds side by si
 td3-sbx-per-arm-nets seed 2 81 min (819 env steps/s) beside td3-sbx-128-per-arm seed 2 1.79 h
 (620 env steps/s; training clocks as in the report). td3-sbx-128-mirror-val: seeds 0-1 1.72 h
 (~645 env steps/s, beside another training) on that machine; seed 2 2.26 h (491 env steps/s)
-alone on a 2-core Intel Xeon with AVX-512.
+alone on a 2-core Intel Xeon with AVX-512. Deriving and confirming the -confirm runs there:
+11 min for td3-sbx-128-mirror-val-confirm's three seeds, 14 min for
+independent-td3-sbx-2e6-val-confirm's (side by side, evaluation included).
 """
 
 from __future__ import annotations

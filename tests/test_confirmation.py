@@ -11,15 +11,19 @@ import numpy as np
 import pandas as pd
 import yaml
 from test_train import _spec
-from test_validation import VALIDATED, _episode_metrics, _train
+from test_validation import VALIDATED, _episode_metrics, _report_rows, _train
+from typer.testing import CliRunner
 
+from softtrack.cli import app
 from softtrack.evaluation import CONFIRM_SEED, validation_score
 from softtrack.rl.confirmation import confirm_policy, confirm_run, confirmed_choice
 from softtrack.rl.policy import model_paths
 from softtrack.store.atomic import atomic_write_json
 from softtrack.store.layout import PolicyDir
-from softtrack.store.runs import RunRecord
+from softtrack.store.runs import RunRecord, RunStore
 from softtrack.store.tables import read_table
+
+runner = CliRunner()
 
 CONFIRMED = {**VALIDATED, "final_policy": "best_validated", "confirm_episodes": 3}
 
@@ -106,6 +110,16 @@ def test_a_stopped_confirmation_writes_nothing(tmp_path: Path) -> None:
     # until it is confirmed, the run's policy is its best-validated model
     assert model_paths(record, record.load_spec()) == [policy.best_model_path]
 
+    # as if the process had been stopped there: resuming confirms the policy again
+    store = RunStore(record.path.parent)
+    store.mark_finished(record.run_id, "interrupted")
+    result = runner.invoke(app, ["train", "--resume", record.run_id, "--runs-dir",
+                                 str(record.path.parent)], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    assert store.get_run(record.run_id).info.status == "completed"
+    _check_candidates(_confirmation(record), policy, [0, 1])
+    pd.testing.assert_frame_equal(_confirmation(record), before)
+
 
 def test_independent_arms_are_confirmed_in_their_own_scene(tmp_path: Path) -> None:
     spec = _spec(tmp_path, total_timesteps=400, **CONFIRMED)
@@ -124,3 +138,10 @@ def test_independent_arms_are_confirmed_in_their_own_scene(tmp_path: Path) -> No
         again = _episode_metrics(paths[-1], record.load_spec(), arm, "random", CONFIRM_SEED)
         np.testing.assert_allclose(again["rmse_3d"], first["rmse_3d"], rtol=1e-12)
     assert model_paths(record, record.load_spec()) == paths
+
+    # the report's model-selection table shows both scores and the kept model
+    rows_md = [row.strip("| ").split(" | ") for row in _report_rows(record, tmp_path)]
+    for arm, cells in enumerate(rows_md):
+        state = json.loads(PolicyDir.of_run(record.path, arm).confirmed_path.read_text())
+        scores = state["scores"]
+        assert cells[-2:] == [f"{scores['best']:.4f} / {scores['last']:.4f}", state["model"]]

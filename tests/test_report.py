@@ -7,6 +7,7 @@ from __future__ import annotations
 import itertools
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -429,6 +430,19 @@ def test_provenance_names_every_commit_a_resumed_run_trained_on(tmp_path: Path) 
     assert text == f"{a[:12]}, then {b[:12]} (+ uncommitted changes)"
     store.update_run(run_id, git_commit=None, sessions=[])
     assert commit_text(SimpleNamespace(record=store.get_run(run_id))) == "unknown"
+
+
+def test_provenance_names_the_runs_a_derived_run_came_from(
+    store: RunStore, tmp_path: Path
+) -> None:
+    derived = store.create_run(_spec("derived"), 0, notes={
+        "derived_from": {"run_id": "01ABC", "name": "base-experiment"}})
+    try:
+        md = build_report([derived], tmp_path / "derived", "softtrack report derived").read_text(
+            encoding="utf-8")
+        assert "derived from the runs of `base-experiment` (the same training" in md
+    finally:
+        shutil.rmtree(derived.path)
 
 
 def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Path) -> None:

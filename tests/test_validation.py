@@ -137,7 +137,7 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     # the report names the kept checkpoint and plots every validation
     rows = _report_rows(record, tmp_path)
     expected_row = (f"| TD3 | 0 | both arms | 4 | {best_step:,} | {scores[best_step]:.4f} | 800 "
-                    f"| {scores[800]:.4f} | best |")
+                    f"| {scores[800]:.4f} | – | best |")
     assert rows == [expected_row]
 
 

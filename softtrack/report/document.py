@@ -180,6 +180,11 @@ def group_provenance(group: Group) -> str:
     )
     if commands:
         text += "; trained by " + ", ".join(f"`{c}`" for c in commands)
+    bases = sorted({str(base.get("name")) for r in group.runs
+                    if isinstance(base := r.record.info.notes.get("derived_from"), dict)})
+    if bases:
+        text += (f"; derived from the runs of `{'`, `'.join(bases)}` (the same training, the "
+                 "spec changed after it: run.json `notes.derived_from`)")
     return text
 
 

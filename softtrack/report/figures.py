@@ -59,6 +59,13 @@ def _new(width: float, height: float) -> Figure:
     return fig
 
 
+def _suptitle(fig: Figure, text: str, fontsize: float) -> None:
+    """The figure's title, wrapped to its width (a long run name would be cut off)."""
+    chars = max(40, int(fig.get_size_inches()[0] * 17 * 7 / fontsize * 0.9))
+    fig.suptitle("\n".join(textwrap.wrap(text, width=chars, break_on_hyphens=False)),
+                 fontsize=fontsize)
+
+
 def _save(fig: Figure, path: str | os.PathLike[str], footer: str | None) -> Path:
     if footer:  # wrapped to the figure's width, below the axes
         width, height = fig.get_size_inches()
@@ -262,7 +269,7 @@ def trajectory_3d_figure(
     ax2.set_title("seen from above (x–z plane)")
     ax2.grid(alpha=0.3)
     ax2.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9)
-    fig.suptitle(f"{title}{' — ' + subtitle if subtitle else ''}", fontsize=12)
+    _suptitle(fig, f"{title}{' — ' + subtitle if subtitle else ''}", 12)
     return _save(fig, path, footer)
 
 
@@ -322,10 +329,11 @@ def tracking_errors_figure(
                 ax.axvline(STEADY_START, color="0.6", ls=":", lw=1)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    fig.suptitle(
+    _suptitle(
+        fig,
         f"{title}{' — ' + subtitle if subtitle else ''}  (dotted: t = 1 s, start of "
         "the steady metrics)",
-        fontsize=11,
+        11,
     )
     return _save(fig, path, footer)
 
@@ -390,7 +398,7 @@ def moments_figure(
             ax.legend(loc="upper right", fontsize=8, ncol=2)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    fig.suptitle(f"{title}: spatial RMS over the 20 elements", fontsize=12)
+    _suptitle(fig, f"{title}: spatial RMS over the 20 elements", 12)
     return _save(fig, path, footer)
 
 

@@ -3,7 +3,9 @@ the checkpoints their validation selected."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -12,6 +14,7 @@ from scipy import stats
 from softtrack.evaluation import validation_score
 from softtrack.metrics import ACTION_STATISTICS
 from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group, RunData
+from softtrack.store.layout import PolicyDir
 
 __all__ = [
     "controller_differences",
@@ -186,8 +189,10 @@ def validation_summary(
         One row per entry: group (label), seed, run_id, policy (as in
         :func:`validation_scores`), checkpoints (validated), best_step and best_score (the
         lowest score, the earliest on ties: the model ``best/`` keeps), last_step and
-        last_score (the last validated checkpoint), uses_best (``training.final_policy:
-        best_validated``: the best model is the run's policy).
+        last_score (the last validated checkpoint), confirmed_best and confirmed_last (the
+        two candidates' scores in the confirmation after training, m; NaN without one:
+        :mod:`softtrack.rl.confirmation`), kept (``best`` or ``last``: the run's policy,
+        from ``training.final_policy`` and the confirmation).
     """
     rows = []
     for group, run, policy, part in scores:
@@ -195,15 +200,28 @@ def validation_summary(
         best = part.loc[part["score"].idxmin()]
         last = part.iloc[-1]
         training = run.record.raw_spec().get("training")
+        uses_best = isinstance(training, dict) and training.get("final_policy") == "best_validated"
+        confirmed = _confirmation(run, policy) if uses_best else {}
         rows.append({
             "group": group.label, "seed": run.seed, "run_id": run.run_id,
             "policy": int(policy), "checkpoints": len(part),
             "best_step": int(best["global_step"]), "best_score": float(best["score"]),
             "last_step": int(last["global_step"]), "last_score": float(last["score"]),
-            "uses_best": isinstance(training, dict)
-            and training.get("final_policy") == "best_validated",
+            "confirmed_best": confirmed.get("scores", {}).get("best", np.nan),
+            "confirmed_last": confirmed.get("scores", {}).get("last", np.nan),
+            "kept": confirmed.get("model", "best") if uses_best else "last",
         })
     return pd.DataFrame(rows)
+
+
+def _confirmation(run: RunData, policy: int) -> dict[str, Any]:
+    """``confirmed.json`` of a run's policy (-1: the centralized one), or {} without one."""
+    directory = PolicyDir.of_run(run.record.path, None if policy < 0 else policy)
+    try:
+        data = json.loads(directory.confirmed_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:

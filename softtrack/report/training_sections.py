@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from softtrack.evaluation import VALIDATION_SEED
+import numpy as np
+
+from softtrack.evaluation import CONFIRM_SEED, VALIDATION_SEED
 from softtrack.report import figures as fg
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import RunData
@@ -178,12 +180,15 @@ def validation_section(doc: Doc, ctx: Context) -> None:
             f"{row.best_score:.4f}",
             f"{row.last_step:,}",
             f"{row.last_score:.4f}",
-            "best" if row.uses_best else "last",
+            "–" if np.isnan(row.confirmed_best)
+            else f"{row.confirmed_best:.4f} / {row.confirmed_last:.4f}",
+            row.kept,
         ])
     doc.table(
         ["controller", "seed", "policy", "validated checkpoints", "best checkpoint (env steps)",
          "its validation 3-D RMSE (m)", "last checkpoint (env steps)",
-         "its validation 3-D RMSE (m)", "run's policy"],
+         "its validation 3-D RMSE (m)", "confirmation 3-D RMSE best / last (m)",
+         "run's policy"],
         rows,
     )
     doc.p(
@@ -191,9 +196,13 @@ def validation_section(doc: Doc, ctx: Context) -> None:
         f"training target (`training.validation_episodes`; episode k from seed "
         f"{VALIDATION_SEED:,} + k, which neither training nor `evaluate --random` uses); its "
         "score is the mean 3-D RMSE over the episodes and arms (an independent run validates "
-        "each arm's policy in its own single-arm scene). \"run's policy\": `best` where "
-        "`training.final_policy: best_validated` makes the best checkpoint the policy that "
-        "every evaluation in this report uses, `last` where the final model is used."
+        "each arm's policy in its own single-arm scene). \"run's policy\": the model every "
+        "evaluation in this report uses, `best` where `training.final_policy: best_validated` "
+        "makes it the best checkpoint, `last` where the final model is used. "
+        "\"confirmation\": with `training.confirm_episodes`, after training the best and the "
+        "last model each ran that many more held-out episodes (episode k from seed "
+        f"{CONFIRM_SEED:,} + k), and the lower score decided the run's policy; \"–\": no "
+        "confirmation."
     )
     path, rel = ctx.figure("validation.png")
     fg.validation_figure({(g.label, r.seed, k): part for g, r, k, part in scores},
