@@ -144,10 +144,6 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     return newest.run_id, api.effective_status(newest)
 
 
-def _job_spec(job: Job) -> ExperimentSpec:
-    return api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml").with_seed(job.seed)
-
-
 def derive_run(job: Job, runs_dir: Path) -> str:
     """Create ``job``'s run in ``runs_dir`` from ``models/<job.derive_from>``: its files but the
     evaluation tables, under a new run id, with ``job``'s spec, and ``notes.derived_from`` in
@@ -155,19 +151,14 @@ def derive_run(job: Job, runs_dir: Path) -> str:
     Returns the run id."""
     assert job.derive_from is not None
     base = resolve_run(str(ROOT / "models" / job.derive_from))
-    spec, base_spec = _job_spec(job), base.load_spec()
+    spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml").with_seed(job.seed)
+    base_spec = base.load_spec()
     if _training_fields(spec) != _training_fields(base_spec) or base.info.seed != job.seed:
         raise SystemExit(f"experiments/{job.spec}.yaml (seed {job.seed}) does not train like "
                          f"models/{job.derive_from}; train it instead of deriving it")
     run_id, path = create_unique_dir(runs_dir)
-    for source in base.path.iterdir():
-        if source.is_dir():
-            shutil.copytree(source, path / source.name, dirs_exist_ok=True)
-        elif source.name not in ("run.json", "spec.yaml"):
-            shutil.copy2(source, path / source.name)
-    for source in base.path.glob("tables/*.parquet"):
-        if source.name.startswith("eval_"):
-            (path / "tables" / source.name).unlink()
+    shutil.copytree(base.path, path, dirs_exist_ok=True, ignore=lambda _dir, names: [
+        n for n in names if n in ("run.json", "spec.yaml") or n.startswith("eval_")])
     header = (f"# fully resolved spec of run {run_id} (seed {job.seed}), derived from run "
               f"{base.info.run_id} ({base.info.name})\n")
     atomic_write_text(path / "spec.yaml", header + spec_to_yaml(spec))

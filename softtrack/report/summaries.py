@@ -3,7 +3,6 @@ the checkpoints their validation selected."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from typing import Any
 
@@ -216,12 +215,7 @@ def validation_summary(
 
 def _confirmation(run: RunData, policy: int) -> dict[str, Any]:
     """``confirmed.json`` of a run's policy (-1: the centralized one), or {} without one."""
-    directory = PolicyDir.of_run(run.record.path, None if policy < 0 else policy)
-    try:
-        data = json.loads(directory.confirmed_path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
+    return PolicyDir.of_run(run.record.path, None if policy < 0 else policy).read_confirmed() or {}
 
 
 def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:

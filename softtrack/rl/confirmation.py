@@ -25,7 +25,6 @@ is scored once.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import sys
 import time
@@ -81,11 +80,8 @@ class Confirmation:
 def confirmed_choice(policy: PolicyDir) -> Candidate | None:
     """The candidate ``policy``'s ``confirmed.json`` chose, or ``None`` if it has none
     (not confirmed yet) or it cannot be read."""
-    with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
-        model = json.loads(policy.confirmed_path.read_text(encoding="utf-8"))["model"]
-        if model in ("best", "last"):
-            return model  # type: ignore[no-any-return]
-    return None
+    model = (policy.read_confirmed() or {}).get("model")
+    return model if model in ("best", "last") else None  # type: ignore[return-value]
 
 
 def confirm_policy(
@@ -123,6 +119,7 @@ def confirm_policy(
     if last_step != best.step:
         candidates["last"] = (policy.model_path, last_step)
     config = env_config(spec, policy.arm)
+    name = f"{record.run_id[-8:]} {policy.label}".rstrip()
     duration = float(spec.training.eval_duration)
     scores: dict[str, float] = {}
     parts = []
@@ -138,7 +135,6 @@ def confirm_policy(
         rows.insert(2, "global_step", step)
         parts.append(rows)
         scores[candidate] = validation_score(rows)
-        name = f"{record.run_id[-8:]} {policy.label}".rstrip()
         log(f"{name} confirmation of the {candidate} model ({step:,} steps): 3-D RMSE "
             f"{scores[candidate]:.4f} m over {episodes} episodes in "
             f"{time.monotonic() - started:.0f} s")
@@ -151,7 +147,7 @@ def confirm_policy(
         {"model": chosen, "global_step": outcome.steps[chosen], "scores": scores,
          "steps": outcome.steps, "episodes": episodes, "saved": utc_now()},
     )
-    log(f"{record.run_id[-8:]} {policy.label} keeps the {chosen} model".replace("  ", " "))
+    log(f"{name} keeps the {chosen} model")
     return outcome
 
 
@@ -166,8 +162,7 @@ def confirm_run(
     ``training.confirm_episodes``. Returns ``False`` if a stop request cut it short."""
     if spec.training.confirm_episodes < 1:
         return True
-    arms: list[int | None] = [0, 1] if spec.controller == "independent" else [None]
-    for policy in (PolicyDir.of_run(record.path, arm) for arm in arms):
+    for policy in PolicyDir.all_of_run(record.path, spec.controller == "independent"):
         done = confirmed_choice(policy) is not None
         if not done and confirm_policy(record, spec, policy, stop_requested, log) is None:
             return False

@@ -41,8 +41,7 @@ def model_paths(
     arm otherwise. The files need not exist (an unfinished run, a run without validation)."""
     if model not in MODEL_CHOICES:
         raise ValueError(f"model={model!r}; choose from {', '.join(MODEL_CHOICES)}")
-    arms: list[int | None] = [0, 1] if spec.controller == "independent" else [None]
-    policies = [PolicyDir.of_run(record.path, arm) for arm in arms]
+    policies = PolicyDir.all_of_run(record.path, spec.controller == "independent")
     if model != "policy":
         return [_candidate_path(policy, model) for policy in policies]
     if spec.training.final_policy == "last":

@@ -20,6 +20,7 @@ model its confirmation kept (:mod:`softtrack.rl.confirmation`).
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,6 +53,12 @@ class PolicyDir:
     def of_run(cls, run_path: Path, arm: int | None = None) -> PolicyDir:
         """The policy directory of ``arm`` (``None``: the centralized policy) in a run."""
         return cls(run_path if arm is None else arm_dir(run_path, arm), arm)
+
+    @classmethod
+    def all_of_run(cls, run_path: Path, independent: bool) -> list[PolicyDir]:
+        """Every policy directory of a run: arm 0's and arm 1's for an independent run, else
+        the centralized one."""
+        return [cls.of_run(run_path, arm) for arm in ((0, 1) if independent else (None,))]
 
     @property
     def model_path(self) -> Path:
@@ -105,6 +112,14 @@ class PolicyDir:
         """``confirmed.json``: which candidate the confirmation after training kept
         (``training.confirm_episodes``, :mod:`softtrack.rl.confirmation`)."""
         return self.path / "confirmed.json"
+
+    def read_confirmed(self) -> dict[str, Any] | None:
+        """The content of ``confirmed.json``, or ``None`` if it is missing or unreadable."""
+        try:
+            data = json.loads(self.confirmed_path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        return data if isinstance(data, dict) else None
 
     def row_mask(self, df: Any) -> np.ndarray:
         """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of
