@@ -20,10 +20,13 @@ from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import (
     ExperimentSpec,
     SpecError,
+    chain_comment,
     load_spec,
+    spec_chain,
     spec_json_schema,
     spec_to_yaml,
 )
+from softtrack.store.provenance import portable_command
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.status import (
     RUN_TABLE_COLUMNS,
@@ -60,10 +63,12 @@ __all__ = [
     "resume",
     "resume_runs",
     "run_summary",
+    "spec_chain",
     "spec_defaults_yaml",
     "spec_schema_json",
     "sweep",
     "train",
+    "upgrade",
     "validate_spec",
     "validation_summary",
 ]
@@ -83,15 +88,21 @@ def validate_spec(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -
     return load_spec(path, overrides)
 
 
-def validation_summary(spec: ExperimentSpec) -> str:
-    """``ok: td3, 3 runs (seeds 0, 1, 2): td3/centralized, 10,000,000 env steps each``."""
+def validation_summary(spec: ExperimentSpec, chain: Sequence[str] = ()) -> str:
+    """``ok: td3, 3 runs (seeds 0, 1, 2): td3/centralized, 10,000,000 env steps each``, and
+    for a spec with a ``base:`` a second line naming the chain (``chain``: :func:`spec_chain`),
+    e.g. ``   base: experiments/study/td3-sbx-64-4e6.yaml → experiments/study/td3-64-1e7.yaml``.
+    """
     seeds = ", ".join(str(s) for s in spec.seeds)
     runs = f"{spec.n_runs} run{'s' if spec.n_runs != 1 else ''}"
     seed_word = "seeds" if spec.n_runs != 1 else "seed"
-    return (
+    text = (
         f"ok: {spec.name}, {runs} ({seed_word} {seeds}): {spec.algo.name}/{spec.controller}, "
         f"{spec.training.total_timesteps:,} env steps each"
     )
+    if len(chain) > 1:
+        text += "\n   base: " + " → ".join(chain[1:])
+    return text
 
 
 def spec_defaults_yaml() -> str:
@@ -109,8 +120,12 @@ def spec_schema_json() -> str:
 
 
 def resolved_spec_yaml(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> str:
-    """A spec file with defaults filled in and overrides applied, as YAML."""
-    return spec_to_yaml(load_spec(path, overrides))
+    """A spec file with its ``base:`` chain merged, defaults filled in and overrides applied, as
+    YAML; a spec with a base starts with comments naming the file and its bases
+    (:func:`softtrack.spec.chain_comment`), which leave it loadable on its own."""
+    spec = load_spec(path, overrides)
+    chain = spec_chain(path)
+    return (chain_comment(chain) if len(chain) > 1 else "") + spec_to_yaml(spec)
 
 
 # ---- training -----------------------------------------------------------------------------
@@ -138,6 +153,7 @@ def train(
     from softtrack.rl.train import train_run
 
     spec = load_spec(path, overrides)
+    chain = spec_chain(path)
     check_supported(spec, str(path))
     seeds = list(spec.seeds) if seed is None else [int(seed)]
     if seed is not None and not 0 <= seed < 2**32:
@@ -145,7 +161,7 @@ def train(
     store = RunStore(resolve_runs_dir(runs_dir))
     outcomes = []
     for s in seeds:
-        record = store.create_run(spec, s)
+        record = store.create_run(spec, s, spec_files=chain)
         if on_start is not None:
             on_start(record)
         outcome = train_run(store, record, show_progress=show_progress)
@@ -183,6 +199,7 @@ def evaluate(
     random_episodes: int = 0,
     on_random: Callable[..., None] | None = None,
     model: ModelChoice = "policy",
+    full_moments: bool = False,
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
@@ -201,6 +218,9 @@ def evaluate(
         model: which model of each run (:data:`softtrack.rl.policy.ModelChoice`): ``policy``
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
             so another model's results are only returned, never stored.
+        full_moments: also store every element torque at every step (table
+            ``eval_element_moments``, about 2 MB per trajectory); by default only the SPEC §5
+            summaries (``eval_moments``, ``eval_moment_peaks``) are stored.
 
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
@@ -246,7 +266,8 @@ def evaluate(
     frames = []
     for record, store in zip(records, stores, strict=True):
         if chosen:
-            frames.append(evaluate_run(record, chosen, on_episode, write=store, model=model))
+            frames.append(evaluate_run(record, chosen, on_episode, write=store, model=model,
+                                       full_moments=full_moments))
         if random_episodes:
             rows = evaluate_random_targets(record, random_episodes, write=store, model=model)
             if on_random is not None:
@@ -258,14 +279,44 @@ def export(
     reference: str, dest: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None
 ) -> Path:
     """Copy a finished run (id, id prefix or run directory) to ``dest`` without its checkpoints
-    and replay buffers: spec, run.json, final model(s), tables and log (see
-    :mod:`softtrack.store.export`). Returns ``dest``."""
+    and replay buffers: spec, run.json, tables, log, and its policy as ``model.zip`` beside
+    ``policy.json`` (other models under ``other_models/``), inference-only (see
+    :mod:`softtrack.rl.export`). Returns ``dest``."""
     from softtrack.eval_runs import resolve_run
-    from softtrack.rl.policy import model_paths
-    from softtrack.store.export import export_run
+    from softtrack.rl.export import export_policy_run
 
-    record = resolve_run(reference, runs_dir)
-    return export_run(record, model_paths(record, record.load_spec()), dest)
+    return export_policy_run(resolve_run(reference, runs_dir), dest)
+
+
+def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bool = False
+            ) -> dict[Path, list[str]]:
+    """Rewrite run directories made by earlier versions in the current format: evaluation
+    tables (:mod:`softtrack.store.upgrade`) and, for exported runs, the model layout
+    (:func:`softtrack.rl.export.relayout_exported_run`). Every directory is checked before
+    any is changed.
+
+    Returns:
+        ``{run directory: what was rewritten}`` (table names, ``models``; empty: already
+        current).
+
+    Raises:
+        RunStoreError: a path is not a run directory (no ``tables/`` or no ``run.json``).
+    """
+    from softtrack.rl.export import relayout_exported_run
+    from softtrack.store.upgrade import upgrade_run_tables
+
+    paths = [Path(d) for d in run_dirs]
+    for path in paths:
+        if not (path / "tables").is_dir() or not (path / "run.json").is_file():
+            raise RunStoreError(f"{path}: not a run directory with tables (no run.json or "
+                                "tables/ inside); give run directories such as models/<name>")
+        RunStore(path.parent).get_run(path.name).load_spec()
+    done = {}
+    for path in paths:
+        done[path] = upgrade_run_tables(path, keep_full_moments)
+        if relayout_exported_run(path):
+            done[path].append("models")
+    return done
 
 
 def report(
@@ -304,7 +355,7 @@ def report(
             evaluate_run(record, on_episode=on_episode)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report([*records, *extra], out_dir, command_line)
+    return build_report([*records, *extra], out_dir, portable_command(list(command_line)))
 
 
 QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
@@ -362,11 +413,13 @@ def sweep(
     points = expand_grid(paths, parse_grid(grid), seeds=parse_seeds(seeds), overrides=overrides)
     store = RunStore(resolve_runs_dir(runs_dir))
     sweep_id = dispatch.new_sweep_id()
+    chains = {point.path: spec_chain(point.path) for point in points}
     records = []
     for point in points:
         for s in point.spec.seeds:
             notes = {"sweep": sweep_id, "grid": point.grid}
-            records.append(store.create_run(point.spec, s, list(sys.argv), notes=notes))
+            records.append(store.create_run(point.spec, s, list(sys.argv), notes=notes,
+                                            spec_files=chains[point.path]))
     if on_created is not None:
         on_created(sweep_id, records)
     ids = [r.run_id for r in records]

@@ -95,10 +95,14 @@ def validate(
     ],
     overrides: SetOption = None,
 ) -> None:
-    """Check a spec file (and overrides) without running anything."""
+    """Check a spec file (and overrides) without running anything.
+
+    A spec with `base:` is checked with its whole chain of bases, which a second line names.
+    """
     with _user_errors():
         resolved = api.validate_spec(spec, overrides or [])
-    typer.echo(api.validation_summary(resolved))
+        chain = api.spec_chain(spec)
+    typer.echo(api.validation_summary(resolved, chain))
 
 
 @app.command("spec")
@@ -117,7 +121,11 @@ def spec_command(
         bool, typer.Option("--defaults", help="Print the default spec as commented YAML.")
     ] = False,
 ) -> None:
-    """Show the spec format: the JSON Schema, the defaults, or a file fully resolved."""
+    """Show the spec format: the JSON Schema, the defaults, or a file fully resolved.
+
+    A file with `base:` is printed with its chain of bases merged; comments at the top name
+    the file and its bases.
+    """
     chosen = sum([schema, defaults, spec is not None])
     if chosen != 1:
         _fail(
@@ -126,7 +134,8 @@ def spec_command(
         )
     if overrides and spec is None:
         _fail(
-            "spec: --set needs a SPEC file; e.g. `softtrack spec experiments/td3.yaml --set seeds=0`"
+            "spec: --set needs a SPEC file; e.g. "
+            "`softtrack spec experiments/study/td3-64-1e7.yaml --set seeds=0`"
         )
     with _user_errors():
         if schema:
@@ -403,6 +412,54 @@ def runs(
     typer.echo(api.format_runs_table(summaries))
 
 
+class QueryFormat(str, enum.Enum):
+    table = "table"
+    csv = "csv"
+    json = "json"
+
+
+@app.command("query")
+def query_command(
+    sql: Annotated[
+        str | None,
+        typer.Argument(metavar="[SQL]", show_default=False,
+                       help="A DuckDB SQL query (quote it), e.g. \"SELECT * FROM runs\"."),
+    ] = None,
+    runs_dir: RunsDirOption = None,
+    output_format: Annotated[
+        QueryFormat,
+        typer.Option("--format", "-f", case_sensitive=False,
+                     help="table: aligned text; csv: with a header; json: an array of records."),
+    ] = QueryFormat.table,
+    views: Annotated[
+        bool, typer.Option("--views", help="List the views and their columns instead.")
+    ] = False,
+) -> None:
+    """Run SQL (DuckDB) over the runs' run.json and tables and print the result.
+
+    Views: `runs` (one row per run: run_id, name (the experiment), algo, controller, seed,
+    status, global_step, steps_per_second, train_seconds, ...), `experiments` (one row per
+    name) and one per table that some run has (eval_metrics, train_episodes, validation, ...),
+    whose `run_id` is the run's id. `--views` lists them with their columns; docs/query.md
+    has more examples. Example, the seed-mean 3-D RMSE per experiment, trajectory and arm:
+
+    `softtrack query "SELECT name, trajectory, arm, avg(rmse_3d) AS rmse_3d FROM eval_metrics
+    JOIN runs USING (run_id) GROUP BY ALL ORDER BY ALL" --runs-dir models`
+    """
+    if views == (sql is not None):
+        _fail('query: give either SQL or --views; e.g. `softtrack query "SELECT * FROM runs"`')
+    from softtrack.store.query import ResultsDatabase, format_result, format_views
+
+    with _user_errors(), ResultsDatabase(runs_dir) as db:
+        if views:
+            typer.echo(format_views(db.views()))
+            return
+        assert sql is not None
+        result = db.query(sql)
+    if len(result.columns):
+        typer.echo(format_result(result, output_format.value))
+
+
 class TrajectoryChoice(str, enum.Enum):
     circle = "circle"
     rectangle = "rectangle"
@@ -442,12 +499,20 @@ def evaluate(
                           "last model of training, or the best-validated one. Only the "
                           "policy's results are stored."),
     ] = ModelOption.policy,
+    full_moments: Annotated[
+        bool,
+        typer.Option("--full-moments",
+                     help="Also store every element torque at every step (table "
+                          "eval_element_moments, ~2 MB per trajectory); by default only "
+                          "the per-step RMS and the per-element peaks are stored."),
+    ] = False,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Evaluate runs on the circle, rectangle and figure-eight targets.
 
     Runs each run's deterministic policy for 10 s per trajectory from the straight initial
-    state and stores the tables eval_trajectories, eval_metrics and eval_moments. Prints the
+    state and stores the tables eval_trajectories, eval_metrics, eval_moments (spatial RMS of
+    the element torques per step) and eval_moment_peaks (each element's peak). Prints the
     3-D RMSE of each arm per run and trajectory (m). With --random N, also N episodes on the
     random target the run was trained on (seeds 1,000,000 + k, the same for every run), and
     their mean 3-D RMSE per arm (--trajectory none --random N: only those).
@@ -463,7 +528,8 @@ def evaluate(
 
     with _user_errors():
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
-                     random_episodes=random, on_random=_print_random, model=model.value)
+                     random_episodes=random, on_random=_print_random, model=model.value,
+                     full_moments=full_moments)
 
 
 def _print_episode(record: object, episode: object, metrics: object) -> None:
@@ -511,6 +577,28 @@ def export(
         path = api.export(run, dest, runs_dir=runs_dir)
     size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
     typer.echo(f"exported: {path} ({size / 1e6:.1f} MB)")
+
+
+@app.command()
+def upgrade(
+    run_dirs: Annotated[list[str], typer.Argument(metavar="RUN_DIR...", show_default=False,
+                                                  help="Run directories to rewrite.")],
+    keep_full_moments: Annotated[
+        bool, typer.Option("--keep-full-moments",
+                           help="Keep the per-element torque history as eval_element_moments.")
+    ] = False,
+) -> None:
+    """Rewrite the tables of runs made by earlier softtrack versions in the current format.
+
+    Element-torque histories become the SPEC §5 summaries (eval_moments: per-step RMS;
+    eval_moment_peaks: each element's peak) and positions float32, about 14x smaller, computed
+    from the stored tables alone. Runs already current are left as they are.
+    Example: softtrack upgrade models/*/
+    """
+    with _user_errors():
+        results = api.upgrade(run_dirs, keep_full_moments=keep_full_moments)
+    for path, written in results.items():
+        typer.echo(f"{path}: {', '.join(written) if written else 'already current'}")
 
 
 @app.command()

@@ -8,8 +8,12 @@ trajectories it evaluated and keeping the others):
 * ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s),
   and the arm's action statistics (``action_saturation``, ``action_change``, ``action_rms``;
   tables written before these were added lack them, and readers treat them as optional);
-* ``eval_moments.parquet``: spatial-RMS and peak element torques per step, arm and direction,
-  with the element torques themselves.
+* ``eval_moments.parquet``: the spatial RMS of the element torques per step, arm and direction
+  (SPEC §5, float32);
+* ``eval_moment_peaks.parquet``: each element's largest absolute torque over the episode, per
+  arm and direction;
+* ``eval_element_moments.parquet``, only with ``full_moments=True``: every element torque at
+  every step (about 2 MB per trajectory; left out by default).
 
 ``evaluate_random_targets`` runs N episodes on the run's own random training target instead,
 from seeds that training never uses (:data:`softtrack.evaluation.RANDOM_TARGET_SEED` + k),
@@ -36,7 +40,9 @@ from softtrack.evaluation import (
     RANDOM_TARGET_SEED,
     Episode,
     Policy,
+    element_moments_table,
     metrics_table,
+    moment_peaks_table,
     moments_table,
     run_episode,
     trajectory_table,
@@ -48,6 +54,7 @@ if TYPE_CHECKING:
     from softtrack.rl.policy import ModelChoice
 
 __all__ = [
+    "ELEMENT_MOMENTS_TABLE",
     "EVAL_TABLES",
     "RANDOM_TABLE",
     "evaluate_random_targets",
@@ -56,7 +63,8 @@ __all__ = [
     "resolve_run",
 ]
 
-EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments")
+EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments", "eval_moment_peaks")
+ELEMENT_MOMENTS_TABLE = "eval_element_moments"
 RANDOM_TABLE = "eval_random"
 
 
@@ -84,11 +92,18 @@ def has_evaluation(record: RunRecord, trajectories: Sequence[str] = EVAL_TRAJECT
 
 
 def _replace_rows(path: Path, new: pd.DataFrame, trajectories: Sequence[str]) -> None:
+    """Replace the rows of ``trajectories`` in the table at ``path`` by ``new`` (columns of an
+    older table format that ``new`` lacks are dropped); remove the file if no row is left."""
     if path.is_file():
         old = read_table(path)
         old = old[~old["trajectory"].isin(list(trajectories))]
+        if len(new.columns):
+            old = old[[c for c in old.columns if c in new.columns]]
         new = pd.concat([old, new], ignore_index=True) if len(old) else new
-    write_table(path, new.reset_index(drop=True))
+    if len(new):
+        write_table(path, new.reset_index(drop=True))
+    else:
+        path.unlink(missing_ok=True)
 
 
 def _episode_setup(
@@ -110,6 +125,7 @@ def evaluate_run(
     *,
     write: bool = True,
     model: ModelChoice = "policy",
+    full_moments: bool = False,
 ) -> pd.DataFrame:
     """Evaluate one run on ``trajectories`` and write its tables (``write=False``: only return
     the metrics, leaving the run directory untouched, e.g. for a committed run under models/).
@@ -117,6 +133,9 @@ def evaluate_run(
     Args:
         on_episode: called after each trajectory with the run, the episode and its metrics.
         model: the run's model to evaluate (default its policy).
+        full_moments: also store every element torque at every step
+            (``eval_element_moments``); otherwise rows of these trajectories in an existing
+            full table are removed, since they no longer match the new evaluation.
 
     Returns:
         The metrics rows of this evaluation (one per trajectory and arm).
@@ -125,17 +144,28 @@ def evaluate_run(
         RunStoreError: the run has no readable model; SpecError: its spec no longer validates.
     """
     policy, config, duration = _episode_setup(record, model)
-    frames: dict[str, list[pd.DataFrame]] = {name: [] for name in EVAL_TABLES}
+    tables = {
+        "eval_trajectories": trajectory_table,
+        "eval_metrics": metrics_table,
+        "eval_moments": moments_table,
+        "eval_moment_peaks": moment_peaks_table,
+    }
+    if full_moments:
+        tables[ELEMENT_MOMENTS_TABLE] = element_moments_table
+    frames: dict[str, list[pd.DataFrame]] = {name: [] for name in tables}
     for trajectory in trajectories:
         episode = run_episode(policy, config, trajectory, duration)
-        metrics = metrics_table(record.run_id, episode)
-        frames["eval_trajectories"].append(trajectory_table(record.run_id, episode))
-        frames["eval_metrics"].append(metrics)
-        frames["eval_moments"].append(moments_table(record.run_id, episode))
+        for name, make_table in tables.items():
+            frames[name].append(make_table(record.run_id, episode))
         if on_episode is not None:
-            on_episode(record, episode, metrics)
-    for name, parts in frames.items() if write else ():
-        _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True), trajectories)
+            on_episode(record, episode, frames["eval_metrics"][-1])
+    if write:
+        for name, parts in frames.items():
+            _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True),
+                          trajectories)
+        stale = record.table_path(ELEMENT_MOMENTS_TABLE)
+        if not full_moments and stale.is_file():
+            _replace_rows(stale, pd.DataFrame(), trajectories)
     return pd.concat(frames["eval_metrics"], ignore_index=True)
 
 

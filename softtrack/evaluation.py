@@ -30,8 +30,11 @@ __all__ = [
     "VALIDATION_SEED",
     "Episode",
     "Policy",
+    "element_moments_table",
+    "element_peaks_frame",
     "independent_policy",
     "metrics_table",
+    "moment_peaks_table",
     "moments_table",
     "run_episode",
     "trajectory_table",
@@ -138,20 +141,22 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
 
 
 def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
-    """Rows (run_id, trajectory, step, t, arm, tip_x/y/z, target_x/y/z), one per step and arm."""
+    """Rows (run_id, trajectory, step, t, arm, tip_x/y/z, target_x/y/z), one per step and arm;
+    positions in m as float32 (0.1 µm resolution: for figures; the metrics are computed in
+    float64 before storing)."""
     n, n_arms = episode.tips.shape[:2]
-    step = np.repeat(np.arange(1, n + 1), n_arms)
+    step = np.repeat(np.arange(1, n + 1, dtype=np.int32), n_arms)
     data = {
         "run_id": run_id,
         "trajectory": episode.trajectory,
         "step": step,
         "t": np.repeat(episode.t, n_arms),
-        "arm": np.tile(np.arange(n_arms), n),
+        "arm": np.tile(np.arange(n_arms, dtype=np.int32), n),
     }
     for i, axis in enumerate(AXES):
-        data[f"tip_{axis}"] = episode.tips[:, :, i].reshape(-1)
+        data[f"tip_{axis}"] = episode.tips[:, :, i].reshape(-1).astype(np.float32)
     for i, axis in enumerate(AXES):
-        data[f"target_{axis}"] = np.repeat(episode.target[:, i], n_arms)
+        data[f"target_{axis}"] = np.repeat(episode.target[:, i], n_arms).astype(np.float32)
     return pd.DataFrame(data)
 
 
@@ -186,22 +191,52 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
 
 
 def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
-    """Rows per step, arm and direction (0 normal, 1 binormal): spatial RMS and largest
-    absolute element torque at that step (N·m), and the element torques themselves."""
+    """The SPEC §5 moment history: one row per step, arm and direction (0 normal,
+    1 binormal) with the spatial RMS of the element torques at that step (``rms_moment``,
+    N·m, float32)."""
     torques = episode.element_torques  # (N, A, 2, n_elem)
-    n, n_arms, n_dirs, n_elem = torques.shape
-    flat = torques.reshape(n * n_arms * n_dirs, n_elem).astype(np.float32)
+    n, n_arms, n_dirs, _ = torques.shape
     return pd.DataFrame({
         "run_id": run_id,
         "trajectory": episode.trajectory,
-        "step": np.repeat(np.arange(1, n + 1), n_arms * n_dirs),
+        "step": np.repeat(np.arange(1, n + 1, dtype=np.int32), n_arms * n_dirs),
         "t": np.repeat(episode.t, n_arms * n_dirs),
-        "arm": np.tile(np.repeat(np.arange(n_arms), n_dirs), n),
-        "direction": np.tile(np.arange(n_dirs), n * n_arms),
-        "rms_moment": moment_rms(torques).reshape(-1),
-        "max_abs_moment": np.abs(torques).max(axis=-1).reshape(-1),
-        "element_torques": list(flat),
+        "arm": np.tile(np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs), n),
+        "direction": np.tile(np.arange(n_dirs, dtype=np.int32), n * n_arms),
+        "rms_moment": moment_rms(torques).reshape(-1).astype(np.float32),
     })
+
+
+def moment_peaks_table(run_id: str, episode: Episode) -> pd.DataFrame:
+    """The SPEC §5 peak moments: one row per arm, direction and element with the largest
+    absolute torque of that element over the episode (``peak_abs_moment``, N·m)."""
+    peaks = np.abs(episode.element_torques.astype(np.float32)).max(axis=0)  # (A, 2, n_elem)
+    return element_peaks_frame(run_id, episode.trajectory, peaks)
+
+
+def element_peaks_frame(run_id: str, trajectory: str, peaks: np.ndarray) -> pd.DataFrame:
+    """Rows (run_id, trajectory, arm, direction, element, peak_abs_moment) from peaks of shape
+    (A arms, 2 directions, n_elem elements), N·m, stored as float32."""
+    n_arms, n_dirs, n_elem = peaks.shape
+    return pd.DataFrame({
+        "run_id": run_id,
+        "trajectory": trajectory,
+        "arm": np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs * n_elem),
+        "direction": np.tile(np.repeat(np.arange(n_dirs, dtype=np.int32), n_elem), n_arms),
+        "element": np.tile(np.arange(n_elem, dtype=np.int32), n_arms * n_dirs),
+        "peak_abs_moment": peaks.reshape(-1).astype(np.float32),
+    })
+
+
+def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
+    """The full torque history, only on request (``softtrack evaluate --full-moments``): one
+    row per step, arm and direction with the list of its ``n_elem`` element torques
+    (``element_torques``, N·m, float32)."""
+    torques = episode.element_torques  # (N, A, 2, n_elem)
+    n, n_arms, n_dirs, n_elem = torques.shape
+    frame = moments_table(run_id, episode).drop(columns="rms_moment")
+    frame["element_torques"] = list(torques.reshape(n * n_arms * n_dirs, n_elem).astype(np.float32))
+    return frame
 
 
 def validation_score(rows: pd.DataFrame) -> float:

@@ -112,13 +112,19 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     expected = _episode_metrics(policy.best_model_path, run_spec, None, "circle")
     np.testing.assert_allclose(evaluated["rmse_3d"], expected["rmse_3d"], rtol=1e-12)
 
-    # an export keeps best/ (no checkpoints) and evaluates the same
+    # an export's model.zip is the policy (the best model), the last one is kept aside, and
+    # it evaluates the same
     out = tmp_path / "exported"
     result = runner.invoke(app, ["export", record.run_id, str(out), "--runs-dir",
                                  str(tmp_path / "runs")])
     assert result.exit_code == 0, result.output
-    assert (out / "best" / f"step-{best_step:012d}" / "model.zip").is_file()
-    assert not (out / "checkpoints").exists()
+    manifest = json.loads((out / "policy.json").read_text())
+    assert manifest["model"] == "best" and manifest["global_step"] == best_step
+    assert manifest["other_models"]["last"]["path"] == "other_models/last/model.zip"
+    assert (out / "other_models" / "last" / "model.zip").is_file()
+    assert not (out / "checkpoints").exists() and not (out / "best").exists()
+    assert _episode_metrics(out / "model.zip", run_spec, None, "circle")["rmse_3d"].tolist() == \
+        expected["rmse_3d"].tolist()
     result = runner.invoke(app, ["evaluate", str(out), "-t", "circle"], env={"CI": "1"})
     assert result.exit_code == 0, result.output
     exported = read_table(out / "tables" / "eval_metrics.parquet")

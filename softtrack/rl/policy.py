@@ -23,8 +23,8 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["MODEL_CHOICES", "ModelChoice", "deterministic_policy", "load_policy", "load_policy_file",
-           "model_paths"]
+__all__ = ["MODEL_CHOICES", "ModelChoice", "candidate_path", "deterministic_policy", "load_policy",
+           "load_policy_file", "model_paths", "policy_choice"]
 
 ModelChoice = Literal["policy", "last", "best"]
 """Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
@@ -43,17 +43,28 @@ def model_paths(
         raise ValueError(f"model={model!r}; choose from {', '.join(MODEL_CHOICES)}")
     policies = PolicyDir.all_of_run(record.path, spec.controller == "independent")
     if model != "policy":
-        return [_candidate_path(policy, model) for policy in policies]
+        return [candidate_path(policy, model) for policy in policies]
+    return [policy.policy_path or candidate_path(policy, policy_choice(policy, spec))
+            for policy in policies]
+
+
+def policy_choice(policy: PolicyDir, spec: ExperimentSpec) -> Literal["best", "last"]:
+    """Which of its models is ``policy``'s policy: the one its ``policy.json`` names in an
+    exported directory, else the one ``training.final_policy`` (and a confirmation) chose."""
+    manifest = policy.read_manifest()
+    if manifest is not None and manifest.get("model") in ("best", "last"):
+        return manifest["model"]  # type: ignore[no-any-return]
     if spec.training.final_policy == "last":
-        return [policy.model_path for policy in policies]
+        return "last"
     if spec.training.confirm_episodes < 1:
-        return [policy.best_model_path for policy in policies]
+        return "best"
     from softtrack.rl.confirmation import confirmed_choice
 
-    return [_candidate_path(policy, confirmed_choice(policy) or "best") for policy in policies]
+    return confirmed_choice(policy) or "best"
 
 
-def _candidate_path(policy: PolicyDir, model: Literal["best", "last"]) -> Path:
+def candidate_path(policy: PolicyDir, model: Literal["best", "last"]) -> Path:
+    """The model file of ``policy``'s ``best`` (best-validated) or ``last`` model."""
     return policy.best_model_path if model == "best" else policy.model_path
 
 

@@ -1,9 +1,11 @@
 """Copy a finished run into a small, self-contained run directory (for ``models/``, sharing).
 
 An exported directory keeps what evaluation and reports read -- ``spec.yaml``, ``run.json``,
-the final model(s) with their normalisation statistics, ``tables/`` and the training log -- and
-leaves out what only resuming needs: ``checkpoints/`` (models and replay buffers), the run lock
-and temporary files of killed writers. ``softtrack evaluate DIR`` and
+``tables/``, the training log -- and leaves out what only resuming needs: ``checkpoints/``
+(models and replay buffers), the run lock and temporary files of killed writers. Its models
+are laid out for users (:mod:`softtrack.store.layout`): each policy directory's ``model.zip``
+is the run's policy, its other models sit in ``other_models/<name>/``, and ``policy.json``
+says which model ``model.zip`` is. ``softtrack evaluate DIR`` and
 ``softtrack report NAME --runs-dir PARENT`` accept the result like any run.
 """
 
@@ -11,32 +13,65 @@ from __future__ import annotations
 
 import os
 import shutil
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from softtrack.store.atomic import atomic_dir, is_temp_file
+from softtrack.store.atomic import atomic_dir, atomic_write_json, is_temp_file
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["EXCLUDED_NAMES", "export_run"]
+__all__ = ["EXCLUDED_NAMES", "MODEL_FILES", "ModelCopy", "export_run"]
 
 EXCLUDED_NAMES = frozenset({"checkpoints", "run.lock", "replay_buffer.pkl"})
 """File and directory names never exported, at any depth of the run directory."""
 
+MODEL_FILES = frozenset({"model.zip", "vecnormalize.pkl", "best", "other_models", "policy.json"})
+"""Names of a policy directory that the export writes from :class:`ModelCopy` entries instead
+of copying."""
 
-def export_run(record: RunRecord, model_files: list[Path], dest: str | os.PathLike[str]) -> Path:
-    """Copy ``record``'s run directory to ``dest`` without checkpoints or replay buffers.
+_BESIDE_MODEL = ("vecnormalize.pkl",)
+
+
+@dataclass(frozen=True)
+class ModelCopy:
+    """One model file to export.
+
+    Attributes:
+        source: the model file in the run (``model.zip``); its normalisation statistics
+            (``vecnormalize.pkl``) beside it go along.
+        dest: where it goes, relative to the exported directory (``…/model.zip``).
+    """
+
+    source: Path
+    dest: Path
+
+
+def export_run(
+    record: RunRecord,
+    models: Sequence[ModelCopy],
+    manifests: Mapping[Path, Mapping[str, Any]],
+    dest: str | os.PathLike[str],
+    write_model: Callable[[Path, Path], None] = shutil.copy2,
+) -> Path:
+    """Copy ``record``'s run directory to ``dest`` without checkpoints or replay buffers,
+    writing its models as ``models`` lists them.
 
     Args:
-        model_files: the run's final model file(s); each must exist (the run is finished).
+        models: every model to export; each source must exist (the run is finished).
+        manifests: ``policy.json`` contents by policy directory (relative to ``dest``).
         dest: the new directory; it must not exist. It appears complete or not at all.
+        write_model: writes one model file (source, destination), e.g. an inference-only
+            copy (:func:`softtrack.rl.lean.save_inference_model`).
 
     Returns:
         ``dest`` as a :class:`Path`.
 
     Raises:
-        RunStoreError: ``dest`` exists, or a model file is missing.
+        RunStoreError: ``dest`` exists or lies inside the run, or a model file is missing.
     """
     dest = Path(dest)
-    missing = [p for p in model_files if not p.is_file()]
+    missing = [m.source for m in models if not m.source.is_file()]
     if missing:
         raise RunStoreError(
             f"{missing[0]}: run {record.run_id} has no final model (status "
@@ -48,12 +83,24 @@ def export_run(record: RunRecord, model_files: list[Path], dest: str | os.PathLi
     source = record.path.resolve()
     if dest.resolve().is_relative_to(source):
         raise RunStoreError(f"{dest} is inside the run directory {source}; choose another place")
+    policy_dirs = {source / relative for relative in manifests}
     with atomic_dir(dest) as tmp:
         for root, dirs, files in os.walk(source):
-            dirs[:] = [d for d in dirs if d not in EXCLUDED_NAMES and not is_temp_file(d)]
+            skip = MODEL_FILES if Path(root) in policy_dirs else frozenset()
+            dirs[:] = [d for d in dirs
+                       if d not in EXCLUDED_NAMES | skip and not is_temp_file(d)]
             target = tmp / Path(root).relative_to(source)
             target.mkdir(parents=True, exist_ok=True)
             for name in files:
-                if name not in EXCLUDED_NAMES and not is_temp_file(name):
+                if name not in EXCLUDED_NAMES | skip and not is_temp_file(name):
                     shutil.copy2(Path(root) / name, target / name)
+        for model in models:
+            target = tmp / model.dest
+            target.parent.mkdir(parents=True, exist_ok=True)
+            write_model(model.source, target)
+            for name in _BESIDE_MODEL:
+                if (model.source.parent / name).is_file():
+                    shutil.copy2(model.source.parent / name, target.parent / name)
+        for relative, manifest in manifests.items():
+            atomic_write_json(tmp / relative / "policy.json", dict(manifest))
     return dest

@@ -16,6 +16,13 @@ with the step and validation score; see :mod:`softtrack.rl.validation`). Each di
 written atomically and only when it beats the previous one, so the newest is the best.
 With ``training.confirm_episodes`` it also gets ``confirmed.json`` after training, naming the
 model its confirmation kept (:mod:`softtrack.rl.confirmation`).
+
+An *exported* policy directory (``softtrack export``, :mod:`softtrack.store.export`) is laid
+out for users instead: ``model.zip`` is the policy itself, whichever model the run selected,
+the other models sit in ``other_models/<last|best>/``, and ``policy.json`` says which model
+``model.zip`` is::
+
+    <policy>/model.zip, <policy>/policy.json, <policy>/other_models/last/model.zip
 """
 
 from __future__ import annotations
@@ -29,7 +36,12 @@ import numpy as np
 
 from softtrack.store.atomic import is_temp_file
 
-__all__ = ["PolicyDir", "arm_dir"]
+__all__ = ["MANIFEST_NAME", "OTHER_MODELS_DIR", "PolicyDir", "arm_dir"]
+
+MANIFEST_NAME = "policy.json"
+"""The file that marks an exported policy directory and names the model ``model.zip`` is."""
+OTHER_MODELS_DIR = "other_models"
+"""The folder of an exported policy's models other than its policy, one sub-folder each."""
 
 
 def arm_dir(run_path: Path, arm: int) -> Path:
@@ -62,8 +74,35 @@ class PolicyDir:
 
     @property
     def model_path(self) -> Path:
-        """The final model (SB3 zip); it exists once this policy's training is finished."""
-        return self.path / "model.zip"
+        """The final (last) model (SB3 zip); it exists once this policy's training is finished.
+        In an exported directory whose policy is another model: ``other_models/last/``."""
+        return self._exported_path("last") or self.path / "model.zip"
+
+    @property
+    def policy_path(self) -> Path | None:
+        """``model.zip`` of an exported directory (the policy itself); ``None`` in a training
+        run's directory, where the policy is chosen by the spec (:func:`softtrack.rl.policy.
+        model_paths`)."""
+        return self.path / "model.zip" if self.manifest_path.is_file() else None
+
+    @property
+    def manifest_path(self) -> Path:
+        """``policy.json`` of an exported directory (see the module docstring)."""
+        return self.path / MANIFEST_NAME
+
+    def read_manifest(self) -> dict[str, Any] | None:
+        """The content of ``policy.json``, or ``None`` outside an exported directory."""
+        return _read_json(self.manifest_path)
+
+    def other_model_path(self, model: str) -> Path:
+        """``other_models/<model>/model.zip`` of an exported directory."""
+        return self.path / OTHER_MODELS_DIR / model / "model.zip"
+
+    def _exported_path(self, model: str) -> Path | None:
+        manifest = self.read_manifest()
+        if manifest is None:
+            return None
+        return self.path / "model.zip" if manifest.get("model") == model else self.other_model_path(model)
 
     @property
     def vecnormalize_path(self) -> Path:
@@ -103,7 +142,11 @@ class PolicyDir:
     @property
     def best_model_path(self) -> Path:
         """``model.zip`` of the newest (so best) validated model; ``best/model.zip``, which
-        never exists, while there is none."""
+        never exists, while there is none. In an exported directory: ``model.zip`` or
+        ``other_models/best/model.zip``."""
+        exported = self._exported_path("best")
+        if exported is not None:
+            return exported
         best = self.list_best()
         return (best[-1] if best else self.best_dir) / "model.zip"
 
@@ -115,11 +158,7 @@ class PolicyDir:
 
     def read_confirmed(self) -> dict[str, Any] | None:
         """The content of ``confirmed.json``, or ``None`` if it is missing or unreadable."""
-        try:
-            data = json.loads(self.confirmed_path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            return None
-        return data if isinstance(data, dict) else None
+        return _read_json(self.confirmed_path)
 
     def row_mask(self, df: Any) -> np.ndarray:
         """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of
@@ -135,6 +174,15 @@ class PolicyDir:
     def label(self) -> str:
         """``arm0``/``arm1``, or ``""`` for the centralized policy."""
         return "" if self.arm is None else f"arm{self.arm}"
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    """A JSON object file's content, or ``None`` if it is missing, unreadable or not an object."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
 
 
 def _step_dirs(parent: Path) -> list[Path]:

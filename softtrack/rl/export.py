@@ -1,0 +1,127 @@
+"""Export a finished run for users: its policy as ``model.zip``, inference-only models.
+
+Which model is a run's policy depends on its spec (``training.final_policy``,
+``training.confirm_episodes``): the last model of training or the best-validated one. An
+exported run makes that explicit (:mod:`softtrack.store.export`): every policy directory's
+``model.zip`` is the policy, so ``sbx.TD3.load("models/<run>/model.zip")`` gives exactly the
+controller ``softtrack evaluate`` runs; the other model sits in ``other_models/<last|best>/``;
+``policy.json`` records the choice and the steps. Models are written inference-only
+(:mod:`softtrack.rl.lean`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from softtrack.rl.lean import save_inference_model
+from softtrack.rl.policy import candidate_path, policy_choice
+from softtrack.spec import ExperimentSpec
+from softtrack.store.export import ModelCopy, export_run
+from softtrack.store.layout import OTHER_MODELS_DIR, PolicyDir
+from softtrack.store.runs import RunRecord
+
+__all__ = ["export_plan", "export_policy_run", "relayout_exported_run"]
+
+
+def export_plan(record: RunRecord, spec: ExperimentSpec
+                ) -> tuple[list[ModelCopy], dict[Path, dict[str, Any]]]:
+    """The model files to export and each policy directory's ``policy.json``.
+
+    Returns:
+        (models, manifests): one :class:`ModelCopy` per existing model of each policy (its
+        policy to ``model.zip``, the other to ``other_models/<name>/model.zip``), and the
+        manifest by policy directory relative to the run directory.
+    """
+    models: list[ModelCopy] = []
+    manifests: dict[Path, dict[str, Any]] = {}
+    for policy in PolicyDir.all_of_run(record.path, spec.controller == "independent"):
+        relative = policy.path.relative_to(record.path)
+        chosen = policy_choice(policy, spec)
+        other = "last" if chosen == "best" else "best"
+        models.append(ModelCopy(candidate_path(policy, chosen), relative / "model.zip"))
+        manifest: dict[str, Any] = {
+            "model": chosen,
+            **_model_state(record, policy, chosen),
+            "selected_by": _selection(spec),
+            "other_models": {},
+        }
+        other_path = candidate_path(policy, other)
+        if other_path.is_file():
+            dest = relative / OTHER_MODELS_DIR / other / "model.zip"
+            models.append(ModelCopy(other_path, dest))
+            manifest["other_models"][other] = {
+                "path": (Path(OTHER_MODELS_DIR) / other / "model.zip").as_posix(),
+                **_model_state(record, policy, other),
+            }
+        manifests[relative] = manifest
+    return models, manifests
+
+
+def export_policy_run(record: RunRecord, dest: str | os.PathLike[str]) -> Path:
+    """Export ``record`` to the new directory ``dest`` (module docstring). Returns ``dest``."""
+    spec = record.load_spec()
+    models, manifests = export_plan(record, spec)
+    return export_run(record, models, manifests, dest, partial(save_inference_model, spec))
+
+
+def _selection(spec: ExperimentSpec) -> str:
+    if spec.training.final_policy == "last":
+        return "training.final_policy: last"
+    if spec.training.confirm_episodes < 1:
+        return "training.final_policy: best_validated"
+    return f"training.confirm_episodes: {spec.training.confirm_episodes}"
+
+
+def _model_state(record: RunRecord, policy: PolicyDir, model: str) -> dict[str, Any]:
+    """``global_step`` at which ``policy``'s ``model`` was saved (``None`` where not recorded)
+    and, for the best-validated model, its ``validation_score`` (mean 3-D RMSE, m)."""
+    if model == "best":
+        state = _read_state(candidate_path(policy, "best").parent / "state.json")
+        return {"global_step": state.get("global_step"), "validation_score": state.get("score")}
+    if policy.arm is not None:
+        return {"global_step": _read_state(policy.state_path).get("global_step")}
+    return {"global_step": record.info.global_step}
+
+
+def _read_state(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def relayout_exported_run(run_dir: Path) -> bool:
+    """Give an exported run directory of an earlier version (policy chosen by the spec, best
+    models under ``best/``, full training-state model files) the current layout, in place.
+
+    The new directory is exported beside the old one and then takes its place; a directory
+    already laid out (``policy.json``) or holding checkpoints (a training run, which keeps
+    its training layout) is left as it is.
+
+    Returns:
+        True if the directory was rewritten.
+    """
+    from softtrack.store.runs import RunStore
+
+    run_dir = Path(run_dir)
+    record = RunStore(run_dir.parent).get_run(run_dir.name)
+    spec = record.load_spec()
+    policies = PolicyDir.all_of_run(run_dir, spec.controller == "independent")
+    if any(p.manifest_path.is_file() or p.checkpoints_dir.exists() for p in policies):
+        return False
+    fresh = run_dir.with_name(f".{run_dir.name}.relayout")
+    old = run_dir.with_name(f".{run_dir.name}.old")
+    for leftover in (fresh, old):
+        if leftover.exists():
+            shutil.rmtree(leftover)
+    export_policy_run(record, fresh)
+    os.replace(run_dir, old)
+    os.replace(fresh, run_dir)
+    shutil.rmtree(old)
+    return True

@@ -1,0 +1,90 @@
+"""Exported runs: model.zip is the policy, inference-only, loadable with the plain library."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.rl.policy import model_paths
+from softtrack.store.runs import RunStore
+
+runner = CliRunner()
+pytest.importorskip("sbx")
+
+
+def _train_sbx(tmp_path: Path) -> tuple[Path, str]:
+    spec: dict[str, Any] = {
+        "name": "tiny-sbx",
+        "seeds": [0],
+        "env": {"episode_duration": 0.1},
+        "algo": {"name": "td3", "backend": "sbx", "batch_size": 16, "learning_starts": 50,
+                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
+        "training": {"total_timesteps": 300, "n_envs": 2, "checkpoint_interval": 100,
+                     "eval_duration": 0.1, "validation_episodes": 1,
+                     "final_policy": "best_validated"},
+    }
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    runs = tmp_path / "runs"
+    result = runner.invoke(app, ["train", str(path), "--runs-dir", str(runs)])
+    assert result.exit_code == 0, result.output
+    return runs, result.output.split()[0]
+
+
+@pytest.fixture(scope="module")
+def sbx_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    return _train_sbx(tmp_path_factory.mktemp("export"))
+
+
+def _actions(model_file: Path, observations: np.ndarray) -> np.ndarray:
+    import sbx
+
+    model = sbx.TD3.load(str(model_file), device="cpu")
+    actions, _ = model.predict(observations, deterministic=True)
+    return np.asarray(actions)
+
+
+def test_exported_policy_loads_with_plain_sbx_and_acts_as_the_run(
+    sbx_run: tuple[Path, str], tmp_path: Path
+) -> None:
+    runs, run_id = sbx_run
+    record = RunStore(runs).get_run(run_id)
+    dest = tmp_path / "models" / "tiny-sbx-seed0"
+    result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)])
+    assert result.exit_code == 0, result.output
+    manifest = json.loads((dest / "policy.json").read_text())
+    assert manifest["model"] == "best"
+    policy_file = model_paths(record, record.load_spec())[0]
+    observations = np.random.default_rng(0).normal(size=(32, 81)).astype(np.float32)
+    assert np.array_equal(_actions(dest / "model.zip", observations),
+                          _actions(policy_file, observations))
+    assert (dest / "model.zip").stat().st_size < 0.6 * policy_file.stat().st_size
+    last = dest / "other_models" / "last" / "model.zip"
+    assert np.array_equal(_actions(last, observations),
+                          _actions(record.path / "model.zip", observations))
+
+
+def test_upgrade_relayouts_an_old_export_in_place(sbx_run: tuple[Path, str], tmp_path: Path
+                                                  ) -> None:
+    runs, run_id = sbx_run
+    old = tmp_path / "models" / "tiny-sbx-seed0"  # the earlier export: a copy, checkpoints left out
+    shutil.copytree(runs / run_id, old, ignore=shutil.ignore_patterns("checkpoints", "run.lock"))
+    before = runner.invoke(app, ["evaluate", str(old), "-t", "circle"])
+    assert before.exit_code == 0, before.output
+    result = runner.invoke(app, ["upgrade", str(old)])
+    assert result.exit_code == 0, result.output
+    assert "models" in result.output
+    assert (old / "policy.json").is_file() and not (old / "best").exists()
+    after = runner.invoke(app, ["evaluate", str(old), "-t", "circle"])
+    assert after.exit_code == 0, after.output
+    assert after.output == before.output  # the same policy, the same episode
+    again = runner.invoke(app, ["upgrade", str(old)])
+    assert again.exit_code == 0 and "already current" in again.output
