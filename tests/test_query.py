@@ -1,0 +1,259 @@
+"""``softtrack query``: DuckDB views over a small hand-made runs directory."""
+
+from __future__ import annotations
+
+import json
+import statistics
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.store.query import (
+    QueryError,
+    ResultsDatabase,
+    available_views,
+    connect,
+    format_result,
+    query,
+)
+from softtrack.store.runs import RunInfo
+from softtrack.store.tables import write_table
+
+runner = CliRunner()
+
+# eval_metrics rmse_3d of experiment exp-a: {(trajectory, arm): [seed 0, seed 1, seed 2]}
+RMSE_A = {
+    ("circle", 0): [0.10, 0.20, 0.60],
+    ("circle", 1): [0.30, 0.30, 0.90],
+    ("figure8", 0): [0.05, 0.15, 0.25],
+    ("figure8", 1): [1.00, 2.00, 4.00],
+}
+RMSE_B = {
+    ("circle", 0): [0.40], ("circle", 1): [0.50], ("figure8", 0): [0.70], ("figure8", 1): [0.80],
+}
+
+
+def _write_run(root: Path, dirname: str, run_id: str, name: str, seed: int, **extra: Any) -> Path:
+    path = root / dirname
+    (path / "tables").mkdir(parents=True)
+    info = RunInfo(
+        run_id=run_id, name=name, algo="td3", controller="centralized", seed=seed,
+        status="completed", created="2026-01-01T10:00:00.000Z", total_timesteps=1000,
+        global_step=1000, spec_hash="h-" + name, **extra,
+    )
+    (path / "run.json").write_text(info.model_dump_json(indent=2), encoding="utf-8")
+    (path / "spec.yaml").write_text(f"name: {name}\ntraining:\n  final_stage_fraction: 0.2\n")
+    return path
+
+
+def _metrics(stored_id: str, cells: dict[tuple[str, int], list[float]], k: int) -> list[dict]:
+    return [
+        {"run_id": stored_id, "trajectory": traj, "arm": arm, "rmse_3d": values[k]}
+        for (traj, arm), values in cells.items()
+    ]
+
+
+@pytest.fixture
+def runs_dir(tmp_path: Path) -> Path:
+    """exp-a seeds 0-2 and exp-b seed 0; directory names differ from the run ids, and the
+    eval tables store the directory name as run_id (as the shipped runs do)."""
+    root = tmp_path / "runs"
+    for k in range(3):
+        path = _write_run(
+            root, f"a-seed{k}", f"01AAAAAAAAAAAAAAAAAAAAAAA{k}", "exp-a", k,
+            started="2026-01-01T10:00:00.000Z", ended=f"2026-01-01T10:0{k + 1}:00.000Z",
+            steps_per_second=100.0 * (k + 1),
+        )
+        write_table(path / "tables" / "eval_metrics.parquet", _metrics(path.name, RMSE_A, k))
+        # train_episodes: centralized (no arm column) for seeds 0 and 1, with arm for seed 2
+        rows = [{"run_id": f"01AAAAAAAAAAAAAAAAAAAAAAA{k}", "episode": i, "global_step": 100 * i,
+                 "return": float(i + k)} for i in range(1, 4)]
+        if k == 2:
+            rows = [{**r, "arm": 1} for r in rows]
+        write_table(path / "tables" / "train_episodes.parquet", rows)
+    b = _write_run(
+        root, "b-seed0", "01BBBBBBBBBBBBBBBBBBBBBBB0", "exp-b", 0,
+        sessions=[
+            {"started": "2026-01-02T00:00:00Z", "ended": "2026-01-02T00:00:30Z"},
+            {"started": "2026-01-02T01:00:00Z", "ended": "2026-01-02T01:01:00Z"},
+        ],
+        notes={"sweep": "sw1"},
+    )
+    write_table(b / "tables" / "eval_metrics.parquet", _metrics(b.name, RMSE_B, 0))
+    # an old-format eval_moments (wide, float64) in exp-a seed 0, a new one (float32, without
+    # run_id) in exp-b
+    pq.write_table(pa.table({
+        "run_id": ["a-seed0"] * 2, "trajectory": ["circle"] * 2, "step": [1, 2], "t": [0.1, 0.2],
+        "arm": [0, 0], "direction": [0, 0], "rms_moment": [1.0, 2.0],
+        "max_abs_moment": [3.0, 4.0],
+        "element_torques": pa.array([[1.0, -3.0], [2.0, 4.0]], pa.list_(pa.float32())),
+    }), root / "a-seed0" / "tables" / "eval_moments.parquet")
+    pq.write_table(pa.table({
+        "trajectory": ["circle"], "step": [1], "t": [0.1], "arm": [1], "direction": [2],
+        "rms_moment": pa.array([5.5], pa.float32()),
+    }), b / "tables" / "eval_moments.parquet")
+    # leftovers that must be ignored: a writer's temporary file, an aborted run creation
+    (b / "tables" / ".eval_metrics.tmp-0123abcd.parquet").write_bytes(b"partial")
+    (b / "tables" / ".ghost.tmp-0123abcd.parquet").write_bytes(b"partial")
+    (root / "aborted").mkdir()
+    return root
+
+
+def test_views_and_their_columns(runs_dir: Path) -> None:
+    views = {v.name: v for v in available_views(runs_dir)}
+    assert list(views) == ["runs", "experiments", "eval_metrics", "eval_moments", "train_episodes"]
+    assert views["eval_metrics"].runs == 4 and views["eval_moments"].runs == 2
+    assert [c for c, _ in views["eval_metrics"].columns] == [
+        "run_id", "trajectory", "arm", "rmse_3d"]
+    runs_columns = [c for c, _ in views["runs"].columns]
+    for column in ("run_id", "dir", "name", "algo", "controller", "seed", "status",
+                   "total_timesteps", "global_step", "steps_per_second", "spec_hash",
+                   "git_commit", "created", "started", "ended", "host", "train_seconds"):
+        assert column in runs_columns
+    con = connect(runs_dir)
+    assert con.execute("SELECT count(*) FROM runs").fetchone() == (4,)
+
+
+def test_runs_view(runs_dir: Path) -> None:
+    df = query("SELECT * FROM runs ORDER BY run_id", runs_dir)
+    assert list(df["dir"]) == ["a-seed0", "a-seed1", "a-seed2", "b-seed0"]
+    assert list(df["name"]) == ["exp-a"] * 3 + ["exp-b"]
+    # ended - started, or the sum of the sessions (30 s + 60 s)
+    assert list(df["train_seconds"]) == [60.0, 120.0, 180.0, 90.0]
+    assert list(df["final_stage_fraction"]) == [0.2] * 4
+    assert df["sweep"].iloc[3] == "sw1"
+    assert str(df["started"].iloc[0]) == "2026-01-01 10:00:00"
+    exp = query("SELECT name, runs, seeds FROM experiments", runs_dir)
+    assert list(exp["name"]) == ["exp-a", "exp-b"] and list(exp["runs"]) == [3, 1]
+    assert list(exp["seeds"].iloc[0]) == [0, 1, 2]
+
+
+def test_seed_mean_per_experiment_trajectory_and_arm(runs_dir: Path) -> None:
+    df = query(
+        "SELECT name, trajectory, arm, avg(rmse_3d) AS mean, stddev_samp(rmse_3d) AS std, "
+        "count(*) AS n FROM eval_metrics JOIN runs USING (run_id) GROUP BY ALL ORDER BY ALL",
+        runs_dir,
+    )
+    assert len(df) == 8
+    for row in df.itertuples():
+        values = (RMSE_A if row.name == "exp-a" else RMSE_B)[(row.trajectory, row.arm)]
+        assert row.n == len(values)
+        assert row.mean == pytest.approx(statistics.mean(values), rel=1e-12)
+        if len(values) > 1:
+            assert row.std == pytest.approx(statistics.stdev(values), rel=1e-12)
+        else:
+            assert row.std != row.std  # NULL (NaN): one seed has no sample std
+    # hand-computed: exp-a figure8 arm 1 is 1, 2, 4 → mean 7/3, sample std sqrt(7/3)
+    cell = df[(df["name"] == "exp-a") & (df["trajectory"] == "figure8") & (df["arm"] == 1)]
+    assert cell["mean"].item() == pytest.approx(7 / 3)
+    assert cell["std"].item() == pytest.approx((7 / 3) ** 0.5)
+
+
+def test_run_id_comes_from_run_json(runs_dir: Path) -> None:
+    ids = query("SELECT DISTINCT run_id FROM eval_metrics ORDER BY 1", runs_dir)["run_id"]
+    assert list(ids) == [f"01AAAAAAAAAAAAAAAAAAAAAAA{k}" for k in range(3)] + [
+        "01BBBBBBBBBBBBBBBBBBBBBBB0"]
+    # the new eval_moments file has no run_id column: it still gets its run's id
+    df = query("SELECT run_id, rms_moment FROM eval_moments WHERE arm = 1", runs_dir)
+    assert list(df["run_id"]) == ["01BBBBBBBBBBBBBBBBBBBBBBB0"]
+
+
+def test_union_by_name_across_schemas(runs_dir: Path) -> None:
+    moments = query("SELECT * FROM eval_moments ORDER BY arm, step", runs_dir)
+    assert list(moments.columns) == ["run_id", "trajectory", "step", "t", "arm", "direction",
+                                     "rms_moment", "max_abs_moment", "element_torques"]
+    assert list(moments["rms_moment"]) == [1.0, 2.0, 5.5]
+    assert moments["max_abs_moment"].isna().tolist() == [False, False, True]
+    episodes = query(
+        "SELECT run_id, count(*) AS n, count(arm) AS with_arm, sum(return) AS total "
+        "FROM train_episodes GROUP BY run_id ORDER BY run_id", runs_dir,
+    )
+    assert list(episodes["n"]) == [3, 3, 3] and list(episodes["with_arm"]) == [0, 0, 3]
+    assert list(episodes["total"]) == [6.0, 9.0, 12.0]
+
+
+def test_cli_formats(runs_dir: Path) -> None:
+    sql = ("SELECT name, trajectory, arm, avg(rmse_3d) AS rmse FROM eval_metrics "
+           "JOIN runs USING (run_id) WHERE trajectory = 'circle' GROUP BY ALL ORDER BY ALL")
+    base = ["query", sql, "--runs-dir", str(runs_dir)]
+
+    result = runner.invoke(app, [*base, "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.splitlines() == [
+        "name,trajectory,arm,rmse", "exp-a,circle,0,0.3", "exp-a,circle,1,0.5",
+        "exp-b,circle,0,0.4", "exp-b,circle,1,0.5",
+    ]
+
+    result = runner.invoke(app, [*base, "--format", "json"])
+    assert result.exit_code == 0, result.output
+    records = json.loads(result.stdout)
+    assert [r["name"] for r in records] == ["exp-a", "exp-a", "exp-b", "exp-b"]
+    assert records[1]["arm"] == 1 and records[1]["rmse"] == pytest.approx(0.5)
+
+    result = runner.invoke(app, base)
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert lines[0].split() == ["name", "trajectory", "arm", "rmse"]
+    assert lines[1].split() == ["exp-a", "circle", "0", "0.3"]
+    assert len({len(line) for line in lines}) == 1  # aligned (numbers right-justified)
+    assert not lines[1].startswith("0")  # no index column
+
+
+def test_table_format_nulls_and_lists() -> None:
+    import pandas as pd
+
+    df = pd.DataFrame({"a": [1.5, float("nan")], "b": [None, "x"], "c": [[1, 2], None]})
+    assert format_result(df).splitlines() == ["  a  b  c", "1.5     [1, 2]", "     x"]
+
+
+def test_cli_views(runs_dir: Path) -> None:
+    result = runner.invoke(app, ["query", "--views", "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 0, result.output
+    assert "eval_moments (2 runs)" in result.stdout and "element_torques FLOAT[]" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("sql", "expected"),
+    [
+        ("SELEC name FROM runs", "syntax error"),
+        ("SELECT * FROM eval_moment_peaks", "no view eval_moment_peaks"),
+        ("SELECT nope FROM runs", '"nope" not found'),
+    ],
+)
+def test_bad_sql_is_one_line_and_exit_2(runs_dir: Path, sql: str, expected: str) -> None:
+    result = runner.invoke(app, ["query", sql, "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 2
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: query: ") and expected in lines[0]
+    assert "Traceback" not in result.output
+    if "no view" in expected:
+        assert "available views: runs, experiments, eval_metrics" in lines[0]
+
+
+def test_missing_and_empty_runs_dir(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["query", "SELECT 1", "--runs-dir", str(tmp_path / "absent")])
+    assert result.exit_code == 2
+    assert len(result.stderr.splitlines()) == 1 and "does not exist" in result.stderr
+    result = runner.invoke(app, ["query", "SELECT 1", "--runs-dir", str(tmp_path)])
+    assert result.exit_code == 2 and "holds no runs" in result.stderr
+    with pytest.raises(QueryError, match="--runs-dir"):
+        query("SELECT 1", tmp_path / "absent")
+
+
+def test_corrupt_parquet_file(runs_dir: Path) -> None:
+    bad = runs_dir / "a-seed1" / "tables" / "train_episodes.parquet"
+    bad.write_bytes(b"not parquet at all")
+    result = runner.invoke(app, ["query", "SELECT count(*) FROM train_episodes",
+                                 "--runs-dir", str(runs_dir)])
+    assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
+    assert str(bad) in result.stderr and "not readable Parquet" in result.stderr
+    # the other views still work
+    with ResultsDatabase(runs_dir) as db:
+        assert db.query("SELECT count(*) AS n FROM eval_metrics")["n"].item() == 16
+        assert [v.error is not None for v in db.views() if v.name == "train_episodes"] == [True]
