@@ -6,7 +6,9 @@ trajectories it evaluated and keeping the others):
 
 * ``eval_trajectories.parquet``: tip and target positions at every control step;
 * ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s),
-  and the arm's action statistics (``action_saturation``, ``action_change``, ``action_rms``;
+  the CPU kind that computed them (``cpu``: a deterministic episode's rounding, and so its
+  numbers, differ slightly between CPU kinds; tables written before lack it), and the arm's
+  action statistics (``action_saturation``, ``action_change``, ``action_rms``;
   tables written before these were added lack them, and readers treat them as optional);
 * ``eval_moments.parquet``: the spatial RMS of the element torques per step, arm and direction
   (SPEC §5, float32);
@@ -47,6 +49,7 @@ from softtrack.evaluation import (
     run_episode,
     trajectory_table,
 )
+from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
 
@@ -153,10 +156,12 @@ def evaluate_run(
     if full_moments:
         tables[ELEMENT_MOMENTS_TABLE] = element_moments_table
     frames: dict[str, list[pd.DataFrame]] = {name: [] for name in tables}
+    cpu = cpu_kind()
     for trajectory in trajectories:
         episode = run_episode(policy, config, trajectory, duration)
         for name, make_table in tables.items():
             frames[name].append(make_table(record.run_id, episode))
+        frames["eval_metrics"][-1]["cpu"] = cpu
         if on_episode is not None:
             on_episode(record, episode, frames["eval_metrics"][-1])
     if write:
@@ -196,6 +201,7 @@ def evaluate_random_targets(
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")
     policy, config, duration = _episode_setup(record, model)
+    cpu = cpu_kind()
     parts = []
     for k in range(episodes):
         seed = RANDOM_TARGET_SEED + k
@@ -203,6 +209,7 @@ def evaluate_random_targets(
         metrics = metrics_table(record.run_id, episode)
         metrics.insert(2, "episode", k)
         metrics.insert(3, "seed", seed)
+        metrics["cpu"] = cpu
         parts.append(metrics)
         if on_episode is not None:
             on_episode(record, episode, metrics)

@@ -1,4 +1,5 @@
-"""Where a run came from: the git commit of the checkout, the library versions and the CPU."""
+"""Where a run came from: the command, the git commit of the checkout, the library versions
+and the CPU."""
 
 from __future__ import annotations
 
@@ -9,7 +10,15 @@ import platform
 import subprocess
 from pathlib import Path
 
-__all__ = ["cpu_description", "git_info", "library_versions", "usable_cores"]
+__all__ = [
+    "cpu_description",
+    "cpu_kind",
+    "git_info",
+    "library_versions",
+    "portable_command",
+    "portable_path",
+    "usable_cores",
+]
 
 _TRACKED_LIBRARIES = (
     "softtrack",
@@ -25,6 +34,61 @@ _TRACKED_LIBRARIES = (
     "pydantic",
     "pyarrow",
 )
+
+
+_PROGRAMS = ("softtrack", "softtrack/cli.py", "softtrack/__main__.py")
+
+
+def portable_path(path: str | os.PathLike[str], cwd: str | os.PathLike[str] | None = None) -> str:
+    """``path`` as it can be recorded in committed files: relative to ``cwd`` (default: the
+    current directory) when it lies inside it, else only its file name; never absolute.
+
+    In ``/work/repo``: ``/work/repo/experiments/study/td3-64-1e7.yaml`` →
+    ``experiments/study/td3-64-1e7.yaml``, ``../other/x.yaml`` → ``x.yaml``;
+    ``experiments/study/td3-64-1e7.yaml`` stays as it is.
+    """
+    text = os.fspath(path)
+    base = os.path.abspath(os.fspath(cwd) if cwd is not None else os.getcwd())
+    full = os.path.normpath(os.path.join(base, text))
+    if full == base:
+        return "."
+    if os.path.commonpath([full, base]) == base:
+        return os.path.relpath(full, base)
+    return os.path.basename(full) or text
+
+
+def _looks_like_path(arg: str) -> bool:
+    return os.path.isabs(arg) or arg.startswith("~") or ".." in arg.split(os.sep)
+
+
+def portable_command(
+    argv: list[str] | tuple[str, ...], cwd: str | os.PathLike[str] | None = None
+) -> list[str]:
+    """A command line as run.json and reports record it: the program ``softtrack`` (however it
+    was started: ``.venv/bin/softtrack``, ``python -m softtrack.cli``, ``/abs/softtrack/cli.py``;
+    another program keeps only its file name) and no absolute path among the arguments (each
+    is made relative to ``cwd`` when inside it, else reduced to its file name, also in
+    ``--option=PATH``), e.g. ``["softtrack", "train", "experiments/study/td3-64-1e7.yaml",
+    "--seed", "0"]``.
+    """
+    if not argv:
+        return []
+    program = os.fspath(argv[0]).replace(os.sep, "/")
+    if any(program == p or program.endswith("/" + p) for p in _PROGRAMS):
+        program = "softtrack"
+    else:
+        program = os.path.basename(program) or program
+    out = [program]
+    for arg in argv[1:]:
+        arg = os.fspath(arg)
+        option, eq, value = arg.partition("=")
+        if arg.startswith("-") and eq and _looks_like_path(value):
+            out.append(f"{option}={portable_path(os.path.expanduser(value), cwd)}")
+        elif not arg.startswith("-") and _looks_like_path(arg):
+            out.append(portable_path(os.path.expanduser(arg), cwd))
+        else:
+            out.append(arg)
+    return out
 
 
 @functools.cache
@@ -94,6 +158,21 @@ def cpu_description(cpuinfo: str = "/proc/cpuinfo") -> str:
     read (not Linux), the model comes from :func:`platform.processor` and the extension is left
     out.
     """
+    model, widest = _cpu_model_and_extension(cpuinfo)
+    cores = usable_cores()
+    parts = [model, f"{cores} core{'s' if cores != 1 else ''}"]
+    return ", ".join(parts + ([widest] if widest else []))
+
+
+def cpu_kind(cpuinfo: str = "/proc/cpuinfo") -> str:
+    """CPU model and widest vector extension, e.g. ``"AMD EPYC, avx512f"``: what decides the
+    floating-point rounding of a deterministic evaluation (the compiled kernels differ by
+    extension), so evaluation tables record it beside their numbers."""
+    model, widest = _cpu_model_and_extension(cpuinfo)
+    return ", ".join([model] + ([widest] if widest else []))
+
+
+def _cpu_model_and_extension(cpuinfo: str) -> tuple[str, str | None]:
     model, flags = "", set()
     try:
         with open(cpuinfo, encoding="utf-8", errors="replace") as handle:
@@ -109,9 +188,4 @@ def cpu_description(cpuinfo: str = "/proc/cpuinfo") -> str:
     except OSError:
         pass
     model = model or platform.processor() or platform.machine() or "unknown CPU"
-    cores = usable_cores()
-    parts = [model, f"{cores} core{'s' if cores != 1 else ''}"]
-    widest = next((ext for ext in _VECTOR_EXTENSIONS if ext in flags), None)
-    if widest:
-        parts.append(widest)
-    return ", ".join(parts)
+    return model, next((ext for ext in _VECTOR_EXTENSIONS if ext in flags), None)
