@@ -6,6 +6,10 @@
     .venv/bin/python experiments/reproduce_study.py --only ddpg-sbx --report-only
     .venv/bin/python experiments/reproduce_study.py --only td3-sbx-128 --no-report
 
+``--only`` takes an experiment name (the spec's ``name``, as in ``models/`` and the report) or
+a spec file under ``experiments/`` (``variants/td3-sbx-128-4e6.yaml``); experiments/README.md
+lists which file each experiment comes from.
+
 Each job is one (spec, seed). A job whose directory under ``models/`` exists is done. Otherwise
 the script looks in the runs directory (``runs/`` or ``--runs-dir``) for a run of the same
 experiment, seed and spec: a completed one is exported, an interrupted or lost one is resumed
@@ -40,6 +44,7 @@ independent-td3-sbx-2e6-val-confirm's (side by side, evaluation included).
 from __future__ import annotations
 
 import argparse
+import functools
 import queue
 import shutil
 import subprocess
@@ -52,9 +57,10 @@ from typing import Any
 from softtrack import api
 from softtrack.eval_runs import resolve_run
 from softtrack.rl.confirmation import confirm_run
-from softtrack.spec import ExperimentSpec, spec_hash, spec_to_yaml
+from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text
 from softtrack.store.ids import create_unique_dir
+from softtrack.store.provenance import portable_path
 from softtrack.store.runs import RunStore, resolve_runs_dir
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -63,9 +69,16 @@ REPORT_DIR = "reports/study"
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
 
+@functools.cache
+def load_experiment(spec: str) -> ExperimentSpec:
+    """The resolved spec of ``experiments/<spec>`` (its ``base:`` chain merged)."""
+    return api.validate_spec(ROOT / "experiments" / spec)
+
+
 @dataclass(frozen=True)
 class Job:
-    """One training: ``experiments/<spec>.yaml`` with ``seed``, kept as ``models/<dest>``.
+    """One training: the spec file ``experiments/<spec>`` with ``seed``, kept as
+    ``models/<dest>``.
 
     With ``derive_from``, the spec differs from that shipped run's only in its name and
     ``training.confirm_episodes``, so its training is that run's: the run is derived from
@@ -77,34 +90,48 @@ class Job:
     dest: str
     derive_from: str | None = None
 
+    @property
+    def name(self) -> str:
+        """The experiment's name (the spec's ``name``: run.json, ``models/``, the report)."""
+        return load_experiment(self.spec).name
 
+
+S, V = "study/", "variants/"
 JOBS: tuple[Job, ...] = (
-    *(Job("td3-sbx", s, f"td3-sbx-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-1e7", s, f"td3-sbx-1e7-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-speeds", s, f"td3-sbx-speeds-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-arm-bonus", s, f"td3-sbx-arm-bonus-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-128", s, f"td3-sbx-128-4e6-seed{s}") for s in (0, 1, 2)),
-    Job("td3-sbx-per-arm", 0, "td3-sbx-per-arm-4e6-seed0"),
-    *(Job("td3-sbx-128-per-arm", s, f"td3-sbx-128-per-arm-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("td3-sbx-per-arm-nets", s, f"td3-sbx-per-arm-nets-4e6-seed{s}") for s in (0, 1)),
-    Job("td3-sbx-own-arm-actors", 0, "td3-sbx-own-arm-actors-4e6-seed0"),
+    *(Job(S + "td3-sbx-64-4e6.yaml", s, f"td3-sbx-4e6-seed{s}") for s in (0, 1, 2)),
+    *(Job(S + "td3-sbx-64-1e7.yaml", s, f"td3-sbx-1e7-seed{s}") for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-64-4e6-speeds.yaml", s, f"td3-sbx-speeds-4e6-seed{s}") for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-64-4e6-arm-bonus.yaml", s, f"td3-sbx-arm-bonus-4e6-seed{s}")
+      for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-128-4e6.yaml", s, f"td3-sbx-128-4e6-seed{s}") for s in (0, 1, 2)),
+    Job(V + "td3-sbx-64-4e6-per-arm.yaml", 0, "td3-sbx-per-arm-4e6-seed0"),
+    *(Job(V + "td3-sbx-128-4e6-per-arm.yaml", s, f"td3-sbx-128-per-arm-4e6-seed{s}")
+      for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", s, f"td3-sbx-per-arm-nets-4e6-seed{s}")
+      for s in (0, 1)),
+    Job(V + "td3-sbx-64-4e6-own-arm-actors.yaml", 0, "td3-sbx-own-arm-actors-4e6-seed0"),
     *(job for s in (0, 1, 2) for job in (
-        Job("td3-sbx-128-val", s, f"td3-sbx-128-val-4e6-seed{s}"),
-        Job("independent-td3-sbx-2e6-val", s, f"independent-td3-sbx-2e6-val-seed{s}"),
+        Job(V + "td3-sbx-128-4e6-val.yaml", s, f"td3-sbx-128-val-4e6-seed{s}"),
+        Job(V + "independent-td3-sbx-64-2e6-val.yaml", s, f"independent-td3-sbx-2e6-val-seed{s}"),
     )),
-    Job("independent-td3-sbx", 0, "independent-td3-sbx-4e6-seed0"),
-    *(Job("independent-td3-sbx-2e6", s, f"independent-td3-sbx-2e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("ddpg-sbx", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("ppo-sbx", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
+    Job(S + "independent-td3-sbx-64-4e6.yaml", 0, "independent-td3-sbx-4e6-seed0"),
+    *(Job(S + "independent-td3-sbx-64-2e6.yaml", s, f"independent-td3-sbx-2e6-seed{s}")
+      for s in (0, 1, 2)),
+    *(Job(S + "ddpg-sbx-64-1e6.yaml", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
+    *(Job(S + "ppo-sbx-64-4e6.yaml", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
     # after the -val runs:
-    *(Job("td3-sbx-own-arm-actors", s, f"td3-sbx-own-arm-actors-4e6-seed{s}") for s in (1, 2)),
-    Job("td3-sbx-per-arm-nets", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
-    *(Job("td3-sbx-128-mirror-val", s, f"td3-sbx-128-mirror-val-4e6-seed{s}") for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-64-4e6-own-arm-actors.yaml", s, f"td3-sbx-own-arm-actors-4e6-seed{s}")
+      for s in (1, 2)),
+    Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
+    *(Job(V + "td3-sbx-128-4e6-mirror-val.yaml", s, f"td3-sbx-128-mirror-val-4e6-seed{s}")
+      for s in (0, 1, 2)),
     # derived from shipped runs (after all trainings):
-    *(Job("td3-sbx-128-mirror-val-confirm", s, f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}",
-          f"td3-sbx-128-mirror-val-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job("independent-td3-sbx-2e6-val-confirm", s, f"independent-td3-sbx-2e6-val-confirm-seed{s}",
-          f"independent-td3-sbx-2e6-val-seed{s}") for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
+          f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
+      for s in (0, 1, 2)),
+    *(Job(V + "independent-td3-sbx-64-2e6-val-confirm.yaml", s,
+          f"independent-td3-sbx-2e6-val-confirm-seed{s}", f"independent-td3-sbx-2e6-val-seed{s}")
+      for s in (0, 1, 2)),
 )
 REPORTED = (
     "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
@@ -130,7 +157,7 @@ def _softtrack(*args: str, taskset: int | None = None) -> str:
 
 def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     """(run id, status) of the newest run of ``job``'s experiment, seed and spec, if any."""
-    spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
+    spec = load_experiment(job.spec)
     if not runs_dir.is_dir():
         return None
     candidates = [
@@ -151,16 +178,18 @@ def derive_run(job: Job, runs_dir: Path) -> str:
     Returns the run id."""
     assert job.derive_from is not None
     base = resolve_run(str(ROOT / "models" / job.derive_from))
-    spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml").with_seed(job.seed)
+    spec = load_experiment(job.spec).with_seed(job.seed)
     base_spec = base.load_spec()
     if _training_fields(spec) != _training_fields(base_spec) or base.info.seed != job.seed:
-        raise SystemExit(f"experiments/{job.spec}.yaml (seed {job.seed}) does not train like "
+        raise SystemExit(f"experiments/{job.spec} (seed {job.seed}) does not train like "
                          f"models/{job.derive_from}; train it instead of deriving it")
     run_id, path = create_unique_dir(runs_dir)
     shutil.copytree(base.path, path, dirs_exist_ok=True, ignore=lambda _dir, names: [
         n for n in names if n in ("run.json", "spec.yaml") or n.startswith("eval_")])
     header = (f"# fully resolved spec of run {run_id} (seed {job.seed}), derived from run "
               f"{base.info.run_id} ({base.info.name})\n")
+    header += chain_comment([portable_path(f, ROOT)
+                             for f in spec_chain(ROOT / "experiments" / job.spec)])
     atomic_write_text(path / "spec.yaml", header + spec_to_yaml(spec))
     info = base.info.model_copy(update={
         "run_id": run_id, "name": spec.name, "spec_hash": spec_hash(spec),
@@ -169,7 +198,7 @@ def derive_run(job: Job, runs_dir: Path) -> str:
             "why": "the same training; the spec adds training.confirm_episodes"}},
     })
     atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")  # last
-    print(f"derived run {run_id} ({job.spec} seed {job.seed}) from models/{job.derive_from}",
+    print(f"derived run {run_id} ({job.name} seed {job.seed}) from models/{job.derive_from}",
           flush=True)
     return run_id
 
@@ -195,13 +224,13 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         record = RunStore(runs_dir).get_run(run_id)
         confirm_run(record, record.load_spec())  # each policy once, also after a kill
     elif found is None:
-        out = _softtrack("train", f"experiments/{job.spec}.yaml", "--seed", str(job.seed), *runs,
+        out = _softtrack("train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs,
                          taskset=core)
         run_id = out.split()[0]
     else:
         run_id, status = found
         if status == "running":
-            print(f"busy: run {run_id} ({job.spec} seed {job.seed}) is training in another "
+            print(f"busy: run {run_id} ({job.name} seed {job.seed}) is training in another "
                   "process; run this script again when it has finished", flush=True)
             return
         if status != "completed":
@@ -213,23 +242,24 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=1, help="runs at once (one core each)")
-    parser.add_argument("--only", action="append", metavar="SPEC",
-                        help="only the jobs of this experiment (repeatable)")
+    parser.add_argument("--only", action="append", metavar="NAME",
+                        help="only the jobs of this experiment: its name or its spec file under "
+                        "experiments/ (repeatable)")
     parser.add_argument("--runs-dir", default=None, help="where runs are trained [runs/]")
     parser.add_argument("--list", action="store_true", help="print the jobs and stop")
     parser.add_argument("--report-only", action="store_true", help="only rebuild the report")
     parser.add_argument("--no-report", action="store_true",
                         help="do not rebuild the report (e.g. for two --only processes at once)")
     args = parser.parse_args(argv)
-    jobs = [j for j in JOBS if not args.only or j.spec in args.only]
+    jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
     if args.list:
         for job in jobs:
-            spec = api.validate_spec(ROOT / "experiments" / f"{job.spec}.yaml")
+            spec = load_experiment(job.spec)
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
             per_arm = " per arm" if spec.controller == "independent" else ""
             how = f"derived from models/{job.derive_from}, " if job.derive_from else ""
-            print(f"{job.spec:35s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
-                  f"steps{per_arm}  models/{job.dest}  ({how}{state})")
+            print(f"{job.name:35s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
+                  f"steps{per_arm}  models/{job.dest}  (experiments/{job.spec}; {how}{state})")
         return
     if not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)
@@ -255,7 +285,7 @@ def main(argv: list[str] | None = None) -> None:
                     future.result()
     if args.no_report:
         return
-    shipped = {job.spec for job in JOBS if (ROOT / "models" / job.dest).is_dir()}
+    shipped = {job.name for job in JOBS if (ROOT / "models" / job.dest).is_dir()}
     waiting = [name for name in REPORTED if name not in shipped]
     if waiting:
         print(f"not in the report yet (no finished run in models/): {', '.join(waiting)}")

@@ -48,6 +48,7 @@ __all__ = [
     "QUICKSTART_PRETRAINED",
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
+    "copy_run",
     "effective_status",
     "evaluate",
     "export",
@@ -319,6 +320,65 @@ def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bo
     return done
 
 
+def copy_run(
+    source: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None
+) -> Path:
+    """Copy a finished run directory (e.g. the shipped ``models/td3-sbx-1e7-seed0``) into the
+    runs directory under its own id, without its evaluation tables, so that evaluating the
+    copy (with ``write=True``) makes its tables, and every report of it, show this machine's
+    evaluation. The source is only read.
+
+    The copy holds everything but checkpoints, replay buffers, the run lock and
+    ``tables/eval_*.parquet`` (training episodes and validation stay: they cannot be measured
+    again). A copy already there with the same model files is reused, its evaluation tables
+    removed likewise.
+
+    Returns:
+        The copy's directory, ``<runs_dir>/<run id>``.
+
+    Raises:
+        RunStoreError: the run has no model, or the runs directory already holds another run
+            under that id, or holds the source itself.
+    """
+    import filecmp
+    import shutil
+
+    from softtrack.eval_runs import resolve_run
+    from softtrack.rl.policy import model_paths
+    from softtrack.store.atomic import atomic_dir, is_temp_file
+
+    record = resolve_run(str(source))
+    root = resolve_runs_dir(runs_dir)
+    dest = root / record.run_id
+    if dest.exists() and dest.resolve() == record.path.resolve():
+        raise RunStoreError(f"{dest}: the runs directory holds the run to copy itself; give "
+                            "another --runs-dir (the source is never written)")
+    models = [p.relative_to(record.path) for p in model_paths(record, record.load_spec())]
+    missing = [m for m in models if not (record.path / m).is_file()]
+    if missing:
+        raise RunStoreError(f"{record.path / missing[0]}: run {record.run_id} has no trained "
+                            "model to copy")
+    if dest.exists():
+        same = (dest / "run.json").is_file() and all(
+            (dest / m).is_file() and filecmp.cmp(record.path / m, dest / m, shallow=False)
+            for m in models)
+        if not same:
+            raise RunStoreError(f"{dest} already holds another run named {record.run_id}; "
+                                "remove it or give another --runs-dir")
+    else:
+        def skipped(directory: str, names: list[str]) -> set[str]:
+            in_tables = Path(directory).name == "tables"
+            return {n for n in names if n in ("checkpoints", "run.lock", "replay_buffer.pkl")
+                    or is_temp_file(n)
+                    or (in_tables and n.startswith("eval_") and n.endswith(".parquet"))}
+
+        with atomic_dir(dest, fsync=False) as tmp:
+            shutil.copytree(record.path, tmp, ignore=skipped, dirs_exist_ok=True)
+    for table in (dest / "tables").glob("eval_*.parquet"):
+        table.unlink()
+    return dest
+
+
 def report(
     selection: Sequence[str],
     out_dir: str | os.PathLike[str],
@@ -327,6 +387,7 @@ def report(
     command_line: Sequence[str] | None = None,
     on_episode: Callable[..., None] | None = None,
     extra_runs: Sequence[str | os.PathLike[str]] = (),
+    all_figures: bool = False,
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
@@ -336,6 +397,8 @@ def report(
     Args:
         extra_runs: run directories from elsewhere (e.g. ``models/td3-sbx-1e7-seed0``) reported
             beside the selection; they must already be evaluated and are only read.
+        all_figures: draw the trajectory, error and moment figures of every controller, not
+            only of the chosen few (:func:`softtrack.report.featured.featured_groups`).
     """
     from softtrack.eval_runs import evaluate_run, has_evaluation, resolve_run
     from softtrack.report import build_report, select_runs

@@ -604,24 +604,35 @@ def upgrade(
 @app.command()
 def report(
     selection: Annotated[
-        list[str],
+        list[str] | None,
         typer.Argument(metavar="SELECTION...", show_default=False,
                        help="Experiment names, run ids (or prefixes) or spec files."),
-    ],
+    ] = None,
     out: Annotated[
         str, typer.Option("--out", "-o", metavar="DIR", help="Output directory of the report.")
     ] = "reports/latest",
     runs_dir: RunsDirOption = None,
+    all_figures: Annotated[
+        bool,
+        typer.Option("--all-figures",
+                     help="Draw the trajectory, error and moment figures of every controller "
+                          "(one per controller and trajectory), not only of the study "
+                          "protocol and the best centralized and independent controllers."),
+    ] = False,
 ) -> None:
     """Build a report (PNG figures, index.md, index.html) from the selected runs.
 
     Reads only the stored tables; completed runs without an evaluation are evaluated first.
+    Every controller is in the tables; with more than three, the per-run figures show the
+    study protocol and the best centralized and independent controllers (--all-figures: all).
     """
     import sys
 
     with _user_errors():
-        index = api.report(selection, out, runs_dir=runs_dir,
-                           command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode)
+        # an empty selection is a one-line error (EmptySelectionError), like every command's
+        index = api.report(selection or [], out, runs_dir=runs_dir,
+                           command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode,
+                           all_figures=all_figures)
     typer.echo(f"report: {index}")
 
 
@@ -647,7 +658,9 @@ def quickstart(
     TD3 for 1e5 env steps (experiments/quickstart.yaml), then `softtrack evaluate` on the three
     trajectories, then the shipped study-budget policy (models/td3-sbx-1e7-seed0, 1e7 env
     steps) driving the arms live on the same trajectories, and `softtrack report` of both into
-    --out. The shipped run directory is only read.
+    --out. The shipped run directory is only read: it is copied into the runs directory
+    (without its stored evaluation) and evaluated there, so the report shows this machine's
+    evaluation.
     """
     with _user_errors():
         spec_path = api.quickstart_spec_path()
@@ -656,6 +669,8 @@ def quickstart(
         if shipped is not None and not (shipped / "run.json").is_file():
             _fail(f"quickstart: --pretrained {shipped} is not a run directory (no run.json); "
                   "give a directory made by `softtrack export`, or --no-pretrained")
+        # evaluated in a copy in the runs directory, so the report reads this evaluation
+        copy = None if shipped is None else api.copy_run(shipped, runs_dir=runs_dir)
         typer.echo(f"1/4 training {spec_path} (progress on stderr)")
         outcomes = api.train(spec_path, overrides or [], runs_dir=runs_dir,
                              on_start=lambda record: typer.echo(f"    run {record.run_id}"))
@@ -665,12 +680,13 @@ def quickstart(
         typer.echo("2/4 evaluating on circle, rectangle, figure8")
         api.evaluate(run_ids, runs_dir=runs_dir, on_episode=_print_episode)
         extra = []
-        if shipped is None:
+        if shipped is None or copy is None:
             typer.echo("3/4 no shipped policy to show (skipped)")
         else:
-            typer.echo(f"3/4 the shipped policy {shipped} on the same trajectories")
-            api.evaluate([str(shipped)], on_episode=_print_episode, write=False)
-            extra = [shipped]
+            typer.echo(f"3/4 the shipped policy {shipped} on the same trajectories "
+                       f"(evaluated in its copy {copy})")
+            api.evaluate([str(copy)], on_episode=_print_episode)
+            extra = [copy]
         typer.echo("4/4 building the report")
         index = api.report(run_ids, out, runs_dir=runs_dir, extra_runs=extra,
                            command_line=["softtrack", "quickstart", "--out", out])

@@ -21,13 +21,15 @@ from softtrack.spec import (
     SpecError,
     load_spec,
     parse_spec,
+    spec_chain,
     spec_hash,
     spec_json_schema,
     spec_to_yaml,
 )
+from softtrack.spec.bases import read_spec_file
 
 REPO = Path(__file__).resolve().parents[1]
-EXPERIMENTS = sorted((REPO / "experiments").glob("*.yaml"))
+EXPERIMENTS = sorted((REPO / "experiments").rglob("*.yaml"))
 runner = CliRunner()
 
 
@@ -506,6 +508,238 @@ def test_spec_hash_of_shipped_runs_is_stable(run_dir: Path) -> None:
     assert spec_hash(load_spec(run_dir / "spec.yaml")) == recorded
 
 
+SHIPPED_RUNS = sorted(p.parent for p in (REPO / "models").glob("*/run.json"))
+
+
+def _experiment_files_by_name() -> dict[str, Path]:
+    """Experiment name (the spec's ``name``, run.json's ``name``) → its file in experiments/."""
+    return {load_spec(path).name: path for path in EXPERIMENTS}
+
+
+def _spec_of_command(command: list[str]) -> tuple[Path, list[str]]:
+    """The spec file and the ``--set`` overrides of a recorded ``softtrack train`` command."""
+    assert command[:2] == ["softtrack", "train"], command
+    args, overrides, spec = command[2:], [], None
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if arg in ("--set", "-s"):
+            overrides.append(args[i + 1])
+            i += 2
+            continue
+        if arg.startswith("--set="):
+            overrides.append(arg.partition("=")[2])
+        elif arg.startswith("-"):
+            i += 1  # an option with a value (--seed N, --runs-dir DIR)
+        elif spec is None:
+            spec = arg
+        i += 1
+    assert spec is not None, command
+    return REPO / spec, overrides
+
+
+def test_every_shipped_run_has_a_spec_hash() -> None:
+    assert len(SHIPPED_RUNS) >= 50
+    for run_dir in SHIPPED_RUNS:
+        info = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+        assert len(info.get("spec_hash") or "") == 64, run_dir.name
+
+
+@pytest.mark.parametrize("run_dir", SHIPPED_RUNS, ids=lambda p: p.name)
+def test_experiment_file_of_shipped_run_gives_its_hash(run_dir: Path) -> None:
+    """The experiment file a shipped run came from (found by the run's name; its recorded
+    command names the file's path) still resolves, with the command's ``--set`` overrides, to
+    the run's recorded spec hash: a change to any file of a ``base:`` chain that alters a
+    shipped experiment fails here. A run derived from another (``notes.derived_from``, e.g.
+    the ``-confirm`` runs) records its base run's training command, whose spec gives the base
+    run's hash."""
+    info = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
+    command = info["command"]
+    assert not any(Path(arg).is_absolute() for arg in command), command
+    spec_file, overrides = _spec_of_command(command)
+    assert spec_file.is_file(), f"{run_dir.name}: recorded command names a missing {spec_file}"
+    derived = info["notes"].get("derived_from")
+    want = derived["spec_hash"] if derived else info["spec_hash"]
+    assert spec_hash(load_spec(spec_file, overrides)) == want
+    by_name = _experiment_files_by_name()
+    assert info["name"] in by_name, f"no experiment file named {info['name']!r}"
+    named = by_name[info["name"]]
+    if derived is None:
+        assert named == spec_file
+    assert spec_hash(load_spec(named, overrides if named == spec_file else [])) == info["spec_hash"]
+
+
+# ---- base: specs that state only what differs ---------------------------------------------
+ROOT_SPEC = """\
+name: root
+seeds: [0, 1, 2]
+algo:
+  name: td3
+  gradient_steps: 1
+  policy_kwargs: {net_arch: [64, 64], activation_fn: relu}
+training:
+  total_timesteps: 100000
+  checkpoint_interval: 50000
+"""
+
+
+def _chain(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """study/root.yaml ← variants/mid.yaml ← variants/leaf.yaml."""
+    (tmp_path / "study").mkdir()
+    (tmp_path / "variants").mkdir()
+    root = write(tmp_path / "study", ROOT_SPEC, "root.yaml")
+    mid = write(
+        tmp_path / "variants",
+        "base: ../study/root.yaml\nname: mid\nseeds: [0]\n"
+        "algo:\n  policy_kwargs: {net_arch: [128, 128]}\n",
+        "mid.yaml",
+    )
+    leaf = write(
+        tmp_path / "variants",
+        "# the leaf\nbase: mid.yaml\ntraining:\n  total_timesteps: 200000\n",
+        "leaf.yaml",
+    )
+    return root, mid, leaf
+
+
+def test_base_chain_deep_merges(tmp_path: Path) -> None:
+    root, mid, leaf = _chain(tmp_path)
+    spec = load_spec(leaf)
+    assert spec.name == "leaf"  # name is not inherited: the file's own stem
+    assert spec.seeds == [0]  # lists replace
+    assert spec.algo.policy_kwargs.net_arch == [128, 128]
+    assert spec.algo.policy_kwargs.activation_fn == "relu"  # mappings merge
+    assert spec.training.total_timesteps == 200_000 and spec.training.checkpoint_interval == 50_000
+    assert spec_chain(leaf) == [str(leaf), str(mid), str(root)]
+    assert spec_chain(root) == [str(root)]
+    flat = parse_spec(
+        {
+            "name": "leaf",
+            "seeds": [0],
+            "algo": {"name": "td3", "gradient_steps": 1,
+                     "policy_kwargs": {"net_arch": [128, 128], "activation_fn": "relu"}},
+            "training": {"total_timesteps": 200_000, "checkpoint_interval": 50_000},
+        }
+    )
+    assert load_spec(leaf) == flat and spec_hash(load_spec(leaf)) == spec_hash(flat)
+
+
+def test_base_overrides_apply_after_the_chain(tmp_path: Path) -> None:
+    _, _, leaf = _chain(tmp_path)
+    spec = load_spec(leaf, ["training.total_timesteps=300000", "algo.policy_kwargs.net_arch=[32]"])
+    assert spec.training.total_timesteps == 300_000 and spec.algo.policy_kwargs.net_arch == [32]
+
+
+def test_base_relative_to_the_file_not_the_cwd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                               ) -> None:
+    _, _, leaf = _chain(tmp_path)
+    monkeypatch.chdir(tmp_path / "study")
+    assert load_spec(Path("..") / "variants" / "leaf.yaml").algo.policy_kwargs.net_arch == [128, 128]
+    assert load_spec(leaf).name == "leaf"
+
+
+BASE_ERRORS = {
+    # name: (leaf text, mid text or None (keep), fragments, (file, line) of the error)
+    "missing": ("base: nowhere.yaml\n", None, ["base:", "'nowhere.yaml'", "no such file",
+                                                "relative to this file's directory"],
+                ("variants/leaf.yaml", 1)),
+    "directory": ("base: ../study\n", None, ["base:", "is a directory"], ("variants/leaf.yaml", 1)),
+    "not-a-path": ("base: [mid.yaml]\n", None, ["base:", "expected the path of another spec file"],
+                   ("variants/leaf.yaml", 1)),
+    "cycle": ("base: mid.yaml\n", "base: leaf.yaml\n", ["base:", "closes a cycle",
+                                                        "leaf.yaml → ", "remove base:"],
+              ("variants/mid.yaml", 1)),
+    "self": ("name: x\nbase: leaf.yaml\n", None, ["base:", "closes a cycle"],
+             ("variants/leaf.yaml", 2)),
+    "base-not-mapping": ("base: mid.yaml\n", "- 1\n- 2\n", ["top level must be a mapping",
+                                                           "got a list", "the base of"],
+                         ("variants/mid.yaml", 1)),
+    "base-empty": ("base: mid.yaml\n", "# nothing\n", ["top level must be a mapping",
+                                                      "empty document"], ("variants/mid.yaml", None)),
+    "bad-key-in-base": ("base: mid.yaml\n", "base: ../study/root.yaml\nalgo:\n  learnig_rate: 1\n",
+                        ["algo.learnig_rate:", "unknown field", "did you mean 'learning_rate'?"],
+                        ("variants/mid.yaml", 3)),
+    "bad-value-in-leaf": ("base: mid.yaml\nalgo:\n  tau: 2\n", None, ["algo.tau:", "out of range"],
+                          ("variants/leaf.yaml", 3)),
+    "malformed-base": ("base: mid.yaml\n", "algo: [\n", ["malformed YAML"], ("variants/mid.yaml", None)),
+    "misspelt-base": ("bsae: mid.yaml\n", None, ["bsae:", "did you mean 'base'?"],
+                      ("variants/leaf.yaml", 1)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BASE_ERRORS))
+def test_base_errors_are_one_line_naming_file_field_and_fix(tmp_path: Path, case: str) -> None:
+    leaf_text, mid_text, fragments, (file, line) = BASE_ERRORS[case]
+    _, mid, leaf = _chain(tmp_path)
+    leaf.write_text(leaf_text, encoding="utf-8")
+    if mid_text is not None:
+        mid.write_text(mid_text, encoding="utf-8")
+    with pytest.raises(SpecError) as info:
+        load_spec(leaf)
+    error, message = info.value, str(info.value)
+    assert "\n" not in message and "; " in message
+    assert error.file == str(tmp_path / file)
+    if line is not None:
+        assert error.line == line, message
+    for fragment in fragments:
+        assert fragment in message, (fragment, message)
+    result = runner.invoke(app, ["validate", str(leaf)])
+    assert result.exit_code == 2 and result.stderr.strip() == f"error: {message}"
+
+
+def test_parse_spec_rejects_base_in_data() -> None:
+    with pytest.raises(SpecError, match="only a spec file can have a base"):
+        parse_spec({"base": "x.yaml"})
+
+
+def test_cli_validate_and_spec_show_the_chain(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                              ) -> None:
+    _chain(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    result = runner.invoke(app, ["validate", "variants/leaf.yaml"])
+    assert result.exit_code == 0
+    assert result.stdout.splitlines() == [
+        "ok: leaf, 1 run (seed 0): td3/centralized, 200,000 env steps each",
+        "   base: variants/mid.yaml → study/root.yaml",
+    ]
+    result = runner.invoke(app, ["spec", "variants/leaf.yaml", "--set", "seeds=[4]"])
+    assert result.exit_code == 0
+    assert result.stdout.startswith(
+        "# from variants/leaf.yaml\n#   base: variants/mid.yaml\n#   base: study/root.yaml\nname: leaf\n"
+    )
+    resolved = write(tmp_path, result.stdout, "resolved.yaml")  # stand-alone, without the bases
+    assert load_spec(resolved) == load_spec("variants/leaf.yaml", ["seeds=[4]"])
+    plain = runner.invoke(app, ["spec", "study/root.yaml"])
+    assert plain.exit_code == 0 and plain.stdout.startswith("name: root\n")  # no chain, no comment
+
+
+def test_run_spec_names_the_chain_and_loads_alone(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    from softtrack.store import RunStore
+
+    _chain(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    spec = load_spec("variants/leaf.yaml")
+    record = RunStore(tmp_path / "runs").create_run(
+        spec, 0, [str(tmp_path / ".venv" / "bin" / "softtrack"), "train",
+                  str(tmp_path / "variants" / "leaf.yaml"), "--seed", "0"],
+        spec_files=[str(tmp_path / p) for p in spec_chain("variants/leaf.yaml")],
+    )
+    text = record.spec_path.read_text(encoding="utf-8")
+    assert text.splitlines()[1:4] == [
+        "# from variants/leaf.yaml",
+        "#   base: variants/mid.yaml",
+        "#   base: study/root.yaml",
+    ]
+    assert str(tmp_path) not in text
+    info = json.loads(record.run_json_path.read_text(encoding="utf-8"))
+    assert info["command"] == ["softtrack", "train", "variants/leaf.yaml", "--seed", "0"]
+    for path in (tmp_path / "study" / "root.yaml", tmp_path / "variants" / "mid.yaml"):
+        path.unlink()  # e.g. the run directory copied to another machine
+    alone = load_spec(record.spec_path)
+    assert alone == spec.with_seed(0) and spec_hash(alone) == info["spec_hash"] == spec_hash(spec)
+
+
 # ---- algo kwargs --------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["td3", "ddpg", "sac", "ppo"])
 def test_sb3_kwargs_are_accepted_by_the_constructor(name: str) -> None:
@@ -530,28 +764,99 @@ def test_sb3_kwargs_resolve_activation() -> None:
 
 
 # ---- shipped experiments ------------------------------------------------------------------
+def _rel(path: Path) -> str:
+    return path.relative_to(REPO / "experiments").as_posix()
+
+
 def test_experiments_exist() -> None:
-    names = {p.name for p in EXPERIMENTS}
-    assert {"quickstart.yaml", "td3.yaml", "ddpg.yaml", "ppo.yaml", "independent-td3.yaml"} <= names
+    names = {_rel(p) for p in EXPERIMENTS}
+    assert {
+        "quickstart.yaml",
+        "study/td3-64-1e7.yaml",
+        "study/ddpg-64-1e7.yaml",
+        "study/ppo-64-1e7.yaml",
+        "study/independent-td3-64-1e7.yaml",
+    } <= names
+    assert {p.parent.name for p in EXPERIMENTS} == {"experiments", "study", "variants"}
+    assert (REPO / "experiments" / "README.md").is_file()
 
 
-@pytest.mark.parametrize("path", EXPERIMENTS, ids=lambda p: p.name)
+def _budget(steps: int) -> str:
+    """4000000 → "4e6" (the budgets of the naming scheme)."""
+    mantissa, exponent = f"{steps:e}".split("e")
+    assert float(mantissa) == int(float(mantissa)), steps
+    return f"{int(float(mantissa))}e{int(exponent)}"
+
+
+def expected_file_stem(spec: ExperimentSpec) -> str:
+    """The naming scheme of experiments/README.md: [independent-]algorithm[-backend]-network-
+    budget, then the tags of the experiment's name that these do not already say."""
+    net = spec.algo.policy_kwargs.net_arch
+    assert len(set(net)) == 1, net  # one width for every hidden layer
+    head = [
+        *(["independent"] if spec.controller == "independent" else []),
+        spec.algo.name,
+        *([spec.algo.backend] if spec.algo.backend != "sb3" else []),
+        str(net[0]),
+        _budget(spec.training.total_timesteps),
+    ]
+    tags = [t for t in spec.name.split("-") if t not in head]
+    return "-".join(head + tags)
+
+
+@pytest.mark.parametrize("path", EXPERIMENTS, ids=_rel)
 def test_shipped_experiment_validates(path: Path) -> None:
     assert path.read_text(encoding="utf-8").startswith("#")  # explained at the top
     spec = load_spec(path)
-    assert spec.name == path.stem
+    if path.name != "quickstart.yaml":
+        assert path.stem == expected_file_stem(spec)
     result = runner.invoke(app, ["validate", str(path)])
     assert result.exit_code == 0 and result.stdout.startswith(f"ok: {spec.name}, ")
+    assert _rel(path) in (REPO / "experiments" / "README.md").read_text(encoding="utf-8")
+
+
+def test_experiment_names_are_unique() -> None:
+    names = [load_spec(p).name for p in EXPERIMENTS]
+    assert len(names) == len(set(names))
+
+
+def _leaves(data: object, prefix: tuple[str, ...] = ()) -> dict[tuple[str, ...], object]:
+    if isinstance(data, dict):
+        out: dict[tuple[str, ...], object] = {}
+        for key, value in data.items():
+            out.update(_leaves(value, (*prefix, key)))
+        return out
+    return {prefix: data}
+
+
+@pytest.mark.parametrize("path", EXPERIMENTS, ids=_rel)
+def test_shipped_experiment_states_only_what_differs(path: Path) -> None:
+    """A variant extends another spec and every value it sets differs from its base's; a
+    study-protocol spec never extends a variant."""
+    own, _ = read_spec_file(path)
+    chain = [Path(p) for p in spec_chain(path)]
+    if path.parent.name == "variants":
+        assert "base" in own, "a variant states only what differs from its base"
+    if path.parent.name == "study":
+        assert all(p.parent.name == "study" for p in chain)
+    if "base" not in own:
+        return
+    base = load_spec(chain[1]).model_dump(mode="json")
+    for key, value in _leaves({k: v for k, v in own.items() if k not in ("base", "name")}).items():
+        resolved = base
+        for part in key:
+            resolved = resolved[part]
+        assert value != resolved, f"{'.'.join(key)} restates its base's value {value!r}"
 
 
 def test_study_protocol_files() -> None:
     for stem, algo in [
-        ("td3", "td3"),
-        ("ddpg", "ddpg"),
-        ("ppo", "ppo"),
-        ("independent-td3", "td3"),
+        ("td3-64-1e7", "td3"),
+        ("ddpg-64-1e7", "ddpg"),
+        ("ppo-64-1e7", "ppo"),
+        ("independent-td3-64-1e7", "td3"),
     ]:
-        spec = load_spec(REPO / "experiments" / f"{stem}.yaml")
+        spec = load_spec(REPO / "experiments" / "study" / f"{stem}.yaml")
         assert spec.algo.name == algo
         assert spec.seeds == [0, 1, 2]
         assert spec.training.total_timesteps == 10_000_000

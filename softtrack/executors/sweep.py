@@ -115,7 +115,8 @@ def expand_grid(
     from softtrack.rl.factory import check_supported
 
     if not paths:
-        raise SpecError("sweep", "no spec file given", "e.g. `softtrack sweep experiments/td3.yaml`")
+        raise SpecError("sweep", "no spec file given",
+                        "e.g. `softtrack sweep experiments/study/td3-64-1e7.yaml`")
     keys = [k for k, _ in grid]
     points: list[GridPoint] = []
     names: dict[str, str] = {}

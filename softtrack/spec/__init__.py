@@ -9,6 +9,10 @@ An experiment is a YAML file with six top-level keys::
     seeds: [0, 1, 2]          # one run per seed (an int is accepted too)
     controller: centralized   # or independent (one single-arm policy per arm)
 
+plus an optional ``base: <path>``: the spec file this one extends (relative to this file's
+directory), so a variant states only what differs; the chain is deep-merged before validation
+(:mod:`softtrack.spec.bases`; ``name`` is not inherited) and :func:`spec_chain` lists it.
+
 Every field has a default (the study's setting, ``SPEC.md``), a description and its unit in
 brackets; :func:`spec_json_schema` and ``softtrack spec --schema`` expose them. Unknown keys are
 rejected everywhere. YAML is read with a *safe* loader (plus YAML-1.2 style floats, so ``1e7``
@@ -16,11 +20,19 @@ and ``3e-4`` are numbers, and duplicate keys are an error); nothing is ever ``ev
 
 Errors a user can make raise :class:`SpecError`, whose ``str`` is one line::
 
-    experiments/td3.yaml:12: algo.learnig_rate: unknown field 'learnig_rate'; did you mean 'learning_rate'?
+    experiments/study/td3-64-1e7.yaml:18: algo.learnig_rate: unknown field 'learnig_rate'; did you mean 'learning_rate'?
 """
 
 from softtrack.spec.algo_models import OFF_POLICY_ALGOS, AlgoSpec, PolicyKwargsSpec
-from softtrack.spec.api import load_spec, parse_spec, spec_hash, spec_json_schema, spec_to_yaml
+from softtrack.spec.api import (
+    chain_comment,
+    load_spec,
+    parse_spec,
+    spec_chain,
+    spec_hash,
+    spec_json_schema,
+    spec_to_yaml,
+)
 from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RewardSpec, TargetSpec
 from softtrack.spec.fields import SpecError
 from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
@@ -37,8 +49,10 @@ __all__ = [
     "SpecError",
     "TargetSpec",
     "TrainingSpec",
+    "chain_comment",
     "load_spec",
     "parse_spec",
+    "spec_chain",
     "spec_hash",
     "spec_json_schema",
     "spec_to_yaml",

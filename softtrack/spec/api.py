@@ -17,9 +17,10 @@ from pydantic import (
     ValidationError,
 )
 
+from softtrack.spec.bases import BASE_KEY, resolve_spec_file
 from softtrack.spec.fields import SpecError
 from softtrack.spec.models import ExperimentSpec
-from softtrack.spec.parsing import _apply_override, _convert, _parse_override, _parse_yaml
+from softtrack.spec.parsing import _apply_override, _convert, _parse_override
 
 
 # ------------------------------------------------------------------------------------------
@@ -32,6 +33,7 @@ def parse_spec(
     source: str = "<spec>",
     default_name: str | None = None,
     _lines: dict[tuple[Any, ...], int] | None = None,
+    _files: dict[tuple[Any, ...], str] | None = None,
 ) -> ExperimentSpec:
     """Validate already-parsed spec data (a mapping) with ``overrides`` applied.
 
@@ -48,6 +50,13 @@ def parse_spec(
             + ")",
             line=1 if data is not None else None,
         )
+    if BASE_KEY in data:
+        raise SpecError(
+            source,
+            "only a spec file can have a base (its path is relative to the file)",
+            "load the file with load_spec(path), or merge the base into the data yourself",
+            field=BASE_KEY,
+        )
     data = copy.deepcopy(data)
     applied: dict[tuple[str, ...], str] = {}
     for text in overrides:
@@ -60,43 +69,60 @@ def parse_spec(
     try:
         return ExperimentSpec.model_validate(data)
     except ValidationError as exc:
-        raise _convert(exc, source, _lines or {}, applied) from None
+        raise _convert(exc, source, _lines or {}, applied, _files or {}) from None
 
 
 def load_spec(path: str | Path, overrides: Sequence[str] = ()) -> ExperimentSpec:
     """Read, override and validate a spec file.
 
     Args:
-        path: a YAML file.
-        overrides: ``"dotted.path=value"`` strings; values are parsed as YAML, e.g.
-            ``training.total_timesteps=2000``, ``env.physics.dt=1e-4``, ``seeds=[0,1]``.
-            A path that is not a field of the spec is an error.
+        path: a YAML file. Its ``base:`` (a path relative to the file's directory) names a spec
+            file it extends, which may have a base of its own: the chain is deep-merged first
+            (mappings merge, the extending file wins, lists and scalars replace; ``name`` is
+            not inherited), see :mod:`softtrack.spec.bases`.
+        overrides: ``"dotted.path=value"`` strings, applied after the chain; values are parsed
+            as YAML, e.g. ``training.total_timesteps=2000``, ``env.physics.dt=1e-4``,
+            ``seeds=[0,1]``. A path that is not a field of the spec is an error.
 
     Returns:
         The validated spec. A missing ``name`` defaults to the file's stem.
 
     Raises:
         SpecError: missing/unreadable file, malformed YAML, a top level that is not a mapping,
-            an unknown field, a wrong type, an out-of-range value or a malformed override.
+            a bad ``base`` (missing file, cycle), an unknown field, a wrong type, an
+            out-of-range value or a malformed override -- in any file of the chain.
     """
-    path = Path(path)
-    label = str(path)
-    if not path.exists():
-        raise SpecError(
-            label, "no such file", "check the path; the shipped specs are in experiments/"
-        )
-    if path.is_dir():
-        raise SpecError(label, "is a directory, not a spec file", "give a .yaml file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise SpecError(label, f"not UTF-8 text ({exc.reason})", "save the file as UTF-8") from None
-    except OSError as exc:
-        raise SpecError(
-            label, f"cannot read the file ({exc.strerror})", "check its permissions"
-        ) from None
-    data, lines = _parse_yaml(text, label)
-    return parse_spec(data, overrides, source=label, default_name=path.stem, _lines=lines)
+    source = resolve_spec_file(path)
+    return parse_spec(
+        source.data,
+        overrides,
+        source=str(path),
+        default_name=Path(path).stem,
+        _lines=source.lines,
+        _files=source.files,
+    )
+
+
+def spec_chain(path: str | Path) -> list[str]:
+    """The spec file and the files its ``base:`` chain goes through: the file itself first,
+    then its base, its base's base, ... (paths as the loader reads them: relative to the
+    current directory when ``path`` is). Raises :class:`SpecError` like :func:`load_spec`."""
+    return list(resolve_spec_file(path).chain)
+
+
+def chain_comment(chain: Sequence[str]) -> str:
+    """YAML comment lines that name a resolved spec's file and its bases, e.g.::
+
+        # from experiments/variants/td3-sbx-128-4e6.yaml
+        #   base: experiments/study/td3-sbx-64-4e6.yaml
+        #   base: experiments/study/td3-64-1e7.yaml
+
+    ``""`` for an empty chain. The lines are comments, so the spec loads without the files.
+    """
+    if not chain:
+        return ""
+    lines = [f"# from {chain[0]}"] + [f"#   base: {file}" for file in chain[1:]]
+    return "\n".join(lines) + "\n"
 
 
 def _dump_scalar(value: Any) -> str:

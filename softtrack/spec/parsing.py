@@ -231,7 +231,8 @@ def _describe(error: dict[str, Any], loc: tuple[Any, ...]) -> tuple[str, str]:
         name = str(loc[-1])
         if parent is None:
             return f"unknown field {name!r}", "remove it"
-        return f"unknown field {name!r}", _suggest(name, parent.model_fields)
+        valid = [*parent.model_fields, *(["base"] if len(loc) == 1 else [])]  # bases.BASE_KEY
+        return f"unknown field {name!r}", _suggest(name, valid)
     if kind == "missing":
         if loc and isinstance(loc[-1], int):
             return f"item [{loc[-1]}] is missing", "give all the values, e.g. [x, y, z]"
@@ -289,7 +290,10 @@ def _convert(
     label: str,
     lines: dict[tuple[Any, ...], int],
     overrides: dict[tuple[str, ...], str],
+    files: dict[tuple[Any, ...], str] | None = None,
 ) -> SpecError:
+    """The first error of ``exc`` as a SpecError; ``lines``/``files`` give the line and the file
+    (of a ``base:`` chain; default ``label``) of each field path."""
     errors = exc.errors()
     locs: list[tuple[Any, ...]] = []
     for err in errors:
@@ -309,6 +313,7 @@ def _convert(
         for depth in range(len(loc), 0, -1):
             if loc[:depth] in lines:
                 line = lines[loc[:depth]]
+                source = (files or {}).get(loc[:depth], label)
                 break
         if overrides:
             source += " (with " + ", ".join(f"--set {raw}" for raw in overrides.values()) + ")"

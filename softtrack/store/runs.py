@@ -19,7 +19,7 @@ import os
 import shutil
 import socket
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -28,11 +28,17 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from softtrack.spec import ExperimentSpec, load_spec, spec_hash, spec_to_yaml
+from softtrack.spec import ExperimentSpec, chain_comment, load_spec, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text, is_temp_file
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.layout import PolicyDir
-from softtrack.store.provenance import cpu_description, git_info, library_versions
+from softtrack.store.provenance import (
+    cpu_description,
+    git_info,
+    library_versions,
+    portable_command,
+    portable_path,
+)
 
 __all__ = [
     "RUNS_DIR_ENV",
@@ -128,7 +134,10 @@ class RunInfo(BaseModel):
     versions: dict[str, str] = Field(
         default_factory=dict, description="python and library versions"
     )
-    command: list[str] = Field(default_factory=list, description="command line (sys.argv)")
+    command: list[str] = Field(
+        default_factory=list,
+        description="command line (sys.argv as `softtrack ...`, without absolute paths)",
+    )
     host: str | None = Field(None, description="host name of the (last) running process")
     cpu: str | None = Field(
         None, description="CPU model, usable cores and vector extension of the (last) running "
@@ -253,6 +262,7 @@ class RunStore:
         *,
         status: RunStatus = "queued",
         notes: dict[str, Any] | None = None,
+        spec_files: Sequence[str | os.PathLike[str]] = (),
     ) -> RunRecord:
         """Create a run directory with ``spec.yaml`` (``spec`` with ``seeds: [seed]``) and
         ``run.json``. The directory name is a fresh ULID obtained with an atomic ``mkdir``.
@@ -260,9 +270,14 @@ class RunStore:
         Args:
             spec: the validated experiment spec.
             seed: this run's seed (normally one of ``spec.seeds``).
-            command: the command line to record (default ``sys.argv``).
+            command: the command line to record (default ``sys.argv``), recorded as
+                :func:`~softtrack.store.provenance.portable_command` gives it (program
+                ``softtrack``, no absolute paths).
             status: initial status.
             notes: free-form additions to run.json (e.g. the sweep that created the run).
+            spec_files: the spec file and its ``base:`` chain
+                (:func:`softtrack.spec.spec_chain`), named in comments at the top of the run's
+                ``spec.yaml``; the spec itself is written fully resolved, so it loads on its own.
         """
         run_spec = spec.with_seed(seed)
         budget = int(spec.training.total_timesteps)
@@ -270,6 +285,7 @@ class RunStore:
         run_id, path = create_unique_dir(self.root)
         try:
             header = f"# fully resolved spec of run {run_id} (seed {int(seed)})\n"
+            header += chain_comment([portable_path(f) for f in spec_files])
             atomic_write_text(path / "spec.yaml", header + spec_to_yaml(run_spec))
             (path / "tables").mkdir()
             (path / "checkpoints").mkdir()
@@ -289,7 +305,7 @@ class RunStore:
                 git_commit=commit,
                 git_dirty=dirty,
                 versions=library_versions(),
-                command=list(sys.argv if command is None else command),
+                command=portable_command(list(sys.argv if command is None else command)),
                 host=socket.gethostname(),
                 cpu=cpu_description(),
                 notes=dict(notes or {}),

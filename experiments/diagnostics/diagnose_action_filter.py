@@ -1,7 +1,7 @@
 """Is a bang-bang policy's switching noise or control? Low-pass its actions and re-measure.
 
-    .venv/bin/python experiments/diagnose_action_filter.py models/td3-sbx-4e6-seed1
-    .venv/bin/python experiments/diagnose_action_filter.py RUN --alpha 1 0.5 0.25
+    .venv/bin/python experiments/diagnostics/diagnose_action_filter.py models/td3-sbx-4e6-seed1
+    .venv/bin/python experiments/diagnostics/diagnose_action_filter.py RUN --alpha 1 0.5 0.25
 
 For each smoothing factor α the trained policy drives the arms on the circle, rectangle and
 figure-eight with its clipped actions passed through a first-order filter,

@@ -1,7 +1,7 @@
 """Does the target-speed observation hurt a policy trained at one constant target speed?
 
-    .venv/bin/python experiments/diagnose_speed_observation.py models/td3-sbx-4e6-seed0
-    .venv/bin/python experiments/diagnose_speed_observation.py RUN --speed 0.3
+    .venv/bin/python experiments/diagnostics/diagnose_speed_observation.py models/td3-sbx-4e6-seed0
+    .venv/bin/python experiments/diagnostics/diagnose_speed_observation.py RUN --speed 0.3
 
 The study's random training target always moves at 0.3 m/s, so observation 77 (target speed) is
 the constant 0.3 in training; the evaluation targets move at 0.13-0.27 m/s. For each run this
@@ -9,8 +9,8 @@ drives the arms on the circle, rectangle and figure-eight twice and prints the 3
 arm: once as evaluated, and once with observation 77 replaced by ``--speed`` (the training
 speed) while everything else, including the target's real motion, stays the same. If the
 second is better, the policy suffers from the off-distribution input (what
-``experiments/td3-sbx-speeds.yaml`` trains away). A diagnosis only: the replaced input is false
-information, not a controller. Nothing is written to the run directory.
+``experiments/variants/td3-sbx-64-4e6-speeds.yaml`` trains away). A diagnosis only: the replaced
+input is false information, not a controller. Nothing is written to the run directory.
 """
 
 from __future__ import annotations
