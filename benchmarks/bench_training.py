@@ -22,9 +22,10 @@ import time
 
 import numpy as np
 
-from softtrack.rl.factory import build_model, env_config, make_vec_env
+from softtrack.rl.factory import build_model, make_vec_env
 from softtrack.sim import RodBatch
 from softtrack.spec import ExperimentSpec
+from softtrack.spec.env_config import env_config
 from softtrack.store.provenance import cpu_description
 
 STUDY_BUDGET = 10_000_000

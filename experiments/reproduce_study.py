@@ -55,7 +55,7 @@ from pathlib import Path
 from typing import Any
 
 from softtrack import api
-from softtrack.eval_runs import resolve_run
+from softtrack.evaluation.runs import resolve_run
 from softtrack.rl.confirmation import confirm_run
 from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text

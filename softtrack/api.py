@@ -214,7 +214,7 @@ def evaluate(
         on_episode: called with (record, episode, metrics) after each trajectory.
         write: store the tables in each run (``False``: only return the metrics).
         random_episodes: random-target episodes per run after the trajectories (0: none;
-            :func:`softtrack.eval_runs.evaluate_random_targets`, table ``eval_random``).
+            :func:`softtrack.evaluation.runs.evaluate_random_targets`, table ``eval_random``).
         on_random: called with (record, rows of its random-target episodes) per run.
         model: which model of each run (:data:`softtrack.rl.policy.ModelChoice`): ``policy``
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
@@ -226,8 +226,8 @@ def evaluate(
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
     """
-    from softtrack.eval_runs import evaluate_random_targets, evaluate_run, resolve_run
     from softtrack.evaluation import EVAL_TRAJECTORIES
+    from softtrack.evaluation.runs import evaluate_random_targets, evaluate_run, resolve_run
     from softtrack.rl.policy import MODEL_CHOICES, model_paths
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
@@ -283,7 +283,7 @@ def export(
     and replay buffers: spec, run.json, tables, log, and its policy as ``model.zip`` beside
     ``policy.json`` (other models under ``other_models/``), inference-only (see
     :mod:`softtrack.rl.export`). Returns ``dest``."""
-    from softtrack.eval_runs import resolve_run
+    from softtrack.evaluation.runs import resolve_run
     from softtrack.rl.export import export_policy_run
 
     return export_policy_run(resolve_run(reference, runs_dir), dest)
@@ -343,7 +343,7 @@ def copy_run(
     import filecmp
     import shutil
 
-    from softtrack.eval_runs import resolve_run
+    from softtrack.evaluation.runs import resolve_run
     from softtrack.rl.policy import model_paths
     from softtrack.store.atomic import atomic_dir, is_temp_file
 
@@ -388,6 +388,7 @@ def report(
     on_episode: Callable[..., None] | None = None,
     extra_runs: Sequence[str | os.PathLike[str]] = (),
     all_figures: bool = False,
+    figures_for: Sequence[str] = (),
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
@@ -399,13 +400,15 @@ def report(
             beside the selection; they must already be evaluated and are only read.
         all_figures: draw the trajectory, error and moment figures of every controller, not
             only of the chosen few (:func:`softtrack.report.featured.featured_groups`).
+        figures_for: experiment names whose controllers get those figures, instead of the
+            automatic choice (study protocol, best centralized, best independent).
     """
-    from softtrack.eval_runs import evaluate_run, has_evaluation, resolve_run
-    from softtrack.report import build_report, select_runs
+    from softtrack.evaluation.runs import evaluate_run, has_evaluation, resolve_run
+    from softtrack.report import build_report, select_report_runs
     from softtrack.rl.policy import model_paths
 
     store = RunStore(resolve_runs_dir(runs_dir))
-    records = select_runs(store, selection)
+    records = select_report_runs(store, selection)
     extra = [resolve_run(str(path)) for path in extra_runs]
     for record in extra:
         if not has_evaluation(record):
@@ -418,7 +421,8 @@ def report(
             evaluate_run(record, on_episode=on_episode)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report([*records, *extra], out_dir, portable_command(list(command_line)))
+    return build_report([*records, *extra], out_dir, portable_command(list(command_line)),
+                        all_figures=all_figures, figures_for=figures_for)
 
 
 QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
@@ -508,7 +512,7 @@ def resume_runs(
 
     options = options or dispatch.ExecOptions()
     store = RunStore(resolve_runs_dir(runs_dir))
-    records = dispatch.select_runs(store, selection)
+    records = dispatch.select_resumable_runs(store, selection)
     if not records:
         return None
     resume_id = dispatch.new_sweep_id()

@@ -7,16 +7,19 @@ line on stderr, ``error: <file>: <field>: <problem>; <fix>``, with exit code 2 a
 from __future__ import annotations
 
 import enum
+import functools
+import inspect
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import Annotated, Any, NoReturn
 
 import typer
 
 from softtrack import api
+from softtrack.executors.dispatch import ExecOptions
 
 app = typer.Typer(
     name="softtrack",
@@ -250,13 +253,43 @@ MemOption = Annotated[
 ]
 
 
-def _exec_options(executor: ExecutorChoice, workers: int | None, detach: bool,
-                  partition: str | None, time_min: int | None, cpus: int | None,
-                  mem: float | None) -> object:
-    from softtrack.executors.dispatch import ExecOptions
+_EXEC_PARAMETERS = [
+    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation)
+    for name, annotation, default in (
+        ("executor", ExecutorOption, ExecutorChoice.local),
+        ("workers", WorkersOption, None),
+        ("detach", DetachOption, False),
+        ("partition", PartitionOption, None),
+        ("time_min", TimeOption, None),
+        ("cpus", CpusOption, None),
+        ("mem", MemOption, None),
+    )
+]
 
-    return ExecOptions(executor=executor.value, workers=workers, detach=detach,
-                       partition=partition, time_min=time_min, cpus_per_task=cpus, mem_gb=mem)
+
+def _with_exec_options(command: Callable[..., None]) -> Callable[..., None]:
+    """Give a command the executor options (``--executor`` … ``--mem``), in place of its
+    ``options`` parameter, which receives them as one :class:`ExecOptions`."""
+    signature = inspect.signature(command, eval_str=True)
+    parameters = list(signature.parameters.values())
+    at = list(signature.parameters).index("options")
+    parameters[at : at + 1] = _EXEC_PARAMETERS
+
+    @functools.wraps(command)
+    def with_options(
+        *args: Any, executor: ExecutorChoice, workers: int | None, detach: bool,
+        partition: str | None, time_min: int | None, cpus: int | None, mem: float | None,
+        **kwargs: Any,
+    ) -> None:
+        options = ExecOptions(executor=executor.value, workers=workers, detach=detach,
+                              partition=partition, time_min=time_min, cpus_per_task=cpus,
+                              mem_gb=mem)
+        command(*args, options=options, **kwargs)
+
+    signature = signature.replace(parameters=parameters)
+    with_options.__signature__ = signature  # type: ignore[attr-defined]
+    with_options.__annotations__ = {p.name: p.annotation for p in parameters}
+    return with_options
 
 
 def _progress(line: str) -> None:
@@ -283,6 +316,7 @@ def _finish(outcome: object, what: str) -> None:
 
 
 @app.command()
+@_with_exec_options
 def sweep(
     specs: Annotated[
         list[str],
@@ -302,13 +336,8 @@ def sweep(
                      help="Seeds of every grid point, e.g. 0,1,2 or 0-4 [default: the spec's]."),
     ] = None,
     overrides: SetOption = None,
-    executor: ExecutorOption = ExecutorChoice.local,
-    workers: WorkersOption = None,
-    detach: DetachOption = False,
-    partition: PartitionOption = None,
-    time_min: TimeOption = None,
-    cpus: CpusOption = None,
-    mem: MemOption = None,
+    *,
+    options: ExecOptions,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Run a grid of experiments: create every run, then train them in parallel.
@@ -328,13 +357,13 @@ def sweep(
     with _user_errors():
         outcome = api.sweep(
             specs, grid or [], overrides or [], seeds=seeds, runs_dir=runs_dir,
-            options=_exec_options(executor, workers, detach, partition, time_min, cpus, mem),
-            on_created=created, on_progress=_progress,
+            options=options, on_created=created, on_progress=_progress,
         )
     _finish(outcome, "sweep")
 
 
 @app.command("resume")
+@_with_exec_options
 def resume_command(
     selection: Annotated[
         list[str] | None,
@@ -342,13 +371,8 @@ def resume_command(
                        help="Experiment names, sweep ids or run ids [default: every resumable "
                        "run]."),
     ] = None,
-    executor: ExecutorOption = ExecutorChoice.local,
-    workers: WorkersOption = None,
-    detach: DetachOption = False,
-    partition: PartitionOption = None,
-    time_min: TimeOption = None,
-    cpus: CpusOption = None,
-    mem: MemOption = None,
+    *,
+    options: ExecOptions,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Resume interrupted, never-started, failed-by-signal and lost runs from their checkpoints.
@@ -365,9 +389,8 @@ def resume_command(
 
     with _user_errors():
         outcome = api.resume_runs(
-            selection or [], runs_dir=runs_dir,
-            options=_exec_options(executor, workers, detach, partition, time_min, cpus, mem),
-            on_selected=selected, on_progress=_progress,
+            selection or [], runs_dir=runs_dir, options=options, on_selected=selected,
+            on_progress=_progress,
         )
     if outcome is None:
         typer.echo("nothing to resume: no interrupted, queued, failed-by-signal or lost run "
@@ -619,6 +642,12 @@ def report(
                           "(one per controller and trajectory), not only of the study "
                           "protocol and the best centralized and independent controllers."),
     ] = False,
+    figures_for: Annotated[
+        list[str] | None,
+        typer.Option("--figures-for", metavar="NAME", show_default=False,
+                     help="Draw those figures for this experiment's controller instead of the "
+                          "automatic choice. Repeatable."),
+    ] = None,
 ) -> None:
     """Build a report (PNG figures, index.md, index.html) from the selected runs.
 
@@ -632,7 +661,7 @@ def report(
         # an empty selection is a one-line error (EmptySelectionError), like every command's
         index = api.report(selection or [], out, runs_dir=runs_dir,
                            command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode,
-                           all_figures=all_figures)
+                           all_figures=all_figures, figures_for=figures_for or [])
     typer.echo(f"report: {index}")
 
 

@@ -152,3 +152,56 @@ def test_no_runs(tmp_path: Path) -> None:
 def test_bad_format_is_a_usage_error(runs_dir: Path) -> None:
     result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "--format", "xml"])
     assert result.exit_code == 2
+
+
+def test_report_without_a_selection_is_a_one_line_error(runs_dir: Path) -> None:
+    """Like every other command: one line saying what to give, exit code 2, no usage box."""
+    result = runner.invoke(app, ["report", "--runs-dir", str(runs_dir),
+                                 "--out", str(runs_dir.parent / "report")])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: nothing to report: give one or more experiment names")
+    assert f"softtrack runs --runs-dir {runs_dir}" in lines[0]
+    assert "Usage" not in result.output and "╭" not in result.output
+    assert not (runs_dir.parent / "report").exists()
+
+
+def test_copy_run_takes_a_shipped_run_without_its_evaluation(
+    runs_dir: Path, tmp_path: Path
+) -> None:
+    """The quickstart evaluates the shipped policy in a copy inside the runs directory, so its
+    report shows that evaluation; the shipped directory is only read."""
+    from softtrack import api
+    from softtrack.store.runs import RunStoreError
+
+    shipped_store = RunStore(tmp_path / "models")
+    spec = parse_spec({"name": "shipped", "algo": {"learning_starts": 10},
+                       "training": {"total_timesteps": 1000}})
+    record = shipped_store.create_run(spec, seed=0)
+    record.model_path.write_bytes(b"a trained model")
+    for name in ("train_episodes", "eval_metrics", "eval_moments"):
+        append_rows(record.table_path(name), [{"run_id": record.run_id, "trajectory": "circle",
+                                               "rmse_3d": 0.0492}])
+    (record.path / "checkpoints").mkdir(exist_ok=True)
+    (record.path / "checkpoints" / "state.json").write_text("{}")
+    before = {p: p.read_bytes() for p in record.path.rglob("*") if p.is_file()}
+
+    copy = api.copy_run(record.path, runs_dir=runs_dir)
+    assert copy == runs_dir / record.run_id
+    assert (copy / "model.zip").read_bytes() == b"a trained model"
+    assert sorted(p.name for p in (copy / "tables").iterdir()) == ["train_episodes.parquet"]
+    assert not (copy / "checkpoints").exists()
+    assert RunStore(runs_dir).get_run(record.run_id).info.name == "shipped"
+    # a second quickstart reuses the copy and drops the evaluation it stored meanwhile
+    append_rows(copy / "tables" / "eval_metrics.parquet", [{"rmse_3d": 0.0471}])
+    assert api.copy_run(record.path, runs_dir=runs_dir) == copy
+    assert not (copy / "tables" / "eval_metrics.parquet").exists()
+    assert {p: p.read_bytes() for p in record.path.rglob("*") if p.is_file()} == before
+    # another run under that id, or the shipped directory itself: an error, nothing written
+    (copy / "model.zip").write_bytes(b"another model")
+    with pytest.raises(RunStoreError, match="already holds another run"):
+        api.copy_run(record.path, runs_dir=runs_dir)
+    with pytest.raises(RunStoreError, match="holds the run to copy itself"):
+        api.copy_run(record.path, runs_dir=tmp_path / "models")
+    assert {p: p.read_bytes() for p in record.path.rglob("*") if p.is_file()} == before

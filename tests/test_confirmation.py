@@ -16,7 +16,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation import CONFIRM_SEED, validation_score
-from softtrack.rl.confirmation import confirm_policy, confirm_run, confirmed_choice
+from softtrack.rl.confirmation import confirm_policy, confirm_run
 from softtrack.rl.policy import model_paths
 from softtrack.store.atomic import atomic_write_json
 from softtrack.store.layout import PolicyDir
@@ -47,7 +47,7 @@ def _check_candidates(rows: pd.DataFrame, policy: PolicyDir, arms: list[int]) ->
     assert state["scores"]["best"] == scores["best"]
     assert state["scores"]["last"] == scores.get("last", scores["best"])
     expected = "last" if state["scores"]["last"] < state["scores"]["best"] else "best"
-    assert state["model"] == expected == confirmed_choice(policy)
+    assert state["model"] == expected == policy.confirmed_choice()
     assert state["episodes"] == 3
     return scores
 
@@ -81,7 +81,7 @@ def test_confirmation_keeps_the_better_candidate_and_evaluation_uses_it(tmp_path
     assert set(scores) == {"best", "last"}
     steps = rows.groupby("candidate")["global_step"].first().to_dict()
     assert steps == {"best": 200, "last": 800}
-    chosen = confirmed_choice(policy)
+    chosen = policy.confirmed_choice()
     assert chosen is not None
     path = policy.best_model_path if chosen == "best" else policy.model_path
     assert model_paths(record, run_spec) == [path]
@@ -105,7 +105,7 @@ def test_a_stopped_confirmation_writes_nothing(tmp_path: Path) -> None:
     policy.confirmed_path.unlink()
     calls = iter([False, False, True])
     assert confirm_policy(record, record.load_spec(), policy, lambda: next(calls)) is None
-    assert confirmed_choice(policy) is None
+    assert policy.confirmed_choice() is None
     pd.testing.assert_frame_equal(_confirmation(record), before)
     # until it is confirmed, the run's policy is its best-validated model
     assert model_paths(record, record.load_spec()) == [policy.best_model_path]
@@ -132,7 +132,7 @@ def test_independent_arms_are_confirmed_in_their_own_scene(tmp_path: Path) -> No
     for arm in (0, 1):
         policy = PolicyDir.of_run(record.path, arm)
         _check_candidates(rows[rows["arm"] == arm], policy, [arm])
-        chosen = confirmed_choice(policy)
+        chosen = policy.confirmed_choice()
         paths.append(policy.best_model_path if chosen == "best" else policy.model_path)
         first = rows[(rows["arm"] == arm) & (rows["candidate"] == chosen) & (rows["episode"] == 0)]
         again = _episode_metrics(paths[-1], record.load_spec(), arm, "random", CONFIRM_SEED)

@@ -14,7 +14,7 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.metrics import ACTION_STATISTICS, action_statistics, tracking_metrics
+from softtrack.evaluation.metrics import ACTION_STATISTICS, action_statistics, tracking_metrics
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
 
@@ -163,7 +163,7 @@ def test_evaluate_one_trajectory_keeps_the_others(trained: tuple[Path, str]) -> 
 def test_old_metrics_tables_without_action_columns_stay_valid(
     trained: tuple[Path, str], tmp_path: Path
 ) -> None:
-    from softtrack.eval_runs import has_evaluation
+    from softtrack.evaluation.runs import has_evaluation
     from softtrack.store.tables import write_table
 
     run_id = trained[1]
@@ -187,8 +187,8 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
 def test_random_target_episodes_are_held_out_seeded_and_reported(
     trained: tuple[Path, str], tmp_path: Path
 ) -> None:
-    from softtrack.eval_runs import evaluate_random_targets
     from softtrack.evaluation import RANDOM_TARGET_SEED
+    from softtrack.evaluation.runs import evaluate_random_targets
 
     run_id = trained[1]
     fresh = _own_copy(trained, tmp_path)

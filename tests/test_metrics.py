@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from softtrack.evaluation import Episode, metrics_table
-from softtrack.metrics import (
+from softtrack.evaluation.metrics import (
     ACTION_STATISTICS,
     action_statistics,
     moment_peak,

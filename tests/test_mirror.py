@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from softtrack.cli import app
 from softtrack.env import DualArmTrackingEnv
 from softtrack.env.vec_env import TrackingVecEnv
-from softtrack.rl.mirror import MirrorReplayBuffer, mirror_action, mirror_observation
+from softtrack.rl.variants.mirror import MirrorReplayBuffer, mirror_action, mirror_observation
 from softtrack.store.runs import RunStore
 
 runner = CliRunner()

@@ -18,8 +18,9 @@ import jax.numpy as jnp
 
 from softtrack.cli import app
 from softtrack.env.vec_env import TrackingVecEnv
-from softtrack.rl.factory import algo_class
-from softtrack.rl.per_arm_td3 import PerArmTD3, RewardShareReplayBuffer
+from softtrack.rl.factory import model_class
+from softtrack.rl.variants.per_arm import PerArmTD3, RewardShareReplayBuffer
+from softtrack.spec import load_spec
 from softtrack.store.runs import RunStore
 
 runner = CliRunner()
@@ -150,7 +151,7 @@ def test_train_checkpoint_and_evaluate_a_per_arm_run(
     record = RunStore(runs_dir).get_run(run_id)
     assert record.info.status == "completed"
 
-    model = algo_class("td3", "sbx", "per_arm").load(str(record.model_path))
+    model = model_class(record.load_spec()).load(str(record.model_path))
     assert isinstance(model, PerArmTD3) and model.n_reward_shares == 2
     assert model.policy.per_arm_networks == per_arm_networks
     assert model.policy.actor_observation == actor_observation
@@ -179,7 +180,7 @@ SHIPPED = Path(__file__).resolve().parents[1] / "models" / "td3-sbx-per-arm-4e6-
 
 @pytest.mark.skipif(not SHIPPED.is_dir(), reason="shipped per-arm model not in this checkout")
 def test_a_model_saved_before_per_arm_networks_loads_as_one_network() -> None:
-    model = algo_class("td3", "sbx", "per_arm").load(str(SHIPPED / "model.zip"))
+    model = model_class(load_spec(SHIPPED / "spec.yaml")).load(str(SHIPPED / "model.zip"))
     assert model.policy.per_arm_networks is False
     assert model.policy.actor_observation == "full"
     action, _ = model.predict(np.zeros((1, 81), np.float32), deterministic=True)

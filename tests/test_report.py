@@ -19,12 +19,13 @@ from softtrack.env import make_config
 from softtrack.evaluation import (
     EVAL_TRAJECTORIES,
     metrics_table,
+    moment_peaks_table,
     moments_table,
     run_episode,
     trajectory_table,
 )
-from softtrack.metrics import ACTION_STATISTICS
-from softtrack.report import EmptySelectionError, build_report, select_runs
+from softtrack.evaluation.metrics import ACTION_STATISTICS
+from softtrack.report import EmptySelectionError, build_report, select_report_runs
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import Group, group_runs, load_runs
 from softtrack.report.summaries import controller_differences, metrics_summary, moment_peaks
@@ -84,15 +85,17 @@ def _write_eval(record: RunRecord, value: float) -> None:
     """Eval tables from real evaluation episodes of a constant (arm 1) and bang-bang (arm 2)
     policy."""
     config = make_config()
-    trajs, metrics, moments = [], [], []
+    trajs, metrics, moments, peaks = [], [], [], []
     for trajectory in EVAL_TRAJECTORIES:
         episode = run_episode(_bang_bang(value), config, trajectory, duration=EVAL_DURATION)
         trajs.append(trajectory_table(record.run_id, episode))
         metrics.append(metrics_table(record.run_id, episode))
         moments.append(moments_table(record.run_id, episode))
+        peaks.append(moment_peaks_table(record.run_id, episode))
     write_table(record.table_path("eval_trajectories"), pd.concat(trajs, ignore_index=True))
     write_table(record.table_path("eval_metrics"), pd.concat(metrics, ignore_index=True))
     write_table(record.table_path("eval_moments"), pd.concat(moments, ignore_index=True))
+    write_table(record.table_path("eval_moment_peaks"), pd.concat(peaks, ignore_index=True))
 
 
 @pytest.fixture(scope="module")
@@ -131,42 +134,42 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> RunStore:
 
 @pytest.fixture(scope="module")
 def report(store: RunStore, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    records = select_runs(store, ["td3", "ddpg", "independent-td3"])
+    records = select_report_runs(store, ["td3", "ddpg", "independent-td3"])
     out = tmp_path_factory.mktemp("out") / "reports" / "test"
     return build_report(records, out, COMMAND)
 
 
 # ---- selection ------------------------------------------------------------------------------
 def test_select_by_name_id_prefix_and_spec(store: RunStore, tmp_path: Path) -> None:
-    td3 = select_runs(store, ["td3"])
+    td3 = select_report_runs(store, ["td3"])
     assert [r.info.seed for r in td3] == [0, 1] and {r.info.algo for r in td3} == {"td3"}
-    one = select_runs(store, [td3[1].run_id[:20], "td3"])  # prefix, then a duplicate by name
+    one = select_report_runs(store, [td3[1].run_id[:20], "td3"])  # prefix, then a duplicate by name
     assert [r.run_id for r in one] == [td3[1].run_id, td3[0].run_id]
     spec_file = tmp_path / "ddpg.yaml"
     spec_file.write_text(spec_to_yaml(_spec("ddpg", "ddpg")))
-    by_spec = select_runs(store, [str(spec_file)])
+    by_spec = select_report_runs(store, [str(spec_file)])
     assert {r.info.name for r in by_spec} == {"ddpg"} and len(by_spec) == 2
 
 
 def test_empty_selection_is_a_clear_error(store: RunStore, tmp_path: Path) -> None:
     with pytest.raises(EmptySelectionError, match="nothing to report"):
-        select_runs(store, [])
+        select_report_runs(store, [])
     with pytest.raises(EmptySelectionError, match="neither an experiment name.*known: ddpg"):
-        select_runs(store, ["sac-nonexistent"])
+        select_report_runs(store, ["sac-nonexistent"])
     other = tmp_path / "other.yaml"
     other.write_text("name: other\n")
     with pytest.raises(EmptySelectionError, match="no run .* has this spec"):
-        select_runs(store, [str(other)])
+        select_report_runs(store, [str(other)])
     with pytest.raises(EmptySelectionError, match="no runs"):
         build_report([], tmp_path / "out", COMMAND)
     assert not (tmp_path / "out").exists()
     with pytest.raises(RunNotFoundError, match="matches"):
-        select_runs(store, ["0"])  # every ULID of this decade starts with 0: ambiguous
+        select_report_runs(store, ["0"])  # every ULID of this decade starts with 0: ambiguous
 
 
 # ---- aggregation ----------------------------------------------------------------------------
 def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
-    groups = group_runs(load_runs(select_runs(store, ["td3", "independent-td3"])))
+    groups = group_runs(load_runs(select_report_runs(store, ["td3", "independent-td3"])))
     table = final_stage_table(groups)
     td3 = table[table["group"] == "TD3"].iloc[0]
     per_run = [final_stage_return(r.record)[0] for r in groups[0].runs]
@@ -182,7 +185,7 @@ def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
 
 
 def test_curves_metrics_and_peaks(store: RunStore) -> None:
-    groups = group_runs(load_runs(select_runs(store, ["td3", "ddpg", "independent-td3"])))
+    groups = group_runs(load_runs(select_report_runs(store, ["td3", "ddpg", "independent-td3"])))
     assert [g.label for g in groups] == ["TD3", "DDPG", "TD3 (independent)"]
     curves, smoothing = training_curves(groups)
     assert [c.label for c in curves] == [
@@ -191,7 +194,9 @@ def test_curves_metrics_and_peaks(store: RunStore) -> None:
         "TD3 (independent), arm 1 policy",
         "TD3 (independent), arm 2 policy",
     ]
-    assert smoothing.window == pytest.approx(0.05 * BUDGET)
+    # one episode every 100 steps: the window is at least two episode spacings
+    assert [c.window for c in curves] == pytest.approx([max(0.03 * BUDGET, 200.0)] * 4)
+    assert not smoothing.per_second and not any(c.per_second for c in curves)
     assert np.isfinite(curves[0].std[10:]).all() and np.isnan(curves[2].std).all()
     assert curves[0].mean[-1] > curves[1].mean[-1]  # td3's fake returns are higher
     summary = metrics_summary(groups)
@@ -247,16 +252,11 @@ def test_controller_differences_match_welch_t_test_on_the_seeds() -> None:
 
 
 # ---- the report -----------------------------------------------------------------------------
-EXPECTED_FIGURES = [
+EXPECTED_FIGURES = [  # three controllers: every one drawn, side by side per trajectory
     "training_curves.png",
     "final_returns.png",
     "rmse_comparison.png",
-    *[
-        f"{kind}_{slug}_{t}.png"
-        for kind in ("trajectory", "errors")
-        for slug in ("td3", "ddpg", "td3-independent")
-        for t in EVAL_TRAJECTORIES
-    ],
+    *[f"{kind}_{t}.png" for kind in ("trajectory", "errors") for t in EVAL_TRAJECTORIES],
     "moments_td3.png",
     "moments_ddpg.png",
     "moments_td3-independent.png",
@@ -354,8 +354,10 @@ def test_policy_actions_table(report: Path) -> None:
     ) in body
     assert "| TD3 (independent) | rectangle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 1 |" in body
     text = md.split("### Policy actions\n", 1)[1]
-    assert "66 % saturation and a mean change of 0.30" in text.split("\n\n")[1]
-    assert text.split("\n\n")[2].startswith("*Behind these numbers*")
+    caption = text.split("\n\n")[1]
+    assert "66 % saturation and a mean change of 0.30" in caption
+    # every run has the statistics: the caption does not speak of missing data
+    assert "no data" not in caption.lower() and "stored before" not in caption
 
 
 def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -> None:
@@ -371,17 +373,20 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
         if seed == 0:  # seed 0 has an old table, seed 1 a new one
             path = record.table_path("eval_metrics")
             write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
-    groups = group_runs(load_runs(select_runs(store, ["td3"])))
+    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["action_saturation_n"] == 1).all() and (summary["rmse_3d_n"] == 2).all()
-    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
-    rows = _table_after(index.read_text(encoding="utf-8"), "### Policy actions\n")[2:]
+    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    md = index.read_text(encoding="utf-8")
+    rows = _table_after(md, "### Policy actions\n")[2:]
     assert "| TD3 | circle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 2 |" in rows
+    caption = md.split("### Policy actions\n", 1)[1].split("\n\n")[1]
+    assert "Some runs of TD3 have metrics stored before these statistics existed" in caption
     # only old tables: no data, and the tracking tables are unaffected
-    record = select_runs(store, ["td3"])[1]
+    record = select_report_runs(store, ["td3"])[1]
     path = record.table_path("eval_metrics")
     write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
-    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
@@ -389,29 +394,30 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     assert " ± " in next(r for r in _table_after(md, "### TD3\n") if r.startswith("| circle |"))
 
 
-def test_every_table_has_provenance(report: Path, store: RunStore) -> None:
+def test_provenance_is_stated_once_per_controller(report: Path, store: RunStore) -> None:
     md = report.read_text(encoding="utf-8")
-    blocks = md.split("\n\n")
-    tables = [i for i, b in enumerate(blocks) if b.startswith("|")]
-    # runs, final, 3 error tables, side by side, its differences, policy actions, peaks
-    assert len(tables) == 1 + 1 + 3 + 1 + 1 + 1 + 1
-    for i in tables:
-        after = "\n\n".join(blocks[i + 1 : i + 3])
-        assert "*Behind these numbers*" in after, blocks[i][:80]
-    provenance = next(b for b in blocks if b.startswith("*Behind these numbers*"))
-    record = select_runs(store, ["td3"])[0]
+    assert md.count("Behind these numbers") == 1 and "## Behind these numbers" in md
+    section = md.split("## Behind these numbers\n", 1)[1].split("\n## ", 1)[0]
+    paragraphs = section.strip().split("\n\n")
+    assert f"`{COMMAND}`" in paragraphs[0]
+    for label in ("TD3", "DDPG", "TD3 (independent)"):  # one paragraph per controller
+        assert sum(p.startswith(f"**{label}**:") for p in paragraphs) == 1, label
+        assert md.count(f"**{label}**: experiment") == 1, label
+    record = select_report_runs(store, ["td3"])[0]
+    td3 = next(p for p in paragraphs if p.startswith("**TD3**:"))
     for text in (
-        f"`{COMMAND}`",
         "experiment `td3`",
         record.info.spec_hash[:12],
         "seeds 0, 1",
         "budget 2,000 env steps per run",
         "`softtrack train td3.yaml`",
-        "Study: 10,000,000 env steps per run (8.5 h",
     ):
-        assert text in provenance, text
+        assert text in td3, text
     if record.info.git_commit:
-        assert record.info.git_commit[:12] in provenance
+        assert record.info.git_commit[:12] in td3
+    assert paragraphs[-1].startswith("Study: 10,000,000 env steps per run (8.5 h")
+    # the section comes right after the runs table, before any other table or figure
+    assert md.index("## Runs") < md.index("## Behind these numbers") < md.index("## Training")
 
 
 def test_provenance_names_every_commit_a_resumed_run_trained_on(tmp_path: Path) -> None:
@@ -449,18 +455,18 @@ def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Pat
     out = tmp_path / "ppo-report"
     (out / "figures").mkdir(parents=True)
     (out / "notes.txt").write_text("mine")  # someone else's file: must survive
-    index = build_report(select_runs(store, ["ppo"]), out, "softtrack report ppo --out x")
+    index = build_report(select_report_runs(store, ["ppo"]), out, "softtrack report ppo --out x")
     md = index.read_text(encoding="utf-8")
     for t in EVAL_TRAJECTORIES:
-        assert (out / "figures" / f"trajectory_ppo_{t}.png").is_file()
-        assert (out / "figures" / f"errors_ppo_{t}.png").is_file()
+        assert (out / "figures" / f"trajectory_{t}.png").is_file()
+        assert (out / "figures" / f"errors_{t}.png").is_file()
     assert (out / "figures" / "moments_ppo.png").is_file()
     assert "No data for PPO on the circle" in md
     assert "No data for PPO: no stored evaluation moments" in md
     assert re.search(r"\| PPO \| both arms \| 1 of 1 \| -?\d+\.\d\d \|", md)
     # a rebuild with fewer figures removes only this report's stale figures
     (out / "figures" / "unrelated.png").write_bytes(b"x")
-    records = select_runs(store, ["ppo"])
+    records = select_report_runs(store, ["ppo"])
     build_report(records, out, "again")
     assert (out / "notes.txt").read_text() == "mine"
     assert (out / "figures" / "unrelated.png").exists()
@@ -509,3 +515,240 @@ def test_trajectory_captions_name_the_full_run_id(report: Path, store: RunStore)
         assert named in ids, line
     assert any("of 1 seed)" in line for line in captions)
     assert not any("of 1 seeds" in line for line in captions)
+
+
+# ---- moments: both table formats ------------------------------------------------------------
+def test_moment_peaks_read_the_old_and_the_new_table_format(tmp_path: Path) -> None:
+    """The episode peak comes from eval_moment_peaks where it has the trajectory, else from the
+    per-step max_abs_moment of an older eval_moments; both give the same number."""
+    from softtrack.report.data import episode_peaks
+
+    config = make_config()
+    new_moments, new_peaks, old_moments = [], [], []
+    for trajectory in EVAL_TRAJECTORIES:
+        episode = run_episode(_bang_bang(0.5), config, trajectory, duration=EVAL_DURATION)
+        new_moments.append(moments_table("r", episode))
+        new_peaks.append(moment_peaks_table("r", episode))
+        old = moments_table("r", episode)  # the old format: a per-step peak over the elements
+        old["max_abs_moment"] = np.abs(episode.element_torques).max(axis=-1).reshape(-1)
+        old_moments.append(old)
+    moments = pd.concat(new_moments, ignore_index=True)
+    peaks = pd.concat(new_peaks, ignore_index=True)
+    old = pd.concat(old_moments, ignore_index=True)
+    key = ["trajectory", "arm", "direction"]
+    from_new = episode_peaks(moments, peaks).sort_values(key).reset_index(drop=True)
+    from_old = episode_peaks(old, None).sort_values(key).reset_index(drop=True)
+    assert len(from_new) == 3 * 2 * 2
+    pd.testing.assert_frame_equal(from_new, from_old, check_dtype=False, rtol=1e-6)
+    # a run re-evaluated on the circle only: new peaks there, old column elsewhere
+    mixed = episode_peaks(old, peaks[peaks["trajectory"] == "circle"])
+    assert sorted(set(mixed["trajectory"])) == sorted(EVAL_TRAJECTORIES)
+    assert episode_peaks(moments, None) is None  # new summary table alone: no peak
+
+    # a report of one new-format and one old-format seed has peaks from both
+    store = RunStore(tmp_path / "runs")
+    for seed in (0, 1):
+        record = store.create_run(_spec("td3"), seed, ["softtrack", "train", "td3.yaml"])
+        _write_eval(record, 0.02)
+        if seed == 1:
+            record.table_path("eval_moment_peaks").unlink()
+            write_table(record.table_path("eval_moments"), old.assign(run_id=record.run_id))
+        store.mark_finished(record.run_id, "completed", global_step=BUDGET)
+    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
+    table = moment_peaks(groups)
+    assert (table["n"] == 2).all() and len(table) == 3 * 2 * 3
+    md = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "x").read_text("utf-8")
+    peak_rows = _table_after(md, "### Peak element moments\n")[2:]
+    assert peak_rows and not any("no data" in r for r in peak_rows)
+
+
+# ---- training curves of runs of different lengths -------------------------------------------
+def _episode_rows(record: RunRecord, n: int, spacing: int, episode_return: float) -> list[dict]:
+    return [
+        {"run_id": record.run_id, "episode": i, "global_step": spacing * (i + 1),
+         "return": episode_return, "length": spacing, "wall_time": 0.1 * i}
+        for i in range(n)
+    ]
+
+
+def test_training_curves_scale_with_each_run_and_compare_returns_per_second(
+    tmp_path: Path,
+) -> None:
+    """A 10,000-step run with 2-s episodes beside a 1,000,000-step run with 10-s episodes: each
+    curve is smoothed over 3 % of its own run (not of the longest), and returns are per
+    second of episode, in a figure with one panel per run."""
+    from softtrack.report import figures as fg
+
+    store = RunStore(tmp_path / "runs")
+    short = store.create_run(parse_spec({"name": "short", "env": {"episode_duration": 2.0},
+                                         "algo": {"learning_starts": 100},
+                                         "training": {"total_timesteps": 10_000}}), 0)
+    long = store.create_run(parse_spec({"name": "long",
+                                        "training": {"total_timesteps": 1_000_000}}), 0)
+    write_table(short.table_path("train_episodes"), _episode_rows(short, 1000, 10, -400.0))
+    write_table(long.table_path("train_episodes"), _episode_rows(long, 1000, 1000, 15000.0))
+    groups = group_runs(load_runs([short, long]))
+    curves, smoothing = training_curves(groups)
+    by_name = {c.group.name: c for c in curves}
+    assert by_name["short"].window == pytest.approx(0.03 * 10_000)
+    assert by_name["long"].window == pytest.approx(0.03 * 1_000_000)
+    assert by_name["short"].steps[-1] == 10_000 and by_name["long"].steps[-1] == 1_000_000
+    assert smoothing.per_second and all(c.per_second for c in curves)
+    assert np.nanmean(by_name["short"].mean) == pytest.approx(-400.0 / 2.0)
+    assert np.nanmean(by_name["long"].mean) == pytest.approx(15000.0 / 10.0)
+    assert "per second" in smoothing.describe()
+    path = fg.training_curves_figure(curves, smoothing, tmp_path / "curves.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # episodes of one length: plain returns
+    alone, plain = training_curves(group_runs(load_runs([long])))
+    assert not plain.per_second and np.nanmean(alone[0].mean) == pytest.approx(15000.0)
+
+
+# ---- which controllers get figures ----------------------------------------------------------
+def test_featured_groups_are_the_study_protocol_the_best_and_the_independent(
+    tmp_path: Path,
+) -> None:
+    from softtrack.report.featured import featured_groups
+
+    store = RunStore(tmp_path / "runs")
+    budgets = {"study": 10_000_000, "good": 4_000_000, "bad": 4_000_000, "ddpg": 1_000_000}
+    records = [
+        store.create_run(parse_spec({"name": name,
+                                     "algo": {"name": "ddpg" if name == "ddpg" else "td3",
+                                              "learning_starts": 100},
+                                     "training": {"total_timesteps": budget}}), 0)
+        for name, budget in budgets.items()
+    ]
+    records += [store.create_run(parse_spec({"name": name, "controller": "independent",
+                                             "training": {"total_timesteps": 2_000_000}}), 0)
+                for name in ("ind-a", "ind-b")]
+    groups = group_runs(load_runs(records))
+    label = {g.name: g.label for g in groups}
+    rmse = {"study": 0.05, "good": 0.03, "bad": 0.09, "ddpg": 0.2, "ind-a": 0.06, "ind-b": 0.04}
+    summary = pd.DataFrame([
+        {"group": label[name], "trajectory": t, "arm": arm, "rmse_3d_mean": value}
+        for name, value in rmse.items() for t in EVAL_TRAJECTORIES for arm in (0, 1)
+    ])
+    featured = featured_groups(groups, summary)
+    assert [(f.group.name, f.role) for f in featured] == [
+        ("study", "study protocol"), ("good", "best centralized"), ("ind-b", "best independent")
+    ]
+    assert featured[0].title == f"{label['study']} (study protocol)"
+    # the study protocol is also the best: drawn once, with both roles
+    summary.loc[summary["group"] == label["study"], "rmse_3d_mean"] = 0.01
+    featured = featured_groups(groups, summary)
+    assert [(f.group.name, f.role) for f in featured] == [
+        ("study", "study protocol, best centralized"), ("ind-b", "best independent")
+    ]
+    assert len(featured_groups(groups, summary, all_groups=True)) == len(groups)
+    assert [f.role for f in featured_groups(groups[:3], summary)] == ["", "", ""]
+
+
+def test_a_report_of_many_controllers_draws_a_few_unless_all_figures(
+    store: RunStore, tmp_path: Path
+) -> None:
+    """Four controllers (more than three): the per-run figures show the best centralized and
+    the independent controller, side by side, one figure per trajectory; --all-figures gives
+    one per controller and trajectory."""
+    selection = ["td3", "ddpg", "independent-td3", "ppo"]
+    index = build_report(select_report_runs(store, selection), tmp_path / "few", "x")
+    figures = sorted(p.name for p in (tmp_path / "few" / "figures").iterdir())
+    groups = group_runs(load_runs(select_report_runs(store, selection)))
+    best = min(("td3", "ddpg"), key=lambda slug: metrics_summary(groups).query(
+        f"group == '{slug.upper()}'")["rmse_3d_mean"].mean())  # PPO has no evaluation
+    assert figures == sorted([
+        "training_curves.png", "final_returns.png", "rmse_comparison.png",
+        *[f"{kind}_{t}.png" for kind in ("trajectory", "errors") for t in EVAL_TRAJECTORIES],
+        f"moments_{best}.png", "moments_td3-independent.png",
+    ])
+    md = index.read_text(encoding="utf-8")
+    assert (f"Drawn: {best.upper()} (best centralized), TD3 (independent) (best independent)"
+            in md)
+    assert "`softtrack report … --all-figures` draws every controller" in md
+    index = build_report(select_report_runs(store, selection), tmp_path / "all", "x", all_figures=True)
+    figures = {p.name for p in (tmp_path / "all" / "figures").iterdir()}
+    for slug in ("td3", "ddpg", "td3-independent", "ppo"):
+        assert f"moments_{slug}.png" in figures
+        for t in EVAL_TRAJECTORIES:
+            assert {f"trajectory_{slug}_{t}.png", f"errors_{slug}_{t}.png"} <= figures
+    assert "Every controller of this report is drawn." in index.read_text(encoding="utf-8")
+
+
+# ---- figure layout ---------------------------------------------------------------------------
+def test_trajectory_figure_labels_and_ticks_do_not_overlap(
+    store: RunStore, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The 3-D panel's axis labels stay clear of the neighbouring panel's, tick labels do not
+    run into each other, and the title fits on its lines."""
+    from softtrack.report import figures as fg
+
+    drawn = []
+    save = fg._save
+
+    def keep(fig, path, footer):  # type: ignore[no-untyped-def]
+        drawn.append(fig)
+        return save(fig, path, footer)
+
+    monkeypatch.setattr(fg, "_save", keep)
+    runs = load_runs(select_report_runs(store, ["td3", "independent-td3"]))
+    rows = []
+    for run in runs[:1] + runs[-1:]:
+        traj = run.trajectories[run.trajectories["trajectory"] == "figure8"]
+        rows.append(fg.PathRow(f"TD3 [a-rather-long-experiment-name-{run.seed}] (study protocol)",
+                               traj, f"seed {run.seed}, run {run.run_id} (median 3-D RMSE of "
+                               "3 seeds)", {0: 0.055, 1: 0.051}))
+    path = fg.trajectory_3d_figure(rows, "figure8", tmp_path / "t.png", footer="x · y · z")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fig = drawn[-1]
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+
+    def box(artist):  # type: ignore[no-untyped-def]
+        return artist.get_window_extent(renderer)
+
+    def clear(artists) -> bool:  # type: ignore[no-untyped-def]
+        """No two texts closer than 4 px (each box padded by 2 px)."""
+        boxes = [box(a).padded(2) for a in artists if a.get_visible() and a.get_text()]
+        return not any(a.overlaps(b) for a, b in itertools.combinations(boxes, 2))
+
+    axes3d = [ax for ax in fig.get_axes() if ax.name == "3d"]
+    axes2d = [ax for ax in fig.get_axes() if ax.name != "3d"]
+    assert len(axes3d) == len(axes2d) == 2
+    for ax3, ax2 in zip(axes3d, axes2d, strict=True):
+        labels = [ax3.xaxis.label, ax3.yaxis.label, ax3.zaxis.label]
+        assert clear([*labels, ax2.yaxis.label, *ax2.get_yticklabels()])
+        assert not box(ax3.zaxis.label).overlaps(ax2.get_tightbbox(renderer))
+        assert clear(ax2.get_xticklabels()) and clear(ax2.get_yticklabels())
+        for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
+            assert clear(axis.get_ticklabels())
+    titles = [fig._suptitle, *(sub._suptitle for sub in fig.subfigs)]
+    assert clear(titles + [ax.title for ax in fig.get_axes()])
+    assert fig._suptitle.get_text().count("\n") == 1  # a short title and a one-line subtitle
+
+
+def test_the_command_line_chooses_the_drawn_controllers(store: RunStore, tmp_path: Path) -> None:
+    """`softtrack report --figures-for NAME` (repeatable) and `--all-figures` reach the report;
+    an unknown name is a one-line error and writes nothing."""
+    from typer.testing import CliRunner
+
+    from softtrack.cli import app
+
+    runner = CliRunner()
+    base = ["report", "td3", "ddpg", "independent-td3", "ppo", "--runs-dir", str(store.root)]
+    out = tmp_path / "chosen"
+    result = runner.invoke(app, [*base, "--out", str(out), "--figures-for", "ppo",
+                                 "--figures-for", "ddpg"])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in (out / "figures").glob("moments_*")) == [
+        "moments_ddpg.png", "moments_ppo.png"]
+    assert "Drawn: PPO, DDPG (chosen with `--figures-for`)" in (out / "index.md").read_text()
+    out = tmp_path / "all"
+    result = runner.invoke(app, [*base, "--out", str(out), "--all-figures"])
+    assert result.exit_code == 0, result.output
+    assert (out / "figures" / "trajectory_ppo_circle.png").is_file()
+    assert len(list((out / "figures").glob("errors_*"))) == 4 * 3
+    result = runner.invoke(app, [*base, "--out", str(tmp_path / "bad"), "--figures-for", "sac"])
+    assert result.exit_code == 2
+    assert result.stderr.strip().startswith("error: --figures-for sac: no controller")
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad").exists()

@@ -19,7 +19,7 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.executors.dispatch import ExecOptions, execute, select_runs
+from softtrack.executors.dispatch import ExecOptions, execute, select_resumable_runs
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds, split_values
 from softtrack.spec import SpecError, load_spec
 from softtrack.store.runs import RunStore
@@ -144,7 +144,7 @@ def test_lost_run_is_shown_and_selected(tmp_path: Path) -> None:
     rows = list_run_summaries(store.root)
     assert rows[0]["status"] == "lost" and rows[0]["stored_status"] == "running"
     assert "lost" in runner.invoke(app, ["runs", "--runs-dir", str(store.root)]).stdout
-    assert [r.run_id for r in select_runs(store, ["tiny"])] == [record.run_id]
+    assert [r.run_id for r in select_resumable_runs(store, ["tiny"])] == [record.run_id]
     assert store.get_run(record.run_id).info.status == "running"  # display only
 
 
@@ -172,7 +172,7 @@ def test_sweep_failing_job_and_siblings(tmp_path: Path) -> None:
     assert result.exit_code == 0 and bad.run_id in result.stdout
     assert "Traceback" in result.stdout and records[0].run_id not in result.stdout
     # a failed-by-exception run is not resumed by experiment name
-    assert select_runs(store, ["tiny"]) == []
+    assert select_resumable_runs(store, ["tiny"]) == []
 
 
 def test_kill9_worker_then_resume(tmp_path: Path) -> None:

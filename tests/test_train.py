@@ -89,10 +89,49 @@ def test_train_prints_progress_lines_into_a_log(
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
     lines = [line for line in result.stderr.splitlines() if line.startswith(run_id[-8:])]
+    assert re.fullmatch(r"\S+ finished: 400/400 steps \(100\.0%\) in 0:\d\d min, [\d,]+ steps/s",
+                        lines.pop())
     steps = [int(re.match(r"\S+ ([\d,]+)/400 steps", line)[1].replace(",", "")) for line in lines]
     assert len(steps) >= 10 and steps == sorted(steps) and steps[-1] <= 400
     assert all("steps/s" in line for line in lines[1:])
     assert any(re.search(r"return -?[\d,]+\.\d\d, \d+:\d\d h left$", line) for line in lines)
+
+
+def test_a_training_log_gets_a_line_every_5_percent_and_a_final_line(tmp_path: Path) -> None:
+    """stderr is not a terminal (a log file): whole lines at every 5 % of the budget, however
+    short the run, and a final line with 100 %, the steps, the elapsed time and steps/s."""
+    from softtrack.rl import callbacks
+
+    assert callbacks.PROGRESS_LINE_INTERVAL_S >= 60  # the time-based lines alone: none here
+    spec = _spec(tmp_path)
+    result = runner.invoke(
+        app, ["train", str(spec), "--runs-dir", str(tmp_path / "runs")], env={"CI": "1"}
+    )
+    assert result.exit_code == 0, result.output
+    run_id = result.stdout.strip()
+    lines = [line for line in result.stderr.splitlines() if line.startswith(run_id[-8:])]
+    assert "\r" not in result.stderr  # whole lines, no bar
+    final = lines.pop()
+    match = re.fullmatch(
+        r"\S+ finished: 400/400 steps \(100\.0%\) in (\d+):(\d\d) min, ([\d,]+) steps/s", final
+    )
+    assert match, final
+    assert int(match[3].replace(",", "")) > 0
+    percents = [float(re.search(r"\(([\d.]+)%\)", line)[1]) for line in lines]
+    assert len(percents) >= 15 and percents == sorted(percents) and percents[-1] < 100
+    assert all(b - a <= 10 for a, b in zip([0.0, *percents], percents))  # none skipped
+    assert len(lines) <= 20  # one per 5 %, not one per step
+
+
+def test_final_progress_line_format() -> None:
+    from softtrack.rl.callbacks import final_progress_line
+
+    assert final_progress_line("5JP1EEN4", 100_000, 100_000, 349.4, 286.2) == (
+        "5JP1EEN4 finished: 100,000/100,000 steps (100.0%) in 5:49 min, 286 steps/s"
+    )
+    assert final_progress_line("x arm1", 61_000, 100_000, 7_384.0, None) == (
+        "x arm1 stopped: 61,000/100,000 steps (61.0%) in 2:03:04 h"
+    )
 
 
 def test_progress_line_format() -> None:
@@ -337,3 +376,50 @@ def test_same_seed_trains_the_same_run(tmp_path: Path, algo: str, backend: str) 
         returns.append(_episodes(record.path)["return"].to_numpy())
     np.testing.assert_array_equal(returns[0], returns[1])
     assert not np.array_equal(returns[0], returns[2])  # another seed, another run
+
+
+def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: Path) -> None:
+    """The shipped run's stored evaluation (another CPU: here a made-up 9.8765 m) is not what
+    the quickstart's report shows: it shows the evaluation the quickstart just printed, made
+    in a copy of the shipped run in the runs directory; the shipped directory is only read."""
+    from softtrack.store.tables import write_table
+
+    spec = _spec(tmp_path, total_timesteps=200, checkpoint_interval=0, eval_duration=0.2)
+    trained = tmp_path / "trained"
+    result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(trained)], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    shipped = tmp_path / "models" / "shipped-td3"
+    result = runner.invoke(app, ["export", result.stdout.strip(), str(shipped), "--runs-dir",
+                                 str(trained)])
+    assert result.exit_code == 0, result.output
+    assert runner.invoke(app, ["evaluate", str(shipped)]).exit_code == 0
+    stored = shipped / "tables" / "eval_metrics.parquet"
+    write_table(stored, read_table(stored).assign(rmse_3d=9.8765))
+    before = {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()}
+
+    runs, out = tmp_path / "runs", tmp_path / "report"
+    tiny = ["--set", "training.total_timesteps=200", "--set", "training.n_envs=2",
+            "--set", "training.checkpoint_interval=0", "--set", "training.eval_duration=0.2",
+            "--set", "env.episode_duration=0.1", "--set", "algo.learning_starts=50",
+            "--set", "algo.batch_size=16", "--set", "algo.buffer_size=2000",
+            "--set", "algo.policy_kwargs.net_arch=[16, 16]"]
+    result = runner.invoke(app, ["quickstart", *tiny, "--runs-dir", str(runs), "--out", str(out),
+                                 "--pretrained", str(shipped)], env={"CI": "1"})
+    assert result.exit_code == 0, result.output
+    assert {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()} == before
+    printed = {
+        line.split()[1]: re.search(r"arm 1 / arm 2: ([\d.]+) / ([\d.]+) m", line).groups()
+        for line in result.stdout.splitlines() if line.startswith("shipped-td3 ")
+    }
+    assert sorted(printed) == ["circle", "figure8", "rectangle"]
+    live = read_table(runs / "shipped-td3" / "tables" / "eval_metrics.parquet")
+    assert (live["rmse_3d"] < 9).all()
+    index = (out / "index.md").read_text(encoding="utf-8")
+    assert "9.8765" not in index
+    section = index.split("### TD3 [tiny-td3]", 1)[1].split("\n### ", 1)[0]
+    for name, trajectory in (("circle", "circle"), ("rectangle", "rectangle"),
+                             ("figure-eight", "figure8")):
+        for arm, value in enumerate(printed[trajectory]):
+            start = f"| {name} | arm {arm + 1} |"
+            row = next(r for r in section.splitlines() if r.startswith(start))
+            assert f"| {value} |" in row, (row, value)

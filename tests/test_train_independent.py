@@ -288,7 +288,8 @@ def test_final_stage_return_per_arm(tmp_path: Path) -> None:
 def test_independent_experiment_validates() -> None:
     spec = validate_spec(ROOT / "experiments" / "study" / "independent-td3-64-1e7.yaml")
     assert spec.controller == "independent" and spec.algo.name == "td3"
-    from softtrack.rl.factory import check_supported, env_config
+    from softtrack.rl.factory import check_supported
+    from softtrack.spec.env_config import env_config
 
     check_supported(spec)
     for arm in (0, 1):

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation import Episode, moment_peaks_table, moments_table, trajectory_table
-from softtrack.metrics import moment_rms
+from softtrack.evaluation.metrics import moment_rms
 from softtrack.store.tables import read_table, write_table
 from softtrack.store.upgrade import upgrade_run_tables
 

@@ -16,9 +16,10 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation import metrics_table, run_episode
-from softtrack.rl.factory import algo_class, env_config
+from softtrack.rl.factory import algo_class
 from softtrack.rl.policy import deterministic_policy, model_paths
 from softtrack.rl.validation import VALIDATION_SEED, truncate_validation, validation_score
+from softtrack.spec.env_config import env_config
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore
 from softtrack.store.tables import read_table, write_table

@@ -17,11 +17,11 @@ import argparse
 
 import numpy as np
 
-from softtrack.eval_runs import resolve_run
 from softtrack.evaluation import EVAL_TRAJECTORIES, run_episode
-from softtrack.metrics import tracking_metrics
-from softtrack.rl.factory import env_config
+from softtrack.evaluation.metrics import tracking_metrics
+from softtrack.evaluation.runs import resolve_run
 from softtrack.rl.policy import load_policy
+from softtrack.spec.env_config import env_config
 
 
 def filtered(policy, alpha: float):

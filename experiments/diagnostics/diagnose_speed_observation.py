@@ -21,11 +21,11 @@ from collections.abc import Callable
 import numpy as np
 
 from softtrack.env.observation import observation_labels
-from softtrack.eval_runs import resolve_run
 from softtrack.evaluation import EVAL_TRAJECTORIES, run_episode
-from softtrack.metrics import tracking_metrics
-from softtrack.rl.factory import env_config
+from softtrack.evaluation.metrics import tracking_metrics
+from softtrack.evaluation.runs import resolve_run
 from softtrack.rl.policy import load_policy
+from softtrack.spec.env_config import env_config
 
 Policy = Callable[[np.ndarray], np.ndarray]
 TARGET_SPEED_INDEX = observation_labels(n_arms=2).index("target.speed")  # 77

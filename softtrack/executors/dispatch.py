@@ -22,7 +22,14 @@ from softtrack.spec import ClusterSpec
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, lock_held
 from softtrack.store.status import effective_status
 
-__all__ = ["ExecOptions", "Outcome", "execute", "progress_line", "resumable", "select_runs"]
+__all__ = [
+    "ExecOptions",
+    "Outcome",
+    "execute",
+    "progress_line",
+    "resumable",
+    "select_resumable_runs",
+]
 
 EXECUTORS = ("local", "slurm")
 
@@ -187,7 +194,7 @@ def resumable(record: RunRecord) -> bool:
     return status in ("interrupted", "queued", "lost") or failed_by_signal(record.info)
 
 
-def select_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
+def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
     """The runs ``softtrack resume`` continues.
 
     Each item is an experiment name or a sweep id (its resumable runs: see :func:`resumable`)

@@ -2,22 +2,21 @@
 
 Each job runs in its own process (:class:`~softtrack.executors.base.Job`'s worker command, in
 a new session, output appended to the run's ``train.log``), at most ``workers`` at a time, so a
-crash or ``kill -9`` of one never touches the others. SIGINT/SIGTERM to the pool stop it:
-no new job starts, every running worker gets SIGTERM (it saves a checkpoint and marks its run
-``interrupted``), and :meth:`LocalPool.run` returns once they have exited.
+crash or ``kill -9`` of one never touches the others. SIGINT/SIGTERM to the pool stop it
+(:mod:`softtrack.signals`): no new job starts, every running worker gets SIGTERM (it saves a
+checkpoint and marks its run ``interrupted``), and :meth:`LocalPool.run` returns once they
+have exited.
 """
 
 from __future__ import annotations
 
 import signal
 import subprocess
-import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
-from typing import Any
+from collections.abc import Callable, Sequence
 
 from softtrack.executors.base import Job, record_worker_exit, worker_env
+from softtrack.signals import StopFlag, stop_on_signals
 from softtrack.store.provenance import usable_cores
 
 __all__ = ["LocalPool", "default_workers"]
@@ -28,23 +27,6 @@ POLL_S = 0.2
 def default_workers() -> int:
     """The number of cores this process may use."""
     return usable_cores()
-
-
-@contextmanager
-def _stop_on_signals(stop: list[int]) -> Iterator[None]:
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, _frame: Any) -> None:
-        stop.append(signum)
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
 
 
 class LocalPool:
@@ -86,12 +68,12 @@ class LocalPool:
         pending = list(jobs)
         running: dict[str, tuple[Job, subprocess.Popen[bytes]]] = {}
         codes: dict[str, int] = {}
-        stop: list[int] = []
+        stop = StopFlag()
         last_tick = 0.0
-        with _stop_on_signals(stop):
+        with stop_on_signals(stop):
             while pending or running:
-                if stop and self.stop_signal is None:
-                    self.stop_signal = stop[0]
+                if stop() and self.stop_signal is None:
+                    self.stop_signal = stop.signum
                     pending.clear()
                     for _job, proc in running.values():
                         if proc.poll() is None:

@@ -3,15 +3,15 @@
 A report reads only the stored tables of the selected runs (``runs/<id>/tables/*.parquet``,
 ``run.json``, ``spec.yaml``), so it can be rebuilt at any time::
 
-    from softtrack.report import build_report, select_runs
+    from softtrack.report import build_report, select_report_runs
     from softtrack.store import RunStore
 
     store = RunStore("runs")
-    build_report(select_runs(store, ["td3", "independent-td3"]), "reports/study",
+    build_report(select_report_runs(store, ["td3", "independent-td3"]), "reports/study",
                  "softtrack report td3 independent-td3 --out reports/study")
 """
 
 from softtrack.report.build import build_report, report_selection
-from softtrack.report.select import EmptySelectionError, select_runs
+from softtrack.report.select import EmptySelectionError, select_report_runs
 
-__all__ = ["EmptySelectionError", "build_report", "report_selection", "select_runs"]
+__all__ = ["EmptySelectionError", "build_report", "report_selection", "select_report_runs"]

@@ -1,7 +1,9 @@
 """The "Policy actions" table of a report: per-arm action statistics across seeds.
 
-Built from :func:`softtrack.report.summaries.metrics_summary`; metrics tables written before the
-action statistics existed have no such columns, and their cells read "no data".
+Built from :func:`softtrack.report.summaries.metrics_summary` (columns ``action_saturation``,
+``action_change``, ``action_rms`` of ``eval_metrics``); metrics tables written before the
+action statistics existed have no such columns, their cells read "no data", and only then
+does the caption say so.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from collections.abc import Sequence
 
 import pandas as pd
 
-from softtrack.metrics import SATURATION_THRESHOLD
+from softtrack.evaluation.metrics import SATURATION_THRESHOLD
 from softtrack.report.data import Group
 from softtrack.report.reference import (
     CALIBRATION_ACTION_CHANGE,
@@ -63,15 +65,34 @@ def actions_rows(
     return rows
 
 
-def actions_caption() -> str:
-    """What the columns mean, and the SPEC's calibration values to compare them with."""
-    return (
+def _missing(summary: pd.DataFrame, group: Group) -> bool:
+    """Whether some of ``group``'s evaluated runs lack the action statistics."""
+    if summary.empty:
+        return False
+    rows = summary[summary["group"] == group.label]
+    if rows.empty:
+        return False
+    n_data = rows.get("action_saturation_n", pd.Series(0, index=rows.index)).fillna(0)
+    return bool((n_data < rows["n"]).any())
+
+
+def actions_caption(summary: pd.DataFrame, groups: Sequence[Group]) -> str:
+    """What the columns mean, the SPEC's calibration values to compare them with, and, only
+    where a run's metrics table lacks the statistics, which controllers that concerns."""
+    text = (
         "Per arm over each evaluation episode, actions clipped to [−1, 1] as the environment "
         "applies them: saturation is the share of the arm's 12 control values with "
         f"|a| ≥ {SATURATION_THRESHOLD:g}, mean |Δa| their mean absolute change from one control "
         "step to the next (0–2) and RMS their root mean square (0–1), each as mean ± sample std "
         "across seeds; for comparison, the SPEC's TD3 calibration prototype (§5) had "
         f"{100 * CALIBRATION_ACTION_SATURATION:.0f} % saturation and a mean change of "
-        f"{CALIBRATION_ACTION_CHANGE:.2f}, i.e. accurate but bang-bang. No data: the run's "
-        "metrics were stored before these statistics existed (run `softtrack evaluate` again)."
+        f"{CALIBRATION_ACTION_CHANGE:.2f}, i.e. accurate but bang-bang."
     )
+    missing = [g.label for g in groups if _missing(summary, g)]
+    if missing:
+        text += (
+            f" Some runs of {', '.join(missing)} have metrics stored before these statistics "
+            "existed (fewer \"seeds with data\" than seeds, \"no data\" where none has them): "
+            "run `softtrack evaluate` on them again."
+        )
+    return text

@@ -2,10 +2,16 @@
 
 Layout of ``out_dir``::
 
-    index.md       the report: tables, embedded figures, provenance under every table/figure
+    index.md       the report: tables, embedded figures, each controller's provenance once
+                   (*Behind these numbers*) and a one-line provenance footer in every figure
     index.html     the same content as a standalone HTML page (figures by relative path)
     report.json    manifest: files written, command, runs, generation time
-    figures/*.png  the figures (150 dpi)
+    figures/*.png  the figures (110 dpi)
+
+Every controller is in the tables; the per-run trajectory, error and moment figures are drawn
+for a few chosen controllers only (:mod:`softtrack.report.featured`: the study protocol, the
+best centralized and the best independent controller, side by side in one figure per
+trajectory), or for every controller with ``all_figures=True``.
 
 Each file is written atomically (temporary file + rename), figures first and the index last,
 so an index never points at a missing figure. Nothing outside ``out_dir`` is touched; inside
@@ -26,7 +32,13 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from softtrack.report.data import group_runs, load_runs, trajectories_in
-from softtrack.report.document import FIGURES_DIR, NOT_IN_SPEC, Context, Doc
+from softtrack.report.document import (
+    FIGURES_DIR,
+    NOT_IN_SPEC,
+    Context,
+    Doc,
+    provenance_section,
+)
 from softtrack.report.evaluation_sections import (
     actions_section,
     errors_section,
@@ -34,7 +46,8 @@ from softtrack.report.evaluation_sections import (
     random_targets_section,
     trajectories_section,
 )
-from softtrack.report.select import EmptySelectionError, select_runs
+from softtrack.report.featured import featured_groups
+from softtrack.report.select import EmptySelectionError, select_report_runs
 from softtrack.report.summaries import metrics_summary
 from softtrack.report.training_sections import (
     final_section,
@@ -70,19 +83,28 @@ def build_report(
     records: Sequence[RunRecord],
     out_dir: str | os.PathLike[str],
     command_line: str | Sequence[str],
+    *,
+    all_figures: bool = False,
+    figures_for: Sequence[str] = (),
 ) -> Path:
     """Write the report of ``records`` into ``out_dir``; return the path of ``index.md``.
 
     Reads only the runs' stored files. Missing tables give "no data" figures and table cells.
 
     Args:
-        records: the runs (see :func:`softtrack.report.select.select_runs`).
+        records: the runs (see :func:`softtrack.report.select.select_report_runs`).
         out_dir: the report directory (created if needed; may already hold an older report).
-        command_line: the command that built the report, shown under every table.
+        command_line: the command that built the report, shown in *Behind these numbers*.
+        all_figures: draw the trajectory, error and moment figures of every controller (one
+            figure per controller and trajectory) instead of those of the chosen few
+            (:func:`softtrack.report.featured.featured_groups`).
+        figures_for: experiment names whose controllers get those figures, instead of the
+            automatic choice.
 
     Raises:
         EmptySelectionError: ``records`` is empty.
-        RunStoreError: ``out_dir`` exists and is not a directory.
+        RunStoreError: ``out_dir`` exists and is not a directory, or a ``figures_for`` name
+            is no experiment of ``records``.
     """
     if not records:
         raise EmptySelectionError("nothing to report: the selection contains no runs")
@@ -92,10 +114,12 @@ def build_report(
     command = command_line if isinstance(command_line, str) else shlex.join(command_line)
     runs = load_runs(records)
     groups = group_runs(runs)
+    summary = metrics_summary(groups)
+    featured = featured_groups(groups, summary, all_groups=all_figures, names=figures_for)
     trajectories = trajectories_in(groups)
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(parents=True, exist_ok=True)
-    ctx = Context(groups, command, figures_dir)
+    ctx = Context(groups, command, figures_dir, all_figures)
 
     names = ", ".join(dict.fromkeys(g.name for g in groups))
     title = f"softtrack report: {names}"
@@ -108,15 +132,15 @@ def build_report(
         f"study's value from the SPEC ({NOT_IN_SPEC} where the SPEC gives none)."
     )
     runs_section(doc, ctx, runs)
+    provenance_section(doc, ctx)
     training_section(doc, ctx)
     final_section(doc, ctx)
     validation_section(doc, ctx)
-    summary = metrics_summary(ctx.groups)
     errors_section(doc, ctx, summary, trajectories)
     random_targets_section(doc, ctx)
     actions_section(doc, ctx, summary, trajectories)
-    trajectories_section(doc, ctx, trajectories)
-    moments_section(doc, ctx, trajectories)
+    trajectories_section(doc, ctx, trajectories, featured)
+    moments_section(doc, ctx, trajectories, featured)
 
     index = out_dir / "index.md"
     atomic_write_text(out_dir / "index.html", doc.html(title), fsync=False)
@@ -142,10 +166,13 @@ def report_selection(
     *,
     runs_dir: str | os.PathLike[str] | None = None,
     command_line: str | Sequence[str] | None = None,
+    all_figures: bool = False,
+    figures_for: Sequence[str] = (),
 ) -> Path:
-    """Select runs (:func:`select_runs`) under ``runs_dir`` and :func:`build_report` them."""
+    """Select runs (:func:`select_report_runs`) under ``runs_dir`` and :func:`build_report` them."""
     store = RunStore(resolve_runs_dir(runs_dir))
-    records = select_runs(store, selection)
+    records = select_report_runs(store, selection)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report(records, out_dir, command_line)
+    return build_report(records, out_dir, command_line, all_figures=all_figures,
+                        figures_for=figures_for)

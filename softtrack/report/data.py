@@ -18,7 +18,7 @@ import pandas as pd
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.store.runs import RunRecord
-from softtrack.store.status import DEFAULT_FINAL_STAGE_FRACTION
+from softtrack.store.status import episodes_by_arm, final_stage_fraction
 from softtrack.store.tables import TableError, read_table
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "METRIC_COLUMNS",
     "Group",
     "RunData",
+    "episode_peaks",
     "episodes_by_arm",
     "group_runs",
     "load_run",
@@ -46,8 +47,9 @@ _MOMENT_COLUMNS = (
     "arm",
     "direction",
     "rms_moment",
-    "max_abs_moment",
+    "max_abs_moment",  # only in tables written before eval_moment_peaks existed
 )
+_PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3}
@@ -66,7 +68,12 @@ class RunData:
         trajectories: ``eval_trajectories`` (tip and target positions per step and arm, m).
         metrics: ``eval_metrics`` (one row per trajectory and arm, m; the action statistics
             columns are absent from tables written before they were added).
-        moments: ``eval_moments`` without the per-element torques (N·m).
+        moments: ``eval_moments`` without the per-element torques (N·m): per step, arm and
+            direction the spatial RMS ``rms_moment`` (older tables also ``max_abs_moment``).
+        peaks: the episode's peak absolute element torque per trajectory, arm and direction
+            (columns trajectory, arm, direction, peak_abs_moment; N·m): from
+            ``eval_moment_peaks`` where it has the trajectory, else the maximum over the steps
+            of an older ``eval_moments``' ``max_abs_moment`` (see :func:`episode_peaks`).
         random: ``eval_random`` (one row per random-target episode and arm, m).
         validation: ``validation`` (one row per validated checkpoint, episode and arm, m).
         problems: one line per unreadable table.
@@ -80,6 +87,7 @@ class RunData:
     moments: pd.DataFrame | None
     random: pd.DataFrame | None = None
     validation: pd.DataFrame | None = None
+    peaks: pd.DataFrame | None = None
     problems: tuple[str, ...] = ()
 
     @property
@@ -97,14 +105,8 @@ class RunData:
     @property
     def arm_budget(self) -> int:
         """Training budget of one arm's policy in an independent run (env steps):
-        ``arm_total_timesteps`` of run.json, else the run's budget split over the arms."""
-        info = self.record.info
-        per_arm = getattr(info, "arm_total_timesteps", None)
-        if isinstance(per_arm, int) and per_arm > 0:
-            return per_arm
-        return (
-            info.total_timesteps // 2 if info.controller == "independent" else info.total_timesteps
-        )
+        :attr:`~softtrack.store.runs.RunInfo.policy_budget`."""
+        return self.record.info.policy_budget
 
     @property
     def last_step(self) -> int:
@@ -121,14 +123,6 @@ class RunData:
         if self.record.info.controller == "independent":
             return f"{self.arm_budget:,} env steps per arm"
         return f"{self.total_timesteps:,} env steps per run"
-
-
-def _fraction(raw: dict[str, object]) -> float:
-    training = raw.get("training")
-    value = training.get("final_stage_fraction") if isinstance(training, dict) else None
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value <= 1:
-        return float(value)
-    return DEFAULT_FINAL_STAGE_FRACTION
 
 
 def _read(
@@ -150,18 +144,55 @@ def _read(
     return df if not df.empty else None
 
 
+def episode_peaks(
+    moments: pd.DataFrame | None, element_peaks: pd.DataFrame | None
+) -> pd.DataFrame | None:
+    """Peak absolute element torque per trajectory, arm and direction over an episode (N·m).
+
+    Reads both table formats: ``element_peaks`` (``eval_moment_peaks``: one row per
+    trajectory, arm, direction and element) where it has the trajectory, else the per-step
+    ``max_abs_moment`` of an older ``eval_moments``. Returns columns trajectory, arm,
+    direction, peak_abs_moment, or ``None`` when neither table gives a peak.
+    """
+    parts = []
+    covered: set[str] = set()
+    if element_peaks is not None and set(_PEAK_COLUMNS) <= set(element_peaks.columns):
+        value = pd.to_numeric(element_peaks["peak_abs_moment"], errors="coerce")
+        keys = [element_peaks["trajectory"].astype(str), element_peaks["arm"],
+                element_peaks["direction"]]
+        parts.append(value.groupby(keys).max())
+        covered = set(element_peaks["trajectory"].astype(str))
+    if moments is not None and "max_abs_moment" in moments:
+        old = moments[~moments["trajectory"].astype(str).isin(covered)]
+        if len(old):
+            value = pd.to_numeric(old["max_abs_moment"], errors="coerce")
+            parts.append(value.groupby([old["trajectory"].astype(str), old["arm"],
+                                        old["direction"]]).max())
+    if not parts:
+        return None
+    peaks = pd.concat(parts).rename("peak_abs_moment").dropna()
+    peaks.index.names = ["trajectory", "arm", "direction"]
+    out = peaks.reset_index()
+    out["arm"] = out["arm"].astype(int)
+    out["direction"] = out["direction"].astype(int)
+    return out if len(out) else None
+
+
 def load_run(record: RunRecord) -> RunData:
     """Read a run's tables (missing ones are ``None``; unreadable ones are noted in problems)."""
     problems: list[str] = []
+    moments = _read(record, "eval_moments", problems, _MOMENT_COLUMNS)
+    element_peaks = _read(record, "eval_moment_peaks", problems, _PEAK_COLUMNS)
     return RunData(
         record=record,
-        final_stage_fraction=_fraction(record.raw_spec()),
+        final_stage_fraction=final_stage_fraction(record.raw_spec()),
         train=_read(record, "train_episodes", problems),
         trajectories=_read(record, "eval_trajectories", problems),
         metrics=_read(record, "eval_metrics", problems),
-        moments=_read(record, "eval_moments", problems, _MOMENT_COLUMNS),
+        moments=moments,
         random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
         validation=_read(record, "validation", problems, _VALIDATION_COLUMNS),
+        peaks=episode_peaks(moments, element_peaks),
         problems=tuple(problems),
     )
 
@@ -238,20 +269,6 @@ def group_runs(runs: Sequence[RunData]) -> list[Group]:
         members = tuple(sorted(buckets[k], key=lambda r: (r.seed, r.run_id)))
         groups.append(Group(k[0], k[1], k[2], k[3], labels[k], slug, members))
     return groups
-
-
-def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
-    """A ``train_episodes`` table split by arm policy: ``{None: all}`` without an ``arm``
-    column, else ``{0: arm 1's rows, 1: arm 2's}`` (and ``None`` for rows with no arm)."""
-    if "arm" not in train:
-        return {None: train}
-    arm = pd.to_numeric(train["arm"], errors="coerce").fillna(-1).astype(int)
-    parts: dict[int | None, pd.DataFrame] = {}
-    if (arm < 0).any():
-        parts[None] = train[arm < 0]
-    for a in sorted(set(arm[arm >= 0])):
-        parts[int(a)] = train[arm == a]
-    return parts
 
 
 def trajectories_in(groups: Sequence[Group]) -> list[str]:

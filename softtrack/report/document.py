@@ -2,8 +2,8 @@
 
 :class:`Doc` collects headings, paragraphs, tables and images and renders them to Markdown and
 to a standalone HTML page; the ``*_text`` helpers format table cells; :class:`Context` gives
-the sections the run groups, the provenance lines under every table and figure, and the paths
-of the figures they write.
+the sections the run groups, the provenance footer of every figure and the paths of the
+figures they write; :func:`provenance_section` states each controller's provenance once.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ __all__ = [
     "commit_text",
     "group_provenance",
     "num_text",
+    "provenance_section",
     "seeds_text",
     "study_text",
 ]
@@ -35,6 +36,9 @@ __all__ = [
 FIGURES_DIR = "figures"
 #: The cell shown where the SPEC gives no study value.
 NOT_IN_SPEC = "—"
+#: A figure footer names the experiments, specs and commits of at most this many experiments
+#: (more are counted, and listed in the report's *Behind these numbers*).
+FOOTER_LISTS_UP_TO = 4
 
 
 # ---- a minimal document model rendered to Markdown and HTML ---------------------------------
@@ -189,39 +193,53 @@ def group_provenance(group: Group) -> str:
 
 
 class Context:
-    """What every section needs: the groups, the report command and the figure list."""
+    """What every section needs: the groups, the report command, the figure list, and whether
+    to draw the per-run figures of every controller (``all_figures``) or of a chosen few."""
 
-    def __init__(self, groups: list[Group], command: str, figures_dir: Path) -> None:
+    def __init__(
+        self, groups: list[Group], command: str, figures_dir: Path, all_figures: bool = False
+    ) -> None:
         self.groups = groups
         self.command = command
         self.figures_dir = figures_dir
+        self.all_figures = all_figures
         self.written: list[str] = []
-
-    def provenance(self, groups: Sequence[Group] | None = None) -> str:
-        """The *Behind these numbers* paragraph of ``groups`` (default: all)."""
-        groups = self.groups if groups is None else groups
-        parts = [f"Command: `{self.command}`."]
-        parts += [group_provenance(g) + "." for g in groups]
-        parts.append(f"Study: {STUDY_BUDGET_TEXT}.")
-        return "*Behind these numbers* — " + " ".join(parts)
 
     def footer(self, groups: Sequence[Group] | None = None) -> str:
         """The one-line provenance printed under a figure of ``groups`` (default: all)."""
         groups = self.groups if groups is None else groups
-        names = ", ".join(sorted({g.name for g in groups}))
+        names = sorted({g.name for g in groups})
         seeds = seeds_text(s for g in groups for s in g.seeds)
         budgets = ", ".join(sorted({b for g in groups for b in g.budgets}))
-        hashes = ", ".join(sorted({r.record.info.spec_hash[:8] for g in groups for r in g.runs}))
-        commits = ", ".join(
-            sorted({c[:8] for g in groups for r in g.runs for c, _ in training_commits(r)})
-            or ["unknown"]
-        )
+        hashes = sorted({r.record.info.spec_hash[:8] for g in groups for r in g.runs})
+        commits = sorted({c[:8] for g in groups for r in g.runs for c, _ in training_commits(r)})
+        if len(names) > FOOTER_LISTS_UP_TO:  # counted; listed under *Behind these numbers*
+            return (
+                f"{len(names)} experiments, {len(hashes)} specs, {len(commits)} commits "
+                f"(listed in the report under Behind these numbers) · seeds {seeds} · "
+                f"budget {budgets}"
+            )
         return (
-            f"experiment {names} · spec {hashes} · seeds {seeds} · budget {budgets} · "
-            f"commit {commits}"
+            f"experiment {', '.join(names)} · spec {', '.join(hashes)} · seeds {seeds} · "
+            f"budget {budgets} · commit {', '.join(commits) or 'unknown'}"
         )
 
     def figure(self, name: str) -> tuple[Path, str]:
         """(path to write, path relative to the report) of figure ``name``."""
         self.written.append(f"{FIGURES_DIR}/{name}")
         return self.figures_dir / name, f"{FIGURES_DIR}/{name}"
+
+
+def provenance_section(doc: Doc, ctx: Context) -> None:
+    """*Behind these numbers*, once for the whole report: the command, then one paragraph per
+    controller (experiment, spec, seeds, budget, commits, training commands), then the
+    study's protocol. Every table and figure below draws on these runs only."""
+    doc.h(2, "Behind these numbers")
+    doc.p(
+        f"Every table and figure below is computed from the stored tables of these runs by "
+        f"`{ctx.command}`; each figure repeats its runs' experiment, spec, seeds, budget and "
+        "commit in its footer."
+    )
+    for group in ctx.groups:
+        doc.p(group_provenance(group) + ".")
+    doc.p(f"Study: {STUDY_BUDGET_TEXT}.")

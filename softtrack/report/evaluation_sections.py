@@ -1,7 +1,7 @@
 """Report sections on the evaluation episodes: tracking error (study Table 4), policy actions,
 trajectories and errors over time (study Figs. 4–9) and actuation moments (study Fig. 10).
 
-Each section appends its headings, tables, figures and provenance lines to a
+Each section appends its headings, tables and figures to a
 :class:`~softtrack.report.document.Doc`.
 """
 
@@ -17,9 +17,11 @@ from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
 from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
 from softtrack.report.document import NOT_IN_SPEC, Context, Doc, num_text, study_text
+from softtrack.report.featured import Featured
 from softtrack.report.reference import (
     STUDY_PEAK_MOMENTS,
     STUDY_RMSE_3D,
+    STUDY_TOTAL_TIMESTEPS,
     TRAJECTORY_TITLES,
     study_peak_moment,
     study_rmse_3d,
@@ -107,7 +109,6 @@ def errors_section(
             "trajectory (SPEC §5). The SPEC gives the study's 3-D RMSE only (centralized TD3 "
             f"and the independent TD3 baseline); {NOT_IN_SPEC}: no study value."
         )
-        doc.p(ctx.provenance([group]))
     doc.h(3, "Centralized against independent controllers")
     cells = [(t, arm) for t in trajectories for arm in (0, 1)]
     header = ["controller", "seeds"] + [f"{_cell_title(t, arm)} (m)" for t, arm in cells]
@@ -126,7 +127,6 @@ def errors_section(
     doc.table(header, rows)
     doc.p("3-D RMSE, mean ± sample std across seeds of one deterministic evaluation episode "
           "per trajectory.")
-    doc.p(ctx.provenance())
     _differences_tables(doc, ctx, controller_differences(summary, ctx.groups), cells)
     study = {
         f"study {controller} TD3": {(t, a): v[a] for t, v in values.items() for a in (0, 1)}
@@ -174,8 +174,6 @@ def _differences_tables(
             f"{'' if n_reference == 1 else 's'}). Both only where both controllers have at "
             "least 2 seeds. Across this many cells a few p below 0.05 are expected by chance."
         )
-        labels = {reference, *part["group"]}
-        doc.p(ctx.provenance([g for g in ctx.groups if g.label in labels]))
 
 
 def random_targets_section(doc: Doc, ctx: Context) -> None:
@@ -213,7 +211,6 @@ def random_targets_section(doc: Doc, ctx: Context) -> None:
         "study reports no such figure."
         + (f" Not evaluated this way: {', '.join(missing)}." if missing else "")
     )
-    doc.p(ctx.provenance(evaluated))
 
 
 def actions_section(
@@ -222,8 +219,7 @@ def actions_section(
     """Statistics of the policies' actions during the evaluation episodes."""
     doc.h(3, "Policy actions")
     doc.table(ACTIONS_HEADER, actions_rows(summary, ctx.groups, trajectories))
-    doc.p(actions_caption())
-    doc.p(ctx.provenance())
+    doc.p(actions_caption(summary, ctx.groups))
 
 
 def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
@@ -233,61 +229,104 @@ def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
         if r.trajectories is not None and (r.trajectories["trajectory"] == trajectory).any()
     )
     seeds = "1 seed" if n == 1 else f"{n} seeds"
-    return f"{group.label}, seed {run.seed}, run {run.run_id} (median 3-D RMSE of {seeds})"
+    return f"seed {run.seed}, run {run.run_id} (median 3-D RMSE of {seeds})"
 
 
-def trajectories_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None:
-    """3-D paths and errors over time of each group's median-RMSE seed per trajectory."""
+def _path_row(featured: Featured, trajectory: str) -> tuple[fg.PathRow, RunData | None]:
+    """The figure row of a controller's median-RMSE run on ``trajectory``, and that run."""
+    group = featured.group
+    run = representative_run(group, trajectory)
+    if run is None or run.trajectories is None:
+        return fg.PathRow(featured.title, None), run
+    traj = run.trajectories[run.trajectories["trajectory"] == trajectory]
+    rmse: dict[int, float] = {}
+    if run.metrics is not None:
+        m = run.metrics[run.metrics["trajectory"] == trajectory]
+        rmse = {int(a): float(v) for a, v in zip(m["arm"], m["rmse_3d"], strict=True)}
+    return fg.PathRow(featured.title, traj, _run_caption(group, run, trajectory), rmse), run
+
+
+def _rmse_line(featured: Featured, row: fg.PathRow, run: RunData | None, trajectory: str) -> str:
+    """``TD3 …: seed 0, run … 3-D RMSE arm 1 / arm 2: 0.0544 / 0.0512 m (study: …)``."""
+    group = featured.group
+    if run is None:
+        return (f"No data for {group.label} on the {trajectory}: no run has a stored "
+                "evaluation trajectory (run `softtrack evaluate` on its runs).")
+    study = [study_text(study_rmse_3d(group.algo, group.controller, trajectory, a), 3)
+             for a in (0, 1)]
+    measured = [num_text(row.rmse.get(a), 4) for a in (0, 1)]
+    return (f"{featured.title}, {row.caption}: 3-D RMSE arm 1 / arm 2: {measured[0]} / "
+            f"{measured[1]} m (study: {study[0]} / {study[1]} m).")
+
+
+def _shown_text(ctx: Context, featured: Sequence[Featured]) -> str:
+    """Which controllers the figures show, and where the others are."""
+    if ctx.all_figures or len(featured) == len(ctx.groups):
+        return "Every controller of this report is drawn."
+    others = len(ctx.groups) - len(featured)
+    if any(f.role == "chosen" for f in featured):
+        return (
+            f"Drawn: {', '.join(f.group.label for f in featured)} (chosen with "
+            f"`--figures-for`). The other {others} "
+            f"controller{'s are' if others != 1 else ' is'} in the Tracking error tables."
+        )
+    return (
+        f"Drawn: {', '.join(f.title for f in featured)}; chosen as the study protocol "
+        f"(centralized TD3, {STUDY_TOTAL_TIMESTEPS:,} env steps per run) and the centralized "
+        "and the independent controller with the lowest mean 3-D RMSE over the trajectories "
+        f"and arms (Tracking error tables). The other {others} "
+        f"controller{'s are' if others != 1 else ' is'} in those tables; "
+        "`softtrack report … --all-figures` draws every controller."
+    )
+
+
+def trajectories_section(
+    doc: Doc, ctx: Context, trajectories: Sequence[str], featured: Sequence[Featured]
+) -> None:
+    """3-D paths and errors over time of each drawn controller's median-RMSE seed per
+    trajectory: one figure per trajectory with a row per controller (``ctx.all_figures``:
+    one figure per controller and trajectory)."""
     doc.h(2, "Trajectories and errors over time (study Figs. 4–9)")
     doc.p(
         "For each trajectory and controller, the seed with the median 3-D RMSE: the 3-D paths "
-        "of the target and both tips, then per-axis error tip − target and spatial error "
-        "against time for both arms."
+        "of the target and both tips, then the per-axis error tip − target of each arm and "
+        "both arms' spatial error against time. " + _shown_text(ctx, featured)
     )
     for trajectory in trajectories:
         doc.h(3, TRAJECTORY_TITLES.get(trajectory, trajectory))
-        for group in ctx.groups:
-            run = representative_run(group, trajectory)
-            traj = None
-            rmse: dict[int, float] = {}
-            if run is not None and run.trajectories is not None:
-                traj = run.trajectories[run.trajectories["trajectory"] == trajectory]
-                if run.metrics is not None:
-                    m = run.metrics[run.metrics["trajectory"] == trajectory]
-                    rmse = {int(a): float(v) for a, v in zip(m["arm"], m["rmse_3d"])}
-            caption = _run_caption(group, run, trajectory) if run is not None else group.label
-            footer = ctx.footer([group])
-            path, rel = ctx.figure(f"trajectory_{group.slug}_{trajectory}.png")
-            fg.trajectory_3d_figure(
-                traj, trajectory, path, subtitle=caption, rmse=rmse, footer=footer
-            )
-            doc.img(rel, f"{trajectory}: 3-D target and tip paths, {group.label}")
-            path, rel = ctx.figure(f"errors_{group.slug}_{trajectory}.png")
-            fg.tracking_errors_figure(traj, trajectory, path, subtitle=caption, footer=footer)
-            doc.img(rel, f"{trajectory}: tracking error against time, {group.label}")
-            if run is None:
-                doc.p(
-                    f"No data for {group.label} on the {trajectory}: no run has a stored "
-                    "evaluation trajectory (run `softtrack evaluate` on its runs)."
-                )
-            else:
-                study = [
-                    study_text(study_rmse_3d(group.algo, group.controller, trajectory, a), 3)
-                    for a in (0, 1)
-                ]
-                measured = [num_text(rmse.get(a), 4) for a in (0, 1)]
-                doc.p(
-                    f"{caption}. 3-D RMSE arm 1 / arm 2: {measured[0]} / {measured[1]} m "
-                    f"(study: {study[0]} / {study[1]} m)."
-                )
-            doc.p(ctx.provenance([group]))
+        rows = [_path_row(f, trajectory) for f in featured]
+        if ctx.all_figures:
+            batches = [([f], [r], f.group.slug + "_") for f, r in zip(featured, rows,
+                                                                       strict=True)]
+        else:
+            batches = [(list(featured), rows, "")]
+        for members, batch, prefix in batches:
+            footer = ctx.footer([f.group for f in members])
+            names = ", ".join(f.group.label for f in members)
+            path, rel = ctx.figure(f"trajectory_{prefix}{trajectory}.png")
+            fg.trajectory_3d_figure([row for row, _ in batch], trajectory, path, footer=footer)
+            doc.img(rel, f"{trajectory}: 3-D target and tip paths, {names}")
+            path, rel = ctx.figure(f"errors_{prefix}{trajectory}.png")
+            fg.tracking_errors_figure([row for row, _ in batch], trajectory, path,
+                                      footer=footer)
+            doc.img(rel, f"{trajectory}: tracking error against time, {names}")
+            doc.p(" ".join(_rmse_line(f, row, run, trajectory)
+                           for f, (row, run) in zip(members, batch, strict=True)))
 
 
-def moments_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None:
-    """Actuation moment histories per group and the peak element moments against the study."""
+def moments_section(
+    doc: Doc, ctx: Context, trajectories: Sequence[str], featured: Sequence[Featured]
+) -> None:
+    """Actuation moment histories of the drawn controllers, and the peak element moments of
+    every controller against the study."""
     doc.h(2, "Actuation moments (study Fig. 10)")
-    for group in ctx.groups:
+    if not (ctx.all_figures or len(featured) == len(ctx.groups)):
+        doc.p(f"Moment histories of {', '.join(f.title for f in featured)}; the peaks of "
+              "every controller are in the table below.")
+    for item in featured:
+        group = item.group
         moments: dict[str, pd.DataFrame | None] = {}
+        peaks: dict[str, pd.DataFrame | None] = {}
         subtitles: dict[str, str] = {}
         for trajectory in trajectories:
             run = representative_run(group, trajectory)
@@ -296,6 +335,8 @@ def moments_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None
             for r in candidates:
                 if r.moments is not None and (r.moments["trajectory"] == trajectory).any():
                     df = r.moments[r.moments["trajectory"] == trajectory]
+                    if r.peaks is not None:
+                        peaks[trajectory] = r.peaks[r.peaks["trajectory"] == trajectory]
                     subtitles[trajectory] = f"seed {r.seed}"
                     break
             moments[trajectory] = df
@@ -303,8 +344,9 @@ def moments_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None
         fg.moments_figure(
             moments,
             path,
-            title=f"Actuation moments, {group.label}",
+            title=f"Actuation moments, {item.title}",
             subtitles=subtitles,
+            peaks=peaks,
             footer=ctx.footer([group]),
         )
         doc.img(rel, f"Spatial-RMS moment histories, {group.label}")
@@ -358,4 +400,3 @@ def moments_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None
         f"TD3: {STUDY_PEAK_MOMENTS['normal']} N·m normal, {STUDY_PEAK_MOMENTS['binormal']} N·m "
         f"binormal); {NOT_IN_SPEC}: no study value."
     )
-    doc.p(ctx.provenance())

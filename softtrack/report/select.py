@@ -8,7 +8,7 @@ from pathlib import Path
 from softtrack.spec import load_spec, spec_hash
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore, RunStoreError
 
-__all__ = ["EmptySelectionError", "select_runs"]
+__all__ = ["EmptySelectionError", "select_report_runs"]
 
 _SPEC_SUFFIXES = (".yaml", ".yml")
 
@@ -21,7 +21,7 @@ def _looks_like_spec(item: str) -> bool:
     return item.lower().endswith(_SPEC_SUFFIXES) or Path(item).is_file()
 
 
-def select_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
+def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
     """The runs a report covers, in selection order, each once.
 
     Each item of ``selection`` is, in this order of precedence:

@@ -11,7 +11,7 @@ import pandas as pd
 from scipy import stats
 
 from softtrack.evaluation import validation_score
-from softtrack.metrics import ACTION_STATISTICS
+from softtrack.evaluation.metrics import ACTION_STATISTICS
 from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group, RunData
 from softtrack.store.layout import PolicyDir
 
@@ -223,16 +223,17 @@ def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:
     direction and arm (``arm`` -1: both arms), as mean and sample std across seeds.
 
     Columns: group, algo, controller, trajectory, direction (``normal``/``binormal``), arm, n,
-    mean, std.
+    mean, std. Each run's peaks are :attr:`RunData.peaks` (``eval_moment_peaks``, or the
+    ``max_abs_moment`` column of an older ``eval_moments``).
     """
     rows = []
     for group in groups:
         peaks: dict[tuple[str, str, int], list[float]] = {}
         for run in group.runs:
-            df = run.moments
-            if df is None or "max_abs_moment" not in df:
+            df = run.peaks  # both table formats: see softtrack.report.data.episode_peaks
+            if df is None:
                 continue
-            value = pd.to_numeric(df["max_abs_moment"], errors="coerce")
+            value = df["peak_abs_moment"]
             per = value.groupby([df["trajectory"], df["direction"], df["arm"]]).max()
             both = value.groupby([df["trajectory"], df["direction"]]).max()
             for (trajectory, direction, arm), peak in per.items():

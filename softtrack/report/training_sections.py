@@ -2,7 +2,7 @@
 final-stage returns (study Table 3) and, for runs validated during training, the checkpoint
 each selected.
 
-Each section appends its headings, tables, figures and provenance lines to a
+Each section appends its headings, tables and figures to a
 :class:`~softtrack.report.document.Doc`.
 """
 
@@ -75,7 +75,6 @@ def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
         ],
         rows,
     )
-    doc.p(ctx.provenance())
     problems = [p for r in runs for p in r.problems]
     if problems:
         doc.p("Problems: " + "; ".join(problems) + ".")
@@ -101,13 +100,14 @@ def training_section(doc: Doc, ctx: Context) -> None:
     fg.training_curves_figure(curves, smoothing, path, ctx.footer())
     doc.img(rel, "Training curves: episode return against environment steps")
     if curves:
+        unit = ("return per second of episode (the runs' training episodes differ in "
+                "length)" if smoothing.per_second else "Episode return")
         doc.p(
-            f"Episode return against environment steps, mean ± 1 sample std across seeds; "
-            f"smoothing: {smoothing.describe()}. The study's curves are not in the SPEC."
+            f"{unit[0].upper()}{unit[1:]} against environment steps, mean ± 1 sample std across "
+            f"seeds; smoothing: {smoothing.describe()}. The study's curves are not in the SPEC."
         )
     else:
         doc.p("No data: no selected run has stored training episodes.")
-    doc.p(ctx.provenance())
 
 
 def final_section(doc: Doc, ctx: Context) -> None:
@@ -150,7 +150,6 @@ def final_section(doc: Doc, ctx: Context) -> None:
         "budget (SPEC §4; the run's `training.final_stage_fraction`), then mean ± sample std "
         f"across seeds. Study values: {NOT_IN_SPEC} = the SPEC does not state them."
     )
-    doc.p(ctx.provenance())
     path, rel = ctx.figure("final_returns.png")
     fg.final_returns_figure(table, path, ctx.footer())
     doc.img(rel, "Final-stage return per algorithm")
@@ -208,4 +207,3 @@ def validation_section(doc: Doc, ctx: Context) -> None:
     fg.validation_figure({(g.label, r.seed, k): part for g, r, k, part in scores},
                          path, ctx.footer())
     doc.img(rel, "Validation 3-D RMSE against environment steps")
-    doc.p(ctx.provenance([g for g in ctx.groups if any(r.validation is not None for r in g.runs)]))

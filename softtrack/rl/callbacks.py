@@ -13,9 +13,10 @@
   ``training.keep_checkpoints`` are deleted. An ``after_save`` hook (validation, see
   :mod:`softtrack.rl.validation`) runs after each periodic checkpoint.
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
-  latest episode return) on a terminal or prints a progress line every
-  :data:`PROGRESS_LINE_INTERVAL_S` seconds otherwise (a log file, a cluster job), and stops
-  training when a stop was requested (signal).
+  latest episode return) on a terminal, or otherwise (a log file, a cluster job) prints whole
+  progress lines: one at every :data:`PROGRESS_LINE_PERCENT` % of the budget and at least
+  every :data:`PROGRESS_LINE_INTERVAL_S` seconds, and a final line (steps, elapsed time,
+  steps/s) when training ends; it stops training when a stop was requested (signal).
 """
 
 from __future__ import annotations
@@ -38,16 +39,20 @@ from softtrack.store.tables import append_rows
 
 __all__ = [
     "PROGRESS_LINE_INTERVAL_S",
+    "PROGRESS_LINE_PERCENT",
     "Checkpointer",
     "EpisodeLogger",
     "ProgressMonitor",
     "TrainingClock",
+    "final_progress_line",
     "progress_line",
     "save_checkpoint",
 ]
 
 PROGRESS_LINE_INTERVAL_S = 120.0
-"""Seconds between progress lines when stderr is not a terminal (no bar)."""
+"""Longest time between progress lines when stderr is not a terminal (no bar), s."""
+PROGRESS_LINE_PERCENT = 5.0
+"""A progress line at every this many percent of the budget when stderr is not a terminal."""
 
 
 class TrainingClock:
@@ -242,6 +247,27 @@ def progress_line(
     return ", ".join(parts)
 
 
+def _elapsed(seconds: float) -> str:
+    """``5:49 min`` or ``2:03:07 h``."""
+    total = max(0, round(seconds))
+    hours, rest = divmod(total, 3600)
+    minutes, secs = divmod(rest, 60)
+    return f"{hours}:{minutes:02d}:{secs:02d} h" if hours else f"{minutes}:{secs:02d} min"
+
+
+def final_progress_line(
+    name: str, step: int, total: int, seconds: float, steps_per_second: float | None
+) -> str:
+    """The last progress line of a training session, e.g. ``5JP1EEN4 finished: 100,000/100,000
+    steps (100.0%) in 5:49 min, 286 steps/s`` (``stopped`` before the budget is reached)."""
+    state = "finished" if step >= total else "stopped"
+    line = (f"{name} {state}: {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%) "
+            f"in {_elapsed(seconds)}")
+    if steps_per_second:
+        line += f", {steps_per_second:,.0f} steps/s"
+    return line
+
+
 class ProgressMonitor(BaseCallback):
     """Heartbeat into run.json, a progress bar, and a stop switch.
 
@@ -252,12 +278,14 @@ class ProgressMonitor(BaseCallback):
         heartbeat_interval: seconds between run.json updates.
         stop_requested: a callable; when it returns true, training stops after this step.
         show: ``True`` a tqdm bar on stderr, ``False`` nothing, ``None`` (default) a bar when
-            stderr is a terminal and ``CI`` is unset, else a :func:`progress_line` on stderr
-            every ``line_interval`` seconds.
+            stderr is a terminal and ``CI`` is unset, else whole lines on stderr: a
+            :func:`progress_line` at every :data:`PROGRESS_LINE_PERCENT` % of the budget and
+            at least every ``line_interval`` seconds, and a :func:`final_progress_line` when
+            the monitor is closed.
         run_fields: maps the model's step count to the run.json progress fields (default
             ``{"global_step": step}``; an independent run adds the other arm's steps).
         label: shown after the run id in the bar, e.g. ``arm1``.
-        line_interval: seconds between progress lines (default
+        line_interval: the longest time between progress lines, s (default
             :data:`PROGRESS_LINE_INTERVAL_S`).
     """
 
@@ -292,6 +320,17 @@ class ProgressMonitor(BaseCallback):
         self._last_beat = time.monotonic()
         self._last_bar = 0.0
         self._last_line = time.monotonic()
+        self._last_milestone = 0
+        self._final_printed = False
+
+    @property
+    def name(self) -> str:
+        """The run's short id and the policy's label, e.g. ``5JP1EEN4 arm1``."""
+        return f"{self.record.run_id[-8:]} {self.label}".rstrip()
+
+    def _milestone(self, step: int) -> int:
+        """How many :data:`PROGRESS_LINE_PERCENT` steps of the budget ``step`` has passed."""
+        return int(100.0 * step / max(self.total_timesteps, 1) // PROGRESS_LINE_PERCENT)
 
     def steps_per_second(self) -> float | None:
         """Env steps per second of this session (``None`` before the first step)."""
@@ -302,6 +341,7 @@ class ProgressMonitor(BaseCallback):
     def _on_training_start(self) -> None:
         self._start_time = self._last_line = time.monotonic()
         self._start_step = int(self.num_timesteps)
+        self._last_milestone = self._milestone(self._start_step)
         if self.show:
             from tqdm import tqdm
 
@@ -309,7 +349,7 @@ class ProgressMonitor(BaseCallback):
                 total=self.total_timesteps,
                 initial=self._start_step,
                 unit="step",
-                desc=f"{self.record.run_id[-8:]} {self.label}".rstrip(),
+                desc=self.name,
                 file=sys.stderr,
                 dynamic_ncols=True,
             )
@@ -322,14 +362,15 @@ class ProgressMonitor(BaseCallback):
             self.store.heartbeat(
                 self.record.run_id, steps_per_second=self.steps_per_second(), **fields
             )
-        if self.print_lines and now - self._last_line >= self.line_interval:
-            self._last_line = now
-            name = f"{self.record.run_id[-8:]} {self.label}".rstrip()
+        if self.print_lines:
             step = min(int(self.num_timesteps), self.total_timesteps)
-            line = progress_line(
-                name, step, self.total_timesteps, self.steps_per_second(), self.episodes.last_return
-            )
-            print(line, file=sys.stderr, flush=True)
+            milestone = self._milestone(step)
+            due = milestone > self._last_milestone or now - self._last_line >= self.line_interval
+            if due and step < self.total_timesteps:  # the budget's end: the final line
+                self._last_line, self._last_milestone = now, milestone
+                line = progress_line(self.name, step, self.total_timesteps,
+                                     self.steps_per_second(), self.episodes.last_return)
+                print(line, file=sys.stderr, flush=True)
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
@@ -345,7 +386,14 @@ class ProgressMonitor(BaseCallback):
         return not self.stop_requested()
 
     def close(self) -> None:
-        """Close the progress bar (if shown)."""
+        """Close the progress bar (if shown), or print the final progress line (once)."""
+        if self.print_lines and not self._final_printed:
+            self._final_printed = True
+            step = min(int(self.num_timesteps), self.total_timesteps)
+            line = final_progress_line(self.name, step, self.total_timesteps,
+                                       time.monotonic() - self._start_time,
+                                       self.steps_per_second())
+            print(line, file=sys.stderr, flush=True)
         if self._bar is not None:
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
             self._bar.refresh()

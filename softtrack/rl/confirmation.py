@@ -20,7 +20,7 @@ is scored once.
   ``model`` (the chosen candidate), ``global_step``, ``scores`` (candidate → score, m),
   ``steps`` (candidate → env steps), ``episodes``. Written last, so its presence means the
   policy is confirmed; a run stopped during confirmation confirms that policy again when it
-  resumes.
+  resumes. :meth:`~softtrack.store.layout.PolicyDir.confirmed_choice` reads the choice.
 """
 
 from __future__ import annotations
@@ -37,10 +37,10 @@ from typing import Literal
 import pandas as pd
 
 from softtrack.evaluation import CONFIRM_SEED, validation_score
-from softtrack.rl.factory import env_config
 from softtrack.rl.policy import load_policy_file
 from softtrack.rl.validation import best_model, held_out_rows
 from softtrack.spec import ExperimentSpec
+from softtrack.spec.env_config import env_config
 from softtrack.store.atomic import atomic_write_json
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, utc_now
@@ -52,7 +52,6 @@ __all__ = [
     "Confirmation",
     "confirm_policy",
     "confirm_run",
-    "confirmed_choice",
 ]
 
 CONFIRMATION_TABLE = "confirmation"
@@ -75,13 +74,6 @@ class Confirmation:
     scores: dict[str, float]
     steps: dict[str, int]
     episodes: int
-
-
-def confirmed_choice(policy: PolicyDir) -> Candidate | None:
-    """The candidate ``policy``'s ``confirmed.json`` chose, or ``None`` if it has none
-    (not confirmed yet) or it cannot be read."""
-    model = (policy.read_confirmed() or {}).get("model")
-    return model if model in ("best", "last") else None  # type: ignore[return-value]
 
 
 def confirm_policy(
@@ -163,7 +155,7 @@ def confirm_run(
     if spec.training.confirm_episodes < 1:
         return True
     for policy in PolicyDir.all_of_run(record.path, spec.controller == "independent"):
-        done = confirmed_choice(policy) is not None
+        done = policy.confirmed_choice() is not None
         if not done and confirm_policy(record, spec, policy, stop_requested, log) is None:
             return False
     return True

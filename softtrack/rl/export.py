@@ -23,7 +23,7 @@ from softtrack.rl.policy import candidate_path, policy_choice
 from softtrack.spec import ExperimentSpec
 from softtrack.store.export import ModelCopy, export_run
 from softtrack.store.layout import OTHER_MODELS_DIR, PolicyDir
-from softtrack.store.runs import RunRecord
+from softtrack.store.runs import RunRecord, RunStore
 
 __all__ = ["export_plan", "export_policy_run", "relayout_exported_run"]
 
@@ -107,8 +107,6 @@ def relayout_exported_run(run_dir: Path) -> bool:
     Returns:
         True if the directory was rewritten.
     """
-    from softtrack.store.runs import RunStore
-
     run_dir = Path(run_dir)
     record = RunStore(run_dir.parent).get_run(run_dir.name)
     spec = record.load_spec()

@@ -1,5 +1,11 @@
 """Build the Stable-Baselines3 algorithm, its environment and its exploration noise from a spec.
 
+The core algorithms are SB3's or SBX's TD3, DDPG, SAC and PPO (:func:`algo_class`). A research
+variant that the spec enables (:mod:`softtrack.rl.variants`) may replace the algorithm class,
+add constructor arguments (e.g. its replay buffer class) and environment arguments; the factory
+asks the variants' registry for them and names no variant itself. The environment settings come
+from :func:`softtrack.spec.env_config.env_config`.
+
 The training environment is ``VecMonitor(TrackingVecEnv(n_envs, config))`` (plus
 ``VecNormalize`` when ``algo.normalize`` is set): all ``n_envs`` environments advance in one
 engine call, and ``VecMonitor`` adds ``info["episode"] = {"r", "l", "t"}`` when an episode
@@ -14,16 +20,15 @@ from typing import Any
 
 import numpy as np
 
-from softtrack.env.config import TrackingConfig, make_config
-from softtrack.env.reward import RewardConfig
+from softtrack.rl import variants
 from softtrack.spec import ExperimentSpec, SpecError
+from softtrack.spec.env_config import env_config
 
 __all__ = [
     "ALGO_NAMES",
     "algo_class",
     "build_model",
     "check_supported",
-    "env_config",
     "load_model",
     "make_action_noise",
     "make_vec_env",
@@ -47,47 +52,6 @@ def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
             ) from None
 
 
-def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
-    """The :class:`TrackingConfig` of the spec's training environment.
-
-    Args:
-        arm: ``None`` for the dual-arm scene; 0 or 1 for the single-arm scene of that arm
-            (its base from ``env.physics.base_positions``, the single-arm reward of SPEC §3
-            with the spec's ``nonfinite_reward``).
-    """
-    env = spec.env
-    sim = env.sim_kwargs()
-    target = env.target_kwargs()
-    name = target.pop("name")
-    if arm is None:
-        return make_config(
-            n_arms=2,
-            target=name,
-            episode_duration=env.episode_duration,
-            **sim,
-            **target,
-            **env.reward_kwargs(),
-        )
-    sim["base_positions"] = (tuple(sim["base_positions"][arm]),)
-    single = RewardConfig.single_arm()
-    reward = RewardConfig(
-        arm_weights=single.arm_weights,
-        bonus_thresholds=single.bonus_thresholds,
-        bonus_values=single.bonus_values,
-        cooperative_bonus=single.cooperative_bonus,
-        nonfinite_reward=env.reward.nonfinite_reward,
-    )
-    return make_config(
-        n_arms=1,
-        arm=arm,
-        target=name,
-        reward=reward,
-        episode_duration=env.episode_duration,
-        **sim,
-        **target,
-    )
-
-
 def make_vec_env(
     spec: ExperimentSpec,
     seed: int | None = None,
@@ -97,7 +61,9 @@ def make_vec_env(
 ) -> Any:
     """``VecMonitor(TrackingVecEnv(training.n_envs, env_config(spec, arm)))``, seeded.
 
-    With ``algo.critic: per_arm`` every step's info also holds the per-arm reward shares.
+    An enabled variant may add arguments of ``TrackingVecEnv``
+    (:func:`softtrack.rl.variants.vec_env_kwargs`; with ``algo.critic: per_arm`` every step's
+    info also holds the per-arm reward shares).
 
     With ``normalize`` (default ``algo.normalize``) the result is wrapped in a fresh
     ``VecNormalize`` (observations, and rewards with ``algo.normalize_reward``); pass
@@ -113,7 +79,7 @@ def make_vec_env(
             TrackingVecEnv(
                 spec.training.n_envs,
                 env_config(spec, arm),
-                reward_shares=spec.algo.critic == "per_arm",
+                **variants.vec_env_kwargs(spec),
             )
         )
     if seed is not None:
@@ -151,15 +117,8 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
     return VectorizedActionNoise(base, n_envs)
 
 
-def algo_class(name: str, backend: str = "sb3", critic: str = "joint") -> Any:
-    """The algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx).
-
-    ``critic="per_arm"`` (td3 with sbx only) gives :class:`softtrack.rl.per_arm_td3.PerArmTD3`.
-    """
-    if critic == "per_arm":
-        from softtrack.rl.per_arm_td3 import PerArmTD3
-
-        return PerArmTD3
+def algo_class(name: str, backend: str = "sb3") -> Any:
+    """The core algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx)."""
     if backend == "sbx":
         import sbx as library
     else:
@@ -168,8 +127,10 @@ def algo_class(name: str, backend: str = "sb3", critic: str = "joint") -> Any:
 
 
 def model_class(spec: ExperimentSpec) -> Any:
-    """The algorithm class that trains and loads the models of ``spec`` (:func:`algo_class`)."""
-    return algo_class(spec.algo.name, spec.algo.backend, spec.algo.critic)
+    """The algorithm class that trains and loads the models of ``spec``: an enabled variant's
+    (:func:`softtrack.rl.variants.model_class_override`), else the core :func:`algo_class`."""
+    override = variants.model_class_override(spec)
+    return override if override is not None else algo_class(spec.algo.name, spec.algo.backend)
 
 
 def _set_threads(spec: ExperimentSpec) -> None:
@@ -185,13 +146,8 @@ def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise
-    if spec.algo.mirror_replay:
-        from softtrack.rl.mirror import MirrorReplayBuffer
-
-        kwargs["replay_buffer_class"] = MirrorReplayBuffer
-    return model_class(spec)(
-        env=env, seed=int(seed), verbose=0, **kwargs
-    )
+    kwargs.update(variants.model_kwargs(spec))
+    return model_class(spec)(env=env, seed=int(seed), verbose=0, **kwargs)
 
 
 def load_model(spec: ExperimentSpec, path: str | Path, env: Any) -> Any:

@@ -58,9 +58,7 @@ def policy_choice(policy: PolicyDir, spec: ExperimentSpec) -> Literal["best", "l
         return "last"
     if spec.training.confirm_episodes < 1:
         return "best"
-    from softtrack.rl.confirmation import confirmed_choice
-
-    return confirmed_choice(policy) or "best"
+    return policy.confirmed_choice() or "best"
 
 
 def candidate_path(policy: PolicyDir, model: Literal["best", "last"]) -> Path:

@@ -5,8 +5,9 @@ with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
 
 * ``completed``: every policy's budget is done and its final model saved (and, with
   ``training.confirm_episodes``, its kept model confirmed: :mod:`softtrack.rl.confirmation`);
-* ``interrupted``: SIGINT or SIGTERM arrived; the current step finished, a checkpoint was
-  saved and the pending episodes written (exit code 128 + signal: 130 for SIGINT);
+* ``interrupted``: SIGINT or SIGTERM arrived (:mod:`softtrack.signals`); the current step
+  finished, a checkpoint was saved and the pending episodes written (exit code 128 + signal:
+  130 for SIGINT);
 * ``failed``: an exception; run.json's ``error`` has its one-line summary and ``traceback``
   the full traceback.
 
@@ -29,10 +30,8 @@ from __future__ import annotations
 
 import os
 import signal
-import threading
 import traceback
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,9 +43,11 @@ from softtrack.rl.policy_training import (
     arm_seed,
     finished_state,
 )
+from softtrack.signals import StopFlag, stop_on_signals
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import remove_temp_files
 from softtrack.store.runs import (
+    N_ARMS,
     RunRecord,
     RunStore,
     RunStoreError,
@@ -56,8 +57,6 @@ from softtrack.store.runs import (
 )
 
 __all__ = ["TrainOutcome", "check_resumable", "policy_jobs", "train_run"]
-
-N_ARMS = 2
 
 
 @dataclass(frozen=True)
@@ -79,36 +78,6 @@ class TrainOutcome:
     steps_per_second: float | None
     exit_code: int
     error: str | None = None
-
-
-class _StopFlag:
-    """Callable that is true once a stop signal arrived (``signum`` says which)."""
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-
-    def __call__(self) -> bool:
-        return self.signum is not None
-
-
-@contextmanager
-def _signals_to(flag: _StopFlag) -> Iterator[None]:
-    """SIGINT/SIGTERM set ``flag`` (a second SIGINT raises KeyboardInterrupt)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, _frame: Any) -> None:
-        if flag.signum is not None and signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        flag.signum = signum
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
 
 
 def check_resumable(record: RunRecord) -> None:
@@ -134,7 +103,9 @@ def check_resumable(record: RunRecord) -> None:
 
 
 def policy_jobs(spec: ExperimentSpec, record: RunRecord) -> list[PolicyJob]:
-    """The policies of the run, in training order: one (centralized) or one per arm."""
+    """The policies of the run, in training order: one (centralized) or one per arm, each
+    with the budget ``training.total_timesteps`` (run.json: :attr:`RunInfo.policy_budget
+    <softtrack.store.runs.RunInfo.policy_budget>`)."""
     seed = int(record.info.seed)
     total = int(spec.training.total_timesteps)
     if spec.controller == "independent":
@@ -204,12 +175,12 @@ def _train_locked(
 ) -> TrainOutcome:
     jobs = policy_jobs(spec, record)
     progress = _Progress(len(jobs), spec.controller == "independent")
-    flag = _StopFlag()
+    flag = StopFlag(second_sigint_raises=True)
     trainer: PolicyTrainer | None = None
     k = 0
     store.mark_running(record.run_id)
     try:
-        with _signals_to(flag):
+        with stop_on_signals(flag):
             clock_offset = 0.0
             sps: float | None = None
             finished = 0

@@ -48,9 +48,9 @@ from softtrack.evaluation import (
     run_episode,
     validation_score,
 )
-from softtrack.rl.factory import env_config
 from softtrack.rl.policy import deterministic_policy
 from softtrack.spec import ExperimentSpec
+from softtrack.spec.env_config import env_config
 from softtrack.store.atomic import atomic_dir, atomic_write_json
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, utc_now

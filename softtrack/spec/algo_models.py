@@ -182,11 +182,11 @@ class AlgoSpec(SpecModel):
     def sb3_kwargs(self, *, resolve_activation: bool = True) -> dict[str, Any]:
         """Constructor keyword arguments of the chosen algorithm class (SB3 or SBX).
 
-        Only keys that algorithm accepts are included (with ``critic: per_arm``, the
-        :class:`softtrack.rl.per_arm_td3.PerArmTD3` class, which also takes
-        ``n_reward_shares``, ``per_arm_networks`` and ``actor_observation``). Left out on purpose: ``env`` and
-        ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
-        ``noise_std``, which needs the action shape) and ``normalize`` (a VecNormalize wrapper).
+        Only keys that the core algorithm accepts are included. Left out on purpose: ``env``
+        and ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
+        ``noise_std``, which needs the action shape), ``normalize`` (a VecNormalize wrapper)
+        and what a research variant adds (e.g. ``per_arm_networks`` for ``critic: per_arm``:
+        :func:`softtrack.rl.variants.model_kwargs`).
 
         Args:
             resolve_activation: replace ``policy_kwargs.activation_fn`` by the backend's
@@ -218,10 +218,6 @@ class AlgoSpec(SpecModel):
             if self.ent_coef is not None:
                 keys.append("ent_coef")
         kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
-        if self.critic == "per_arm":
-            kwargs["n_reward_shares"] = 2  # the centralized dual-arm scene
-            kwargs["per_arm_networks"] = self.per_arm_networks
-            kwargs["actor_observation"] = self.actor_observation
         if self.backend == "sb3":
             kwargs["device"] = self.device
         policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())

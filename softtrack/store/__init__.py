@@ -9,10 +9,17 @@ Layout of one run (``<runs dir>/<run id>/``)::
     checkpoints/          step-<global step>/ directories (model, replay buffer, normalisation)
     models/arm<k>/        independent runs: arm k's model.zip, vecnormalize.pkl, state.json
                           and checkpoints/ (instead of the three entries above)
-    tables/*.parquet      e.g. train_episodes.parquet, appended as episodes finish
+    tables/*.parquet      e.g. train_episodes.parquet, appended as episodes finish; validation
+                          and confirmation (softtrack.rl.validation, softtrack.rl.confirmation);
+                          eval_*.parquet (softtrack.evaluation.runs)
 
 Every file is written atomically (temporary file in the same directory + fsync + rename), so
 a process killed at any point leaves each file either complete or absent.
+
+Reading runs back: :class:`RunInfo` (``run.json``; :attr:`RunInfo.policy_budget` is one
+policy's budget), :mod:`softtrack.store.status` (effective status, and the final-stage return,
+whose one implementation the report uses too) and :mod:`softtrack.store.query` (SQL over every
+run's tables).
 """
 
 from softtrack.store.atomic import (

@@ -30,7 +30,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -159,6 +159,12 @@ class PolicyDir:
     def read_confirmed(self) -> dict[str, Any] | None:
         """The content of ``confirmed.json``, or ``None`` if it is missing or unreadable."""
         return _read_json(self.confirmed_path)
+
+    def confirmed_choice(self) -> Literal["best", "last"] | None:
+        """The model (``best`` or ``last``) that ``confirmed.json`` names, or ``None`` if it
+        has none (not confirmed yet) or it cannot be read."""
+        model = (self.read_confirmed() or {}).get("model")
+        return model if model in ("best", "last") else None  # type: ignore[return-value]
 
     def row_mask(self, df: Any) -> np.ndarray:
         """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of

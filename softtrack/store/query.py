@@ -50,6 +50,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, parse_time, resolve_runs_dir
+from softtrack.store.status import DEFAULT_FINAL_STAGE_FRACTION, final_stage_fraction
 from softtrack.store.tables import list_tables
 
 __all__ = [
@@ -66,9 +67,6 @@ __all__ = [
     "format_views",
     "query",
 ]
-
-#: ``training.final_stage_fraction`` of a spec that does not set it.
-DEFAULT_FINAL_STAGE_FRACTION = 0.1
 
 OutputFormat = Literal["table", "csv", "json"]
 OUTPUT_FORMATS: tuple[OutputFormat, ...] = ("table", "csv", "json")
@@ -226,11 +224,7 @@ def _raw_spec(record: RunRecord) -> dict[str, Any]:
 
 
 def _final_stage_fraction(record: RunRecord) -> float:
-    training = _raw_spec(record).get("training")
-    value = training.get("final_stage_fraction") if isinstance(training, dict) else None
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        return float(value)
-    return DEFAULT_FINAL_STAGE_FRACTION
+    return final_stage_fraction(_raw_spec(record))
 
 
 def _runs_row(record: RunRecord) -> dict[str, Any]:

@@ -41,6 +41,7 @@ from softtrack.store.provenance import (
 )
 
 __all__ = [
+    "N_ARMS",
     "RUNS_DIR_ENV",
     "RUN_STATUSES",
     "RunInfo",
@@ -58,6 +59,11 @@ __all__ = [
     "run_lock",
     "utc_now",
 ]
+
+#: Arms of the scene: an independent run trains one policy per arm, each to the spec's
+#: ``training.total_timesteps`` (run.json ``arm_total_timesteps``; ``total_timesteps`` is
+#: their sum).
+N_ARMS = 2
 
 RUNS_DIR_ENV = "SOFTTRACK_RUNS_DIR"
 LOCK_NAME = "run.lock"
@@ -156,6 +162,17 @@ class RunInfo(BaseModel):
         "and steps_per_second",
     )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
+
+    @property
+    def policy_budget(self) -> int:
+        """The budget of one policy, env steps: an independent run's per-arm budget
+        (``arm_total_timesteps``; for a run.json without it, ``total_timesteps`` split over the
+        :data:`N_ARMS` arms), else ``total_timesteps``."""
+        if self.arm_total_timesteps:
+            return self.arm_total_timesteps
+        if self.controller == "independent":
+            return self.total_timesteps // N_ARMS
+        return self.total_timesteps
 
 
 _UPDATABLE = frozenset(RunInfo.model_fields) - {"format_version", "run_id", "created"}
@@ -280,7 +297,7 @@ class RunStore:
                 ``spec.yaml``; the spec itself is written fully resolved, so it loads on its own.
         """
         run_spec = spec.with_seed(seed)
-        budget = int(spec.training.total_timesteps)
+        budget = int(spec.training.total_timesteps)  # per policy
         independent = spec.controller == "independent"
         run_id, path = create_unique_dir(self.root)
         try:
@@ -298,9 +315,9 @@ class RunStore:
                 seed=int(seed),
                 status=status,
                 created=utc_now(),
-                total_timesteps=2 * budget if independent else budget,
+                total_timesteps=N_ARMS * budget if independent else budget,
                 arm_total_timesteps=budget if independent else None,
-                arm_steps=[0, 0] if independent else None,
+                arm_steps=[0] * N_ARMS if independent else None,
                 spec_hash=spec_hash(spec),
                 git_commit=commit,
                 git_dirty=dirty,

@@ -3,7 +3,8 @@
 A run's status comes from its ``run.json``, except that a ``running`` run whose process is gone
 (nobody holds its ``run.lock``, and its heartbeat is stale or its pid is dead on this host)
 shows as ``lost``; run.json itself is never changed here. The final-stage return is computed
-from the run's ``train_episodes`` table.
+from the run's ``train_episodes`` table; :func:`final_stage_returns` is its one implementation,
+also behind the report's final-stage table.
 """
 
 from __future__ import annotations
@@ -32,7 +33,10 @@ __all__ = [
     "DEFAULT_HEARTBEAT_INTERVAL_S",
     "RUN_TABLE_COLUMNS",
     "effective_status",
+    "episodes_by_arm",
+    "final_stage_fraction",
     "final_stage_return",
+    "final_stage_returns",
     "format_failures",
     "format_runs_table",
     "is_lost",
@@ -56,11 +60,52 @@ def _training_value(raw: dict[str, Any], key: str, default: float) -> float:
 
 
 # ---- final-stage return ---------------------------------------------------------------------
-def _final_mean(df: pd.DataFrame, threshold: float) -> tuple[float | None, int]:
-    """Mean finite ``return`` of the rows with ``global_step > threshold``, and their count."""
-    final = pd.to_numeric(df.loc[df["global_step"] > threshold, "return"], errors="coerce")
-    final = final[np.isfinite(final)]
-    return (float(final.mean()), int(final.size)) if not final.empty else (None, 0)
+def final_stage_fraction(raw_spec: dict[str, Any]) -> float:
+    """``training.final_stage_fraction`` of a run's spec as plain data (``spec.yaml``, not
+    validated), or :data:`DEFAULT_FINAL_STAGE_FRACTION` where it is absent or not in (0, 1]."""
+    value = _training_value(raw_spec, "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION)
+    return value if 0 < value <= 1 else DEFAULT_FINAL_STAGE_FRACTION
+
+
+def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
+    """A ``train_episodes`` table split by policy: ``{None: all}`` without an ``arm`` column,
+    else ``{0: arm 1's rows, 1: arm 2's}`` (and ``None`` for rows with no arm: a null or
+    negative ``arm``, a centralized policy's)."""
+    if "arm" not in train:
+        return {None: train}
+    arm = pd.to_numeric(train["arm"], errors="coerce").fillna(-1).astype(int)
+    parts: dict[int | None, pd.DataFrame] = {}
+    if (arm < 0).any():
+        parts[None] = train[arm < 0]
+    for a in sorted(set(arm[arm >= 0])):
+        parts[int(a)] = train[arm == a]
+    return parts
+
+
+def final_stage_returns(
+    train: pd.DataFrame, fraction: float, total_timesteps: int, arm_budget: int
+) -> dict[int | None, tuple[float | None, int]]:
+    """SPEC §4 per policy of a run: the mean finite return of the training episodes that ended
+    after ``(1 − fraction) · budget`` env steps, and their count.
+
+    Args:
+        train: the run's ``train_episodes`` table (``global_step``, ``return``, maybe ``arm``),
+            split by :func:`episodes_by_arm`.
+        total_timesteps: the budget of the rows without an arm (a centralized policy).
+        arm_budget: the budget of an arm's policy, whose ``global_step`` counts its own steps
+            (:attr:`~softtrack.store.runs.RunInfo.policy_budget`).
+
+    Returns:
+        ``{arm or None: (mean return or None if no episode qualifies, episode count)}``.
+    """
+    out: dict[int | None, tuple[float | None, int]] = {}
+    for arm, part in episodes_by_arm(train).items():
+        budget = total_timesteps if arm is None else arm_budget
+        step = pd.to_numeric(part["global_step"], errors="coerce")
+        ret = pd.to_numeric(part["return"], errors="coerce")
+        final = ret[(step > (1.0 - fraction) * budget) & np.isfinite(ret)]
+        out[arm] = (float(final.mean()) if len(final) else None, len(final))
+    return out
 
 
 def final_stage_return(
@@ -69,8 +114,8 @@ def final_stage_return(
     """Mean training-episode return over the last ``fraction`` of the run's budget (SPEC §4).
 
     Episodes count when their ``global_step`` (at the episode's end) exceeds
-    ``(1 - fraction) · total_timesteps``. ``fraction`` defaults to the run's
-    ``training.final_stage_fraction`` (0.1).
+    ``(1 - fraction) · total_timesteps`` (:func:`final_stage_returns`). ``fraction`` defaults
+    to the run's ``training.final_stage_fraction`` (0.1).
 
     An independent run's table has an ``arm`` column (0, 1) and counts ``global_step`` per arm:
     each arm's final stage is the last ``fraction`` of its own budget (``arm_total_timesteps``),
@@ -83,26 +128,20 @@ def final_stage_return(
         env steps the table reaches: its largest global_step, summed over the arms, or 0)``.
     """
     if fraction is None:
-        fraction = _training_value(
-            record.raw_spec(), "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION
-        )
+        fraction = final_stage_fraction(record.raw_spec())
     df = read_table(record.table_path("train_episodes"), missing_ok=True)
     if df.empty or not {"global_step", "return"} <= set(df.columns):
         return None, 0, 0
-    arms = pd.to_numeric(df["arm"], errors="coerce") if "arm" in df.columns else None
-    if arms is None or not (arms >= 0).any():
-        threshold = (1.0 - fraction) * record.info.total_timesteps
-        mean, count = _final_mean(df, threshold)
-        return mean, count, int(df["global_step"].max())
     info = record.info
-    budget = info.arm_total_timesteps or info.total_timesteps // max(1, int(arms.max()) + 1)
-    means, count, last_step = [], 0, 0
-    for _, rows in df[arms >= 0].groupby(arms[arms >= 0]):
-        mean, n = _final_mean(rows, (1.0 - fraction) * budget)
-        last_step += int(rows["global_step"].max())
-        count += n
-        if mean is not None:
-            means.append(mean)
+    results = final_stage_returns(df, fraction, info.total_timesteps, info.policy_budget)
+    arms = [arm for arm in results if arm is not None]
+    if not arms:
+        mean, count = results[None]
+        return mean, count, int(df["global_step"].max())
+    parts = episodes_by_arm(df)
+    means = [m for m, _ in (results[arm] for arm in arms) if m is not None]
+    count = sum(results[arm][1] for arm in arms)
+    last_step = sum(int(parts[arm]["global_step"].max()) for arm in arms)
     return (float(np.mean(means)) if means else None), count, last_step
 
 
@@ -150,9 +189,7 @@ def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, 
     raw = record.raw_spec()
     info = record.info
     try:
-        final, n_final, last_step = final_stage_return(
-            record, _training_value(raw, "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION)
-        )
+        final, n_final, last_step = final_stage_return(record, final_stage_fraction(raw))
     except TableError:
         final, n_final, last_step = None, 0, 0
     now = now or datetime.now(UTC)

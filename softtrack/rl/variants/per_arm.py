@@ -18,6 +18,10 @@ capacity, with the centralized observation and the shared reward's credit. With
 ``actor_observation: own_arm`` as well, arm i's actor sees only arm i's 37 observation values
 and the target's 7 (the independent baseline's input) while its critics still see everything:
 centralized training, decentralized execution.
+
+The factory builds it through the variants' registry (:mod:`softtrack.rl.variants`, variant
+``per_arm_critic``): :class:`PerArmTD3` in place of TD3, its options as constructor arguments,
+and an environment that reports the reward shares.
 """
 
 from __future__ import annotations

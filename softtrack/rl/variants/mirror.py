@@ -8,7 +8,8 @@ image turns the other way) while the binormal values (couples about +x) stay. Th
 equivariant under this map bit for bit (``tests/test_mirror.py``), so every transition
 (s, a, r, s') the environment produces has a twin (m(s), m(a), r, m(s')) that it would have
 produced from the mirrored state: ``algo.mirror_replay`` stores both, so that what one arm
-learns the other can use.
+learns the other can use (:class:`MirrorReplayBuffer`, the replay buffer class that the
+variants' registry, :mod:`softtrack.rl.variants`, gives the algorithm).
 """
 
 from __future__ import annotations

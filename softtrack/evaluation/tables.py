@@ -1,143 +1,38 @@
-"""Deterministic evaluation episodes on the closed-form trajectories, and their tables.
+"""The tables of an evaluation episode (:class:`~softtrack.evaluation.episodes.Episode`).
 
-An evaluation drives both arms from the straight initial state for ``duration`` seconds while
-the target follows a circle, rectangle or figure-eight (SPEC §3), and records every control
-step. A centralized controller maps the 81-value observation to 24 actions; an independent
-controller is two single-arm policies, each fed its arm's 37 values plus the target's 7.
+One function per table a run stores (:mod:`softtrack.evaluation.runs`): tip and target
+positions per step (``eval_trajectories``), the SPEC §5 metrics per arm (``eval_metrics``, also
+the rows of ``validation``, ``confirmation`` and ``eval_random``), the spatial RMS of the
+element torques per step (``eval_moments``), each element's peak torque (``eval_moment_peaks``)
+and, on request, every element torque (``eval_element_moments``); and the validation score
+of a checkpoint's metrics rows.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from softtrack.env.config import TrackingConfig
-from softtrack.env.core import TrackingCore
-from softtrack.env.observation import arm_view_columns
-from softtrack.metrics import AXES, action_statistics, moment_rms, tracking_metrics
+from softtrack.evaluation.episodes import Episode
+from softtrack.evaluation.metrics import AXES, action_statistics, moment_rms, tracking_metrics
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
-    "CONFIRM_SEED",
-    "EVAL_TRAJECTORIES",
-    "RANDOM_TARGET_SEED",
     "STEADY_START",
-    "VALIDATION_SEED",
-    "Episode",
-    "Policy",
     "element_moments_table",
     "element_peaks_frame",
-    "independent_policy",
     "metrics_table",
     "moment_peaks_table",
     "moments_table",
-    "run_episode",
     "trajectory_table",
     "validation_score",
 ]
 
-EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")
 STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
-# Random-target evaluation episode k draws its target path from seed RANDOM_TARGET_SEED + k.
-# Training seeds environment i of a run with seed run_seed + i (small), so these never recur.
-RANDOM_TARGET_SEED = 1_000_000
-# Validation episode k during training (softtrack.rl.validation) uses VALIDATION_SEED + k.
-VALIDATION_SEED = 2_000_000
-# Confirmation episode k after training (softtrack.rl.confirmation) uses CONFIRM_SEED + k.
-CONFIRM_SEED = 3_000_000
-
-# A policy maps one observation (obs_dim,) to one action (act_dim,).
-Policy = Callable[[np.ndarray], np.ndarray]
 
 _ARM_ACTIONS = 2 * N_CONTROL_POINTS  # per arm: 6 normal, then 6 binormal control points
-
-
-@dataclass(frozen=True)
-class Episode:
-    """The record of one evaluation episode (N control steps after the reset).
-
-    Attributes:
-        trajectory: target trajectory name.
-        t: (N,) time after each control step, s.
-        tips: (N, A, 3) tip positions, m.
-        target: (N, 3) target centre, m.
-        element_torques: (N, A, 2, n_elem) applied torques, N·m.
-        actions: (N, 12·A) the policy's actions (before clipping); arm k's are columns
-            12k … 12k + 11 (6 normal, then 6 binormal control points).
-        terminated: True if the state became non-finite (the episode then stops early).
-    """
-
-    trajectory: str
-    t: np.ndarray
-    tips: np.ndarray
-    target: np.ndarray
-    element_torques: np.ndarray
-    actions: np.ndarray
-    terminated: bool
-
-
-def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
-    """One dual-arm policy from one single-arm policy per arm.
-
-    Arm k's policy sees the dual-arm observation's arm-k block (37 values) followed by the
-    target block (7 values), the single-arm environment's layout, and returns 12 actions.
-    """
-
-    def act(observation: np.ndarray) -> np.ndarray:
-        actions = []
-        for k, policy in enumerate(arm_policies):
-            arm_obs = observation[arm_view_columns(k, len(arm_policies), len(observation))]
-            actions.append(np.asarray(policy(arm_obs), dtype=np.float64).reshape(-1))
-        return np.concatenate(actions)
-
-    return act
-
-
-def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
-                duration: float = 10.0, seed: int = 0) -> Episode:
-    """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
-
-    Args:
-        policy: observation (obs_dim,) → action (act_dim,), deterministic.
-        config: the environment settings of the run (physics, reward, target parameters).
-        trajectory: ``circle``, ``rectangle``, ``figure8``, ``fixed`` or ``random`` (the
-            training target of ``config``: random start and redirections).
-        duration: episode length, s.
-        seed: seed of the episode's random numbers (only the ``random`` target uses them).
-    """
-    eval_config = dataclasses.replace(
-        config,
-        target=dataclasses.replace(config.target, name=trajectory),
-        episode_duration=float(duration),
-    )
-    core = TrackingCore(1, eval_config)
-    obs = core.reset([0], [np.random.default_rng(seed)])[0]
-    n_steps = eval_config.max_episode_steps
-    tips = np.full((n_steps, core.n_arms, 3), np.nan)
-    target = np.full((n_steps, 3), np.nan)
-    torques = np.full((n_steps, core.n_arms, 2, eval_config.sim.n_elem), np.nan)
-    actions = np.full((n_steps, core.action_dim), np.nan)
-    terminated = False
-    done_steps = n_steps
-    for k in range(n_steps):
-        action = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
-        result = core.step(action[None])
-        actions[k] = action
-        tips[k] = core.engine.tip_position[0]
-        target[k] = core.targets.position[0]
-        torques[k] = core.engine.torques[0]
-        obs = result.observation[0]
-        if result.terminated[0]:
-            terminated, done_steps = True, k + 1
-            break
-    t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
-    return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
-                   actions[:done_steps], terminated)
 
 
 def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
@@ -164,7 +59,7 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s
     (NaN when the episode is shorter than that), and the arm's action statistics
     (``action_saturation``, ``action_change``, ``action_rms``, see
-    :func:`softtrack.metrics.action_statistics`) over the steps the episode ran."""
+    :func:`softtrack.evaluation.metrics.action_statistics`) over the steps the episode ran."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
     n_arms = episode.tips.shape[1]

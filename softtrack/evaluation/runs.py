@@ -1,7 +1,7 @@
 """Evaluate stored runs and write their evaluation tables.
 
 ``evaluate_run`` loads a run's policy, runs one deterministic episode per trajectory and
-writes three tables into the run's ``tables/`` (atomically, replacing the rows of the
+writes its tables into the run's ``tables/`` (atomically, replacing the rows of the
 trajectories it evaluated and keeping the others):
 
 * ``eval_trajectories.parquet``: tip and target positions at every control step;
@@ -18,7 +18,7 @@ trajectories it evaluated and keeping the others):
   every step (about 2 MB per trajectory; left out by default).
 
 ``evaluate_random_targets`` runs N episodes on the run's own random training target instead,
-from seeds that training never uses (:data:`softtrack.evaluation.RANDOM_TARGET_SEED` + k),
+from seeds that training never uses (:data:`softtrack.evaluation.episodes.RANDOM_TARGET_SEED` + k),
 and writes their metrics, one row per episode and arm, to ``eval_random.parquet`` (replacing
 the table): how well the policy tracks the target it was trained on, beside how well it
 tracks the closed-form paths.
@@ -32,29 +32,29 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import pandas as pd
 
 from softtrack.env.config import TrackingConfig
-from softtrack.evaluation import (
+from softtrack.evaluation.episodes import (
     EVAL_TRAJECTORIES,
     RANDOM_TARGET_SEED,
     Episode,
     Policy,
+    run_episode,
+)
+from softtrack.evaluation.tables import (
     element_moments_table,
     metrics_table,
     moment_peaks_table,
     moments_table,
-    run_episode,
     trajectory_table,
 )
+from softtrack.rl.policy import ModelChoice, load_policy
+from softtrack.spec.env_config import env_config
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
-
-if TYPE_CHECKING:
-    from softtrack.rl.policy import ModelChoice
 
 __all__ = [
     "ELEMENT_MOMENTS_TABLE",
@@ -114,9 +114,6 @@ def _episode_setup(
 ) -> tuple[Policy, TrackingConfig, float]:
     """The deterministic policy of the run's ``model``, its environment settings and its
     evaluation episode length (``training.eval_duration``, s)."""
-    from softtrack.rl.factory import env_config
-    from softtrack.rl.policy import load_policy
-
     spec = record.load_spec()
     return load_policy(record, spec, model), env_config(spec), float(spec.training.eval_duration)
 
@@ -196,7 +193,7 @@ def evaluate_random_targets(
 
     Returns:
         One row per episode and arm: ``episode``, ``seed`` and the columns of
-        :func:`softtrack.evaluation.metrics_table` (``trajectory`` is ``random``).
+        :func:`softtrack.evaluation.tables.metrics_table` (``trajectory`` is ``random``).
     """
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")

@@ -1,0 +1,56 @@
+"""Stop requests by signal: SIGINT and SIGTERM set a flag that a long loop polls.
+
+Training (:mod:`softtrack.rl.train`) and the local worker pool (:mod:`softtrack.executors.local`)
+both stop cleanly when asked: they install :func:`stop_on_signals` around their loop and check
+the :class:`StopFlag` between steps (training saves a checkpoint, the pool passes SIGTERM on to
+its workers). Outside the main thread no handler can be installed and the flag stays unset.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+__all__ = ["STOP_SIGNALS", "StopFlag", "stop_on_signals"]
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopFlag:
+    """Callable that is true once a stop signal arrived; ``signum`` is the latest one.
+
+    Args:
+        second_sigint_raises: a SIGINT arriving when the flag is already set raises
+            ``KeyboardInterrupt`` (a second Ctrl-C: stop now, without the clean stop).
+    """
+
+    def __init__(self, *, second_sigint_raises: bool = False) -> None:
+        self.signum: int | None = None
+        self.second_sigint_raises = second_sigint_raises
+
+    def __call__(self) -> bool:
+        return self.signum is not None
+
+    def handle(self, signum: int, _frame: Any = None) -> None:
+        """The signal handler: set the flag (module docstring)."""
+        if self.signum is not None and signum == signal.SIGINT and self.second_sigint_raises:
+            raise KeyboardInterrupt
+        self.signum = signum
+
+
+@contextmanager
+def stop_on_signals(flag: StopFlag) -> Iterator[StopFlag]:
+    """While inside, SIGINT and SIGTERM set ``flag`` (:meth:`StopFlag.handle`); the previous
+    handlers come back on exit. Nothing is installed outside the main thread."""
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+    previous = {s: signal.signal(s, flag.handle) for s in STOP_SIGNALS}
+    try:
+        yield flag
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
