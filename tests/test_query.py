@@ -9,6 +9,7 @@ from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -72,7 +73,7 @@ def runs_dir(tmp_path: Path) -> Path:
         write_table(path / "tables" / "eval_metrics.parquet", _metrics(path.name, RMSE_A, k))
         # train_episodes: centralized (no arm column) for seeds 0 and 1, with arm for seed 2
         rows = [{"run_id": f"01AAAAAAAAAAAAAAAAAAAAAAA{k}", "episode": i, "global_step": 100 * i,
-                 "return": float(i + k)} for i in range(1, 4)]
+                 "return": float(i + k), "wall_time": 20.0 * i * (k + 1)} for i in range(1, 4)]
         if k == 2:
             rows = [{**r, "arm": 1} for r in rows]
         write_table(path / "tables" / "train_episodes.parquet", rows)
@@ -123,8 +124,9 @@ def test_runs_view(runs_dir: Path) -> None:
     df = query("SELECT * FROM runs ORDER BY run_id", runs_dir)
     assert list(df["dir"]) == ["a-seed0", "a-seed1", "a-seed2", "b-seed0"]
     assert list(df["name"]) == ["exp-a"] * 3 + ["exp-b"]
-    # ended - started, or the sum of the sessions (30 s + 60 s)
-    assert list(df["train_seconds"]) == [60.0, 120.0, 180.0, 90.0]
+    # the training clock at the last logged episode (exp-b has no training episodes)
+    assert list(df["train_seconds"][:3]) == [60.0, 120.0, 180.0]
+    assert np.isnan(df["train_seconds"].iloc[3])
     assert list(df["final_stage_fraction"]) == [0.2] * 4
     assert df["sweep"].iloc[3] == "sw1"
     assert str(df["started"].iloc[0]) == "2026-01-01 10:00:00"

@@ -19,6 +19,7 @@ from softtrack.report.data import RunData
 from softtrack.report.document import NOT_IN_SPEC, Context, Doc, commit_text, seeds_text
 from softtrack.report.summaries import validation_scores, validation_summary
 from softtrack.report.text import mean_pm_std
+from softtrack.store.status import training_seconds
 
 __all__ = ["final_section", "runs_section", "training_section", "validation_section"]
 
@@ -83,10 +84,8 @@ def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
 def _training_speed(run: RunData) -> tuple[str, str]:
     """(training wall time, env steps per second) of a run from its training clock, summed over
     sessions (the ``wall_time`` of its last logged episode); "—" without training episodes."""
-    if run.train is None or not len(run.train) or "wall_time" not in run.train:
-        return "—", "—"
-    seconds = float(run.train["wall_time"].max())
-    if not seconds > 0:
+    seconds = training_seconds(run.train)
+    if seconds is None:
         return "—", "—"
     duration = f"{seconds / 60:.0f} min" if seconds < 5400 else f"{seconds / 3600:.2f} h"
     return duration, f"{run.last_step / seconds:,.0f}"

@@ -50,7 +50,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, parse_time, resolve_runs_dir
-from softtrack.store.status import DEFAULT_FINAL_STAGE_FRACTION, final_stage_fraction
+from softtrack.store.status import (
+    DEFAULT_FINAL_STAGE_FRACTION,
+    final_stage_fraction,
+    training_seconds,
+)
 from softtrack.store.tables import list_tables
 
 __all__ = [
@@ -86,9 +90,11 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("total_timesteps", pa.int64(), "training budget, env steps (independent: both arms)"),
     ("arm_total_timesteps", pa.int64(), "independent runs: budget per arm, env steps"),
     ("global_step", pa.int64(), "env steps done (independent: over both arms)"),
-    ("steps_per_second", pa.float64(), "training throughput, env steps/s"),
-    ("train_seconds", pa.float64(), ("training wall time, s: the sum of the training sessions "
-                                     "(or ended - started); NULL while running or never started")),
+    ("steps_per_second", pa.float64(), ("training throughput, env steps/s: global_step / "
+                                        "train_seconds, as in the report's runs table")),
+    ("train_seconds", pa.float64(), ("training wall time, s: the run's training clock at its "
+                                     "last logged episode (train_episodes.wall_time), as in the "
+                                     "report; NULL before the first episode")),
     ("final_stage_fraction", pa.float64(), ("spec training.final_stage_fraction (default 0.1): "
                                             "the final-stage return averages the episodes after "
                                             "(1 - it) x the budget")),
@@ -195,19 +201,14 @@ def _utc(text: str | None) -> datetime | None:
 
 
 def _train_seconds(record: RunRecord) -> float | None:
-    """Sum of the ended sessions' durations, else ``ended - started``; ``None`` if unknown."""
-    total, seen = 0.0, False
-    for session in record.info.sessions:
-        if not isinstance(session, dict):
-            continue
-        start, end = _utc(session.get("started")), _utc(session.get("ended"))
-        if start is not None and end is not None:
-            total += (end - start).total_seconds()
-            seen = True
-    if seen:
-        return total
-    start, end = _utc(record.info.started), _utc(record.info.ended)
-    return (end - start).total_seconds() if start is not None and end is not None else None
+    """The run's training clock (:func:`softtrack.store.status.training_seconds`), as the
+    report's runs table gives it."""
+    path = record.table_path("train_episodes")
+    try:
+        train = pq.read_table(path, columns=["wall_time"]).to_pandas() if path.is_file() else None
+    except (pa.ArrowInvalid, OSError, KeyError):
+        return None
+    return training_seconds(train)
 
 
 def _raw_spec(record: RunRecord) -> dict[str, Any]:
@@ -227,8 +228,13 @@ def _final_stage_fraction(record: RunRecord) -> float:
     return final_stage_fraction(_raw_spec(record))
 
 
+def _per_second(steps: int, seconds: float | None) -> float | None:
+    return steps / seconds if seconds and steps else None
+
+
 def _runs_row(record: RunRecord) -> dict[str, Any]:
     info = record.info
+    seconds = _train_seconds(record)
     sweep = (info.notes or {}).get("sweep")
     return {
         "run_id": info.run_id,
@@ -241,8 +247,8 @@ def _runs_row(record: RunRecord) -> dict[str, Any]:
         "total_timesteps": info.total_timesteps,
         "arm_total_timesteps": info.arm_total_timesteps,
         "global_step": info.global_step,
-        "steps_per_second": info.steps_per_second,
-        "train_seconds": _train_seconds(record),
+        "steps_per_second": _per_second(info.global_step, seconds) or info.steps_per_second,
+        "train_seconds": seconds,
         "final_stage_fraction": _final_stage_fraction(record),
         "spec_hash": info.spec_hash,
         "git_commit": info.git_commit,

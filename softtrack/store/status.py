@@ -43,6 +43,7 @@ __all__ = [
     "list_run_summaries",
     "run_summary",
     "stale_after_s",
+    "training_seconds",
 ]
 
 #: ``training.final_stage_fraction`` of a spec that does not set it.
@@ -106,6 +107,17 @@ def final_stage_returns(
         final = ret[(step > (1.0 - fraction) * budget) & np.isfinite(ret)]
         out[arm] = (float(final.mean()) if len(final) else None, len(final))
     return out
+
+
+def training_seconds(train: pd.DataFrame | None) -> float | None:
+    """A run's training wall time, s: its training clock at the last logged episode (the
+    largest ``wall_time`` of ``train_episodes``; the clock carries on across resumed sessions
+    and from one arm of an independent run to the next, and leaves out time spent stopped).
+    ``None`` without a positive clock reading."""
+    if train is None or "wall_time" not in train or not len(train):
+        return None
+    seconds = float(pd.to_numeric(train["wall_time"], errors="coerce").max())
+    return seconds if seconds > 0 else None
 
 
 def final_stage_return(
