@@ -88,3 +88,35 @@ def test_upgrade_relayouts_an_old_export_in_place(sbx_run: tuple[Path, str], tmp
     assert after.output == before.output  # the same policy, the same episode
     again = runner.invoke(app, ["upgrade", str(old)])
     assert again.exit_code == 0 and "already current" in again.output
+
+
+def test_exported_policy_in_plain_gymnasium_tracks_as_softtrack_evaluate(
+    sbx_run: tuple[Path, str], tmp_path: Path
+) -> None:
+    import gymnasium as gym
+
+    import softtrack.env  # noqa: F401
+    from softtrack import api
+    from softtrack.spec.env_config import env_config, env_kwargs
+
+    runs, run_id = sbx_run
+    dest = tmp_path / "exported"
+    assert runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)]).exit_code == 0
+    spec = RunStore(runs).get_run(run_id).load_spec()
+    for arm, env_id in ((None, "softtrack/DualArmTracking-v0"),
+                        (1, "softtrack/SingleArmTracking-v0")):
+        assert gym.make(env_id, **env_kwargs(spec, arm)).unwrapped.config == env_config(spec, arm)
+    import sbx
+
+    model = sbx.TD3.load(str(dest / "model.zip"), device="cpu")
+    env = gym.make("softtrack/DualArmTracking-v0",
+                   **{**env_kwargs(spec), "target": "circle", "episode_duration": 0.1})
+    observation, _ = env.reset(seed=0)
+    squared, steps, done = np.zeros(2), 0, False
+    while not done:
+        observation, _, terminated, truncated, info = env.step(
+            model.predict(observation, deterministic=True)[0])
+        squared += np.asarray(info["distances"]) ** 2
+        steps, done = steps + 1, terminated or truncated
+    expected = api.evaluate([str(dest)], ["circle"], write=False).sort_values("arm")
+    np.testing.assert_allclose(np.sqrt(squared / steps), expected["rmse_3d"], rtol=1e-12)

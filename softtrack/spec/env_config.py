@@ -7,34 +7,35 @@ environment package knows nothing of specs; this module depends on it, not the r
 
 from __future__ import annotations
 
+from typing import Any
+
 from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.reward import RewardConfig
 from softtrack.spec.models import ExperimentSpec
 
-__all__ = ["env_config"]
+__all__ = ["env_config", "env_kwargs"]
 
 
-def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
-    """The :class:`TrackingConfig` of the spec's training environment.
+def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
+    """The spec's training environment as keyword arguments of the registered Gymnasium
+    environments, so a policy can be driven with plain ``gymnasium.make``::
+
+        gym.make("softtrack/DualArmTracking-v0", **{**env_kwargs(spec), "target": "circle"})
+        gym.make("softtrack/SingleArmTracking-v0", **env_kwargs(spec, arm=1))
 
     Args:
         arm: ``None`` for the dual-arm scene; 0 or 1 for the single-arm scene of that arm
-            (its base from ``env.physics.base_positions``, the single-arm reward of SPEC §3
-            with the spec's ``nonfinite_reward``).
+            (its base from ``env.physics.base_positions``, the independent baseline's
+            single-arm reward with the spec's ``nonfinite_reward``); the result then holds
+            ``arm``.
     """
     env = spec.env
     sim = env.sim_kwargs()
     target = env.target_kwargs()
-    name = target.pop("name")
+    common = {"target": target.pop("name"), "episode_duration": env.episode_duration,
+              **target}
     if arm is None:
-        return make_config(
-            n_arms=2,
-            target=name,
-            episode_duration=env.episode_duration,
-            **sim,
-            **target,
-            **env.reward_kwargs(),
-        )
+        return {**common, **sim, **env.reward_kwargs()}
     sim["base_positions"] = (tuple(sim["base_positions"][arm]),)
     single = RewardConfig.single_arm()
     reward = RewardConfig(
@@ -44,12 +45,9 @@ def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
         cooperative_bonus=single.cooperative_bonus,
         nonfinite_reward=env.reward.nonfinite_reward,
     )
-    return make_config(
-        n_arms=1,
-        arm=arm,
-        target=name,
-        reward=reward,
-        episode_duration=env.episode_duration,
-        **sim,
-        **target,
-    )
+    return {"arm": arm, "reward": reward, **common, **sim}
+
+
+def env_config(spec: ExperimentSpec, arm: int | None = None) -> TrackingConfig:
+    """The :class:`TrackingConfig` of the spec's training environment (:func:`env_kwargs`)."""
+    return make_config(n_arms=2 if arm is None else 1, **env_kwargs(spec, arm))
