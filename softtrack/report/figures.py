@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import os
 import textwrap
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -348,17 +348,32 @@ def trajectory_3d_figure(
 ) -> Path:
     """Per row (one controller's run): the 3-D path of the target and both tips (y up) and the
     view from above (x–z plane); dots mark the start."""
-    title = f"{_traj_title(trajectory)}: target and tip paths"
+    return _per_row_figure(rows, path, f"{_traj_title(trajectory)}: target and tip paths",
+                           "dashed: target; dots: start of each tip", (11, 4.3), _path_panels,
+                           footer)
+
+
+def _per_row_figure(
+    rows: Sequence[PathRow],
+    path: str | os.PathLike[str],
+    title: str,
+    subtitle: str,
+    size: tuple[float, float],
+    draw: Callable[[Figure, PathRow], None],
+    footer: str | None,
+) -> Path:
+    """One sub-figure per row drawn by ``draw`` (width, height per row in inches), or a
+    no-data figure when no row has a stored trajectory."""
     if not any(r.has_data for r in rows):
         names = ", ".join(r.title for r in rows)
         return no_data_figure(path, title, f"no stored evaluation trajectory ({names})", footer)
-    fig = _new(11, 4.3 * len(rows) + 0.7)
+    fig = _new(size[0], size[1] * len(rows) + 0.7)
     for sub, row in zip(_row_figures(fig, rows), rows, strict=True):
         if row.has_data:
-            _path_panels(sub, row)
+            draw(sub, row)
         else:
             _no_row_data(sub, "no stored evaluation trajectory")
-    _suptitle(fig, title, 13, "dashed: target; dots: start of each tip")
+    _suptitle(fig, title, 13, subtitle)
     return _save(fig, path, footer)
 
 
@@ -414,19 +429,9 @@ def tracking_errors_figure(
 ) -> Path:
     """Per row (one controller's run): each arm's per-axis error tip − target, and both arms'
     spatial error ‖tip − target‖, against time."""
-    title = f"{_traj_title(trajectory)}: tracking error against time"
-    if not any(r.has_data for r in rows):
-        names = ", ".join(r.title for r in rows)
-        return no_data_figure(path, title, f"no stored evaluation trajectory ({names})", footer)
-    fig = _new(13, 3.1 * len(rows) + 0.7)
-    for sub, row in zip(_row_figures(fig, rows), rows, strict=True):
-        if row.has_data:
-            _error_panels(sub, row)
-        else:
-            _no_row_data(sub, "no stored evaluation trajectory")
-    _suptitle(fig, title, 13, f"grey dotted line: t = {STEADY_START:g} s, start of the steady "
-              "metrics")
-    return _save(fig, path, footer)
+    return _per_row_figure(rows, path, f"{_traj_title(trajectory)}: tracking error against time",
+                           f"grey dotted line: t = {STEADY_START:g} s, start of the steady "
+                           "metrics", (13, 3.1), _error_panels, footer)
 
 
 def moments_figure(
