@@ -18,6 +18,7 @@ quickstart: setup
 	$(BIN)/softtrack quickstart
 
 test: setup
+	$(BIN)/mypy
 	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 
 test-all: setup

@@ -14,12 +14,19 @@ import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated, Any, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 
 from softtrack import api
 from softtrack.executors.dispatch import ExecOptions
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from softtrack.evaluation.episodes import Episode
+    from softtrack.executors.dispatch import Outcome
+    from softtrack.store.runs import RunRecord
 
 app = typer.Typer(
     name="softtrack",
@@ -57,7 +64,7 @@ class OutputFormat(str, enum.Enum):
     json = "json"
 
 
-def _fail(exc: BaseException) -> NoReturn:
+def _fail(exc: BaseException | str) -> NoReturn:
     typer.echo(f"error: {exc}", err=True)
     raise typer.Exit(2)
 
@@ -146,6 +153,7 @@ def spec_command(
         elif defaults:
             typer.echo(api.spec_defaults_yaml(), nl=False)
         else:
+            assert spec is not None
             typer.echo(api.resolved_spec_yaml(spec, overrides or []), nl=False)
 
 
@@ -188,7 +196,7 @@ def train(
     if resume is not None and (overrides or seed is not None):
         _fail("train: --set and --seed cannot be combined with --resume (a run keeps its spec)")
 
-    def started(record: object) -> None:
+    def started(record: RunRecord) -> None:
         typer.echo(record.run_id)
 
     with _user_errors():
@@ -296,23 +304,23 @@ def _progress(line: str) -> None:
     typer.echo(line, err=True)
 
 
-def _finish(outcome: object, what: str) -> None:
+def _finish(outcome: Outcome, what: str) -> None:
     """Print what is complete and what is missing; exit with the outcome's code."""
-    o = outcome  # an executors.dispatch.Outcome
-    if o.detached:  # type: ignore[attr-defined]
-        typer.echo(f"{what} {o.sweep_id}: {len(o.run_ids)} runs submitted; follow them with "  # type: ignore[attr-defined]
-                   f"`softtrack runs` (log: {o.log})", err=True)  # type: ignore[attr-defined]
+    o = outcome
+    if o.detached:
+        typer.echo(f"{what} {o.sweep_id}: {len(o.run_ids)} runs submitted; follow them with "
+                   f"`softtrack runs` (log: {o.log})", err=True)
         return
-    missing = o.missing  # type: ignore[attr-defined]
-    done = len(o.run_ids) - len(missing)  # type: ignore[attr-defined]
-    typer.echo(f"{what} {o.sweep_id}: {done}/{len(o.run_ids)} runs completed", err=True)  # type: ignore[attr-defined]
+    missing = o.missing
+    done = len(o.run_ids) - len(missing)
+    typer.echo(f"{what} {o.sweep_id}: {done}/{len(o.run_ids)} runs completed", err=True)
     for run_id, status in missing:
         typer.echo(f"  missing: {run_id} ({status})", err=True)
     if missing:
-        typer.echo(f"  continue with `softtrack resume {o.sweep_id}`; failures: "  # type: ignore[attr-defined]
+        typer.echo(f"  continue with `softtrack resume {o.sweep_id}`; failures: "
                    "`softtrack runs --failed`", err=True)
-    if o.exit_code:  # type: ignore[attr-defined]
-        raise typer.Exit(o.exit_code)  # type: ignore[attr-defined]
+    if o.exit_code:
+        raise typer.Exit(o.exit_code)
 
 
 @app.command()
@@ -349,7 +357,7 @@ def sweep(
     `softtrack resume SWEEP_ID` finishes the sweep. Exit 0 when every run completed.
     """
 
-    def created(sweep_id: str, records: list) -> None:  # type: ignore[type-arg]
+    def created(sweep_id: str, records: list[RunRecord]) -> None:
         typer.echo(f"sweep {sweep_id}: {len(records)} runs", err=True)
         for record in records:
             typer.echo(record.run_id)
@@ -382,7 +390,7 @@ def resume_command(
     `softtrack sweep`.
     """
 
-    def selected(resume_id: str, records: list) -> None:  # type: ignore[type-arg]
+    def selected(resume_id: str, records: list[RunRecord]) -> None:
         typer.echo(f"resume {resume_id}: {len(records)} runs", err=True)
         for record in records:
             typer.echo(record.run_id)
@@ -555,29 +563,29 @@ def evaluate(
                      full_moments=full_moments)
 
 
-def _print_episode(record: object, episode: object, metrics: object) -> None:
-    rows = metrics.sort_values("arm")  # type: ignore[attr-defined]
+def _print_episode(record: RunRecord, episode: Episode, metrics: pd.DataFrame) -> None:
+    rows = metrics.sort_values("arm")
     rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
     steady = " / ".join("n/a" if math.isnan(v) else f"{v:.4f}" for v in rows["rmse_3d_steady"])
     note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
     typer.echo(
-        f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "  # type: ignore[attr-defined]
+        f"{record.run_id}  {episode.trajectory:9s}  3-D RMSE arm 1 / arm 2: {rmse} m "
         f"(t ≥ 1 s: {steady} m){note}"
     )
 
 
-def _print_random(record: object, rows: object) -> None:
-    per_arm = rows.groupby("arm")["rmse_3d"]  # type: ignore[attr-defined]
+def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
+    per_arm = rows.groupby("arm")["rmse_3d"]
     means, stds = per_arm.mean(), per_arm.std()
     cells = " / ".join(
         f"{means[a]:.4f}" + ("" if math.isnan(stds[a]) else f" ± {stds[a]:.4f}")
         for a in sorted(means.index)
     )
-    n = int(rows["episode"].nunique())  # type: ignore[index]
-    diverged = int(rows.groupby("episode")["terminated"].any().sum())  # type: ignore[attr-defined]
+    n = int(rows["episode"].nunique())
+    diverged = int(rows.groupby("episode")["terminated"].any().sum())
     note = f"  ({diverged} diverged)" if diverged else ""
     typer.echo(
-        f"{record.run_id}  random     3-D RMSE arm 1 / arm 2: {cells} m "  # type: ignore[attr-defined]
+        f"{record.run_id}  random     3-D RMSE arm 1 / arm 2: {cells} m "
         f"(mean ± std over {n} episodes){note}"
     )
 

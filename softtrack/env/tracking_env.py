@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -16,7 +16,8 @@ __all__ = ["DualArmTrackingEnv", "SingleArmTrackingEnv"]
 class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
     """A single-environment view of :class:`TrackingCore` (shared by both envs)."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    # declared as gym.Env declares it (not ClassVar: mypy rejects that override)
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
 
     def __init__(self, config: TrackingConfig) -> None:
         super().__init__()

@@ -92,7 +92,7 @@ def _checkpointable_base() -> type:
     try:
         import submitit
 
-        return submitit.helpers.Checkpointable  # type: ignore[no-any-return]
+        return submitit.helpers.Checkpointable
     except ImportError:  # softtrack works without the cluster extra
         return object
 

@@ -24,7 +24,9 @@ _NAME_BAD = re.compile(r"[^A-Za-z0-9_.-]+")
 
 def split_values(text: str) -> list[str]:
     """Split ``text`` at the commas outside brackets and quotes: ``[16,16],[64,64]`` → 2."""
-    out, depth, quote, current = [], 0, "", []
+    out: list[str] = []
+    current: list[str] = []
+    depth, quote = 0, ""
     for ch in text:
         if quote:
             quote = "" if ch == quote else quote

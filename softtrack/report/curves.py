@@ -9,6 +9,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 import pandas as pd
@@ -188,6 +189,14 @@ def run_final_stage_returns(run: RunData) -> dict[int | None, tuple[float | None
     )
 
 
+class _ArmFinalStage(TypedDict):
+    """One arm policy's final-stage returns across the seeds of a group."""
+
+    values: dict[int, float]  # seed → final-stage return
+    episodes: int
+    missing: list[int]  # seeds without a final stage
+
+
 def final_stage_table(groups: Sequence[Group]) -> pd.DataFrame:
     """Final-stage return per group (and arm policy): mean ± sample std across seeds.
 
@@ -197,20 +206,20 @@ def final_stage_table(groups: Sequence[Group]) -> pd.DataFrame:
     """
     rows = []
     for group in groups:
-        per_arm: dict[int | None, dict[str, object]] = {}
+        per_arm: dict[int | None, _ArmFinalStage] = {}
         for run in group.runs:
             results = run_final_stage_returns(run) or {None: (None, 0)}
             for arm, (value, count) in results.items():
                 row = per_arm.setdefault(arm, {"values": {}, "episodes": 0, "missing": []})
-                row["episodes"] = int(row["episodes"]) + count  # type: ignore[call-overload]
+                row["episodes"] = int(row["episodes"]) + count
                 if value is None:
-                    row["missing"].append(run.seed)  # type: ignore[attr-defined]
+                    row["missing"].append(run.seed)
                 else:
-                    row["values"][run.seed] = value  # type: ignore[index]
+                    row["values"][run.seed] = value
         for arm in sorted(per_arm, key=lambda a: -1 if a is None else a):
             row = per_arm[arm]
             arm_value = -1 if arm is None else int(arm)
-            values = np.array(list(row["values"].values()), dtype=float)  # type: ignore[attr-defined]
+            values = np.array(list(row["values"].values()), dtype=float)
             rows.append(
                 {
                     "group": group.label,

@@ -15,6 +15,7 @@ import shlex
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, TypeAlias
 
 from softtrack.report.data import Group, RunData
 from softtrack.report.reference import STUDY_BUDGET_TEXT
@@ -42,11 +43,19 @@ FOOTER_LISTS_UP_TO = 4
 
 
 # ---- a minimal document model rendered to Markdown and HTML ---------------------------------
+Block: TypeAlias = (
+    tuple[Literal["h"], int, str]
+    | tuple[Literal["p"], str]
+    | tuple[Literal["table"], list[str], list[list[str]]]
+    | tuple[Literal["img"], str, str]
+)
+
+
 @dataclass
 class Doc:
     """Blocks: ("h", level, text), ("p", text), ("table", header, rows), ("img", src, alt)."""
 
-    blocks: list[tuple[object, ...]] = field(default_factory=list)
+    blocks: list[Block] = field(default_factory=list)
 
     def h(self, level: int, text: str) -> None:
         """A heading of ``level`` (1 = the title)."""
@@ -68,24 +77,23 @@ class Doc:
         """The document as Markdown."""
         out: list[str] = []
         for block in self.blocks:
-            kind = block[0]
-            if kind == "h":
-                out.append(f"{'#' * int(block[1])} {block[2]}")  # type: ignore[call-overload]
-            elif kind == "p":
+            if block[0] == "h":
+                out.append(f"{'#' * int(block[1])} {block[2]}")
+            elif block[0] == "p":
                 out.append(str(block[1]))
-            elif kind == "table":
+            elif block[0] == "table":
                 header, rows = block[1], block[2]
                 cell = lambda s: str(s).replace("|", "\\|").replace("\n", " ")
                 out.append(
                     "\n".join(
                         [
-                            "| " + " | ".join(cell(h) for h in header) + " |",  # type: ignore[attr-defined]
+                            "| " + " | ".join(cell(h) for h in header) + " |",
                             "|" + "---|" * len(header),
-                        ]  # type: ignore[arg-type]
-                        + ["| " + " | ".join(cell(c) for c in r) + " |" for r in rows]  # type: ignore[attr-defined]
+                        ]
+                        + ["| " + " | ".join(cell(c) for c in r) + " |" for r in rows]
                     )
                 )
-            elif kind == "img":
+            elif block[0] == "img":
                 out.append(f"![{block[2]}]({block[1]})")
         return "\n\n".join(out) + "\n"
 
@@ -99,19 +107,18 @@ class Doc:
 
         body: list[str] = []
         for block in self.blocks:
-            kind = block[0]
-            if kind == "h":
+            if block[0] == "h":
                 body.append(f"<h{block[1]}>{inline(block[2])}</h{block[1]}>")
-            elif kind == "p":
+            elif block[0] == "p":
                 body.append(f"<p>{inline(block[1])}</p>")
-            elif kind == "table":
-                head = "".join(f"<th>{inline(h)}</th>" for h in block[1])  # type: ignore[attr-defined]
+            elif block[0] == "table":
+                head = "".join(f"<th>{inline(h)}</th>" for h in block[1])
                 rows = "".join(
                     "<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>"
-                    for r in block[2]  # type: ignore[attr-defined]
+                    for r in block[2]
                 )
                 body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
-            elif kind == "img":
+            elif block[0] == "img":
                 src, alt = html.escape(str(block[1]), quote=True), html.escape(str(block[2]))
                 body.append(f'<p><img src="{src}" alt="{alt}"></p>')
         style = (

@@ -352,10 +352,12 @@ def moments_section(
         doc.img(rel, f"Spatial-RMS moment histories, {group.label}")
         if not any(df is not None for df in moments.values()):
             doc.p(f"No data for {group.label}: no stored evaluation moments.")
-    peaks = moment_peaks(ctx.groups)
+    peak_table = moment_peaks(ctx.groups)
     rows = []
     for group in ctx.groups:
-        part = peaks[peaks["group"] == group.label] if not peaks.empty else peaks
+        part = (
+            peak_table[peak_table["group"] == group.label] if not peak_table.empty else peak_table
+        )
         for trajectory in trajectories:
             for direction in DIRECTIONS:
                 cells = []

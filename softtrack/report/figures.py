@@ -17,11 +17,15 @@ import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
+from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.ticker import MaxNLocator
 
 from softtrack.report.curves import Curve, Smoothing
@@ -85,7 +89,9 @@ def _save(fig: Figure, path: str | os.PathLike[str], footer: str | None) -> Path
         width, height = fig.get_size_inches()
         lines = textwrap.wrap(footer, width=max(40, int(width * 17)))
         bottom = (0.14 * len(lines) + 0.06) / height
-        fig.get_layout_engine().set(rect=(0, bottom, 1, 1 - bottom))
+        engine = fig.get_layout_engine()
+        assert isinstance(engine, ConstrainedLayoutEngine)  # made by _new
+        engine.set(rect=(0, bottom, 1, 1 - bottom))
         fig.text(
             0.01, 0.04 / height, "\n".join(lines), fontsize=7, color="0.3", ha="left", va="bottom"
         )
@@ -136,13 +142,16 @@ def _palette(n: int) -> Sequence[object]:
         return GROUP_COLORS
     from matplotlib import colormaps
 
-    return list(colormaps["tab20"].colors)
+    tab20 = colormaps["tab20"]
+    assert isinstance(tab20, ListedColormap)
+    # a tuple of RGB tuples; the stubs type ``colors`` as any ArrayLike or colour
+    return list(cast(Sequence[object], tab20.colors))
 
 
-def _steps_axis(ax: object) -> None:
-    ax.set_xlabel("environment steps")  # type: ignore[attr-defined]
-    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))  # type: ignore[attr-defined]
-    ax.grid(alpha=0.3)  # type: ignore[attr-defined]
+def _steps_axis(ax: Axes) -> None:
+    ax.set_xlabel("environment steps")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
+    ax.grid(alpha=0.3)
 
 
 def training_curves_figure(

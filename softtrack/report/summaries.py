@@ -261,8 +261,9 @@ def moment_peaks(groups: Sequence[Group]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _direction(value: object) -> str:
+def _direction(value: Any) -> str:
+    """A table's direction cell (an index into DIRECTIONS, or already a name) as a name."""
     try:
-        return DIRECTIONS[int(value)]  # type: ignore[call-overload]
+        return DIRECTIONS[int(value)]
     except (ValueError, TypeError, IndexError):
         return str(value)

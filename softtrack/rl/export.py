@@ -16,7 +16,7 @@ import os
 import shutil
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from softtrack.rl.lean import save_inference_model
 from softtrack.rl.policy import candidate_path, policy_choice
@@ -42,7 +42,7 @@ def export_plan(record: RunRecord, spec: ExperimentSpec
     for policy in PolicyDir.all_of_run(record.path, spec.controller == "independent"):
         relative = policy.path.relative_to(record.path)
         chosen = policy_choice(policy, spec)
-        other = "last" if chosen == "best" else "best"
+        other: Literal["best", "last"] = "last" if chosen == "best" else "best"
         models.append(ModelCopy(candidate_path(policy, chosen), relative / "model.zip"))
         manifest: dict[str, Any] = {
             "model": chosen,

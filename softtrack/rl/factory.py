@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -119,6 +120,7 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
 
 def algo_class(name: str, backend: str = "sb3") -> Any:
     """The core algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx)."""
+    library: ModuleType
     if backend == "sbx":
         import sbx as library
     else:

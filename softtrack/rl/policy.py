@@ -53,7 +53,7 @@ def policy_choice(policy: PolicyDir, spec: ExperimentSpec) -> Literal["best", "l
     exported directory, else the one ``training.final_policy`` (and a confirmation) chose."""
     manifest = policy.read_manifest()
     if manifest is not None and manifest.get("model") in ("best", "last"):
-        return manifest["model"]  # type: ignore[no-any-return]
+        return manifest["model"]
     if spec.training.final_policy == "last":
         return "last"
     if spec.training.confirm_episodes < 1:

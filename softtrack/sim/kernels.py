@@ -28,6 +28,7 @@ Array layout (float64): positions/velocities (env, arm, 3, node), directors
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
@@ -430,7 +431,7 @@ def _build_advance(n_pad):
     return advance_padded
 
 
-_KERNELS = {}
+_KERNELS: dict[int, Callable[..., None]] = {}  # n_pad → compiled advance_padded
 
 
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,

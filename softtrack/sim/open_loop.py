@@ -28,10 +28,11 @@ def validate_open_loop_input(
         raise InvalidParameterError("give exactly one of actions= or element_torques=")
     n_arms = params.n_arms
     if actions is not None:
-        kind, data, trailing = "actions", actions, (n_arms, 2, N_CONTROL_POINTS)
+        kind, given, trailing = "actions", actions, (n_arms, 2, N_CONTROL_POINTS)
     else:
-        kind, data, trailing = "element_torques", element_torques, (n_arms, 2, params.n_elem)
-    data = np.asarray(data, dtype=np.float64)
+        assert element_torques is not None  # exactly one is given
+        kind, given, trailing = "element_torques", element_torques, (n_arms, 2, params.n_elem)
+    data = np.asarray(given, dtype=np.float64)
     if data.ndim != 4 or data.shape[1:] != trailing or data.shape[0] < 1:
         expected = "(T, " + ", ".join(str(d) for d in trailing) + ")"
         raise InvalidParameterError(

@@ -131,7 +131,8 @@ def _elastica_classes() -> dict[str, Any]:
     Returns:
         ``{"LegacyExplicitDamping": cls, "ElementCouples": cls, "Simulator": cls}``.
     """
-    ea = require_pyelastica()
+    require_pyelastica()  # the ImportError with the install hint
+    from elastica import BaseSystemCollection, Constraints, Forcing
     from elastica.external_forces import NoForces
 
     class _LegacyExplicitDamping(NoForces):
@@ -189,7 +190,7 @@ def _elastica_classes() -> dict[str, Any]:
     _ElementCouples.__name__ = _ElementCouples.__qualname__ = "ElementCouples"
     _LegacyExplicitDamping.__module__ = _ElementCouples.__module__ = __name__
 
-    class _Simulator(ea.BaseSystemCollection, ea.Constraints, ea.Forcing):
+    class _Simulator(BaseSystemCollection, Constraints, Forcing):
         """Rods + clamp + forcing; no callbacks (the state is read after ``advance``)."""
 
     return {

@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import os
 import re
 import textwrap
 from collections.abc import Sequence
@@ -72,7 +73,7 @@ def parse_spec(
         raise _convert(exc, source, _lines or {}, applied, _files or {}) from None
 
 
-def load_spec(path: str | Path, overrides: Sequence[str] = ()) -> ExperimentSpec:
+def load_spec(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> ExperimentSpec:
     """Read, override and validate a spec file.
 
     Args:
@@ -103,7 +104,7 @@ def load_spec(path: str | Path, overrides: Sequence[str] = ()) -> ExperimentSpec
     )
 
 
-def spec_chain(path: str | Path) -> list[str]:
+def spec_chain(path: str | os.PathLike[str]) -> list[str]:
     """The spec file and the files its ``base:`` chain goes through: the file itself first,
     then its base, its base's base, ... (paths as the loader reads them: relative to the
     current directory when ``path`` is). Raises :class:`SpecError` like :func:`load_spec`."""

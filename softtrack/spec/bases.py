@@ -50,7 +50,7 @@ class ResolvedSource:
     chain: tuple[str, ...] = ()
 
 
-def read_spec_file(path: str | Path) -> tuple[Any, dict[FieldPath, int]]:
+def read_spec_file(path: str | os.PathLike[str]) -> tuple[Any, dict[FieldPath, int]]:
     """One YAML file: its data and a map field path → line (raises :class:`SpecError`)."""
     path = Path(path)
     label = str(path)
@@ -124,7 +124,7 @@ def _paths(data: Any, prefix: FieldPath = ()) -> set[FieldPath]:
     return out
 
 
-def resolve_spec_file(path: str | Path) -> ResolvedSource:
+def resolve_spec_file(path: str | os.PathLike[str]) -> ResolvedSource:
     """Read a spec file and the chain of files its ``base:`` goes through, and merge them.
 
     Raises:

@@ -13,6 +13,7 @@ from pydantic import (
     BaseModel,
     ValidationError,
 )
+from pydantic_core import ErrorDetails
 
 from softtrack.spec.fields import ERROR_TYPE, SpecError
 from softtrack.spec.models import ExperimentSpec
@@ -25,7 +26,7 @@ class _Loader(yaml.SafeLoader):
     """``yaml.SafeLoader`` that reads ``1e7``/``3e-4`` as floats (YAML 1.2) and rejects
     duplicate keys. It constructs only plain data (no Python objects)."""
 
-    def construct_mapping(self, node: yaml.Node, deep: bool = False) -> dict[Any, Any]:
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         if isinstance(node, yaml.MappingNode):
             seen: dict[Any, int] = {}
             for key_node, _ in node.value:
@@ -219,7 +220,7 @@ def _short(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _describe(error: dict[str, Any], loc: tuple[Any, ...]) -> tuple[str, str]:
+def _describe(error: ErrorDetails, loc: tuple[Any, ...]) -> tuple[str, str]:
     """(problem, fix) for one pydantic error."""
     kind, ctx, value = error["type"], error.get("ctx") or {}, error.get("input")
     msg = error["msg"]

@@ -52,7 +52,7 @@ def export_run(
     models: Sequence[ModelCopy],
     manifests: Mapping[Path, Mapping[str, Any]],
     dest: str | os.PathLike[str],
-    write_model: Callable[[Path, Path], None] = shutil.copy2,
+    write_model: Callable[[Path, Path], object] = shutil.copy2,
 ) -> Path:
     """Copy ``record``'s run directory to ``dest`` without checkpoints or replay buffers,
     writing its models as ``models`` lists them.

@@ -164,7 +164,7 @@ class PolicyDir:
         """The model (``best`` or ``last``) that ``confirmed.json`` names, or ``None`` if it
         has none (not confirmed yet) or it cannot be read."""
         model = (self.read_confirmed() or {}).get("model")
-        return model if model in ("best", "last") else None  # type: ignore[return-value]
+        return model if model in ("best", "last") else None
 
     def row_mask(self, df: Any) -> np.ndarray:
         """Which rows of a run table with an ``arm`` column per policy (``train_episodes`` of

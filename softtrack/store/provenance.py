@@ -173,7 +173,8 @@ def cpu_kind(cpuinfo: str = "/proc/cpuinfo") -> str:
 
 
 def _cpu_model_and_extension(cpuinfo: str) -> tuple[str, str | None]:
-    model, flags = "", set()
+    model = ""
+    flags: set[str] = set()
     try:
         with open(cpuinfo, encoding="utf-8", errors="replace") as handle:
             for line in handle:

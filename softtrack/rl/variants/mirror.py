@@ -78,7 +78,7 @@ class MirrorReplayBuffer(ReplayBuffer):
     spec checks).
     """
 
-    def add(  # type: ignore[override]
+    def add(
         self,
         obs: np.ndarray,
         next_obs: np.ndarray,

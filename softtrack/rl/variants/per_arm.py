@@ -216,7 +216,10 @@ class PerArmTD3Policy(TD3Policy):
         if self.per_arm_networks:
             key, actor_key = jax.random.split(key)
             self._build_per_arm_actor(actor_key, obs, lr_schedule)
-            self.qf = PerArmCritic(n_arms=self.n_reward_shares, **critic)
+            # sbx types qf by its own build (VectorCritic); PerArmCritic is called alike
+            self.qf = PerArmCritic(  # type: ignore[assignment]
+                n_arms=self.n_reward_shares, **critic
+            )
         else:
             self.qf = VectorCritic(output_dim=self.n_reward_shares, **critic)
         params = self.qf.init({"params": qf_key, "dropout": dropout_key}, obs, action)
@@ -224,7 +227,10 @@ class PerArmTD3Policy(TD3Policy):
             apply_fn=self.qf.apply,
             params=params,
             target_params=params,
-            tx=self.optimizer_class(learning_rate=qf_learning_rate, **self.optimizer_kwargs),
+            # sbx keeps SB3's annotation of optimizer_class (a torch optimizer); it is optax's
+            tx=self.optimizer_class(  # type: ignore[call-arg]
+                learning_rate=qf_learning_rate, **self.optimizer_kwargs
+            ),
         )
         self.qf.apply = jax.jit(  # type: ignore[method-assign]
             self.qf.apply, static_argnames=("dropout_rate", "use_layer_norm")
@@ -244,7 +250,8 @@ class PerArmTD3Policy(TD3Policy):
                 tuple(int(c) for c in arm_view_columns(arm, self.n_reward_shares, obs_dim))
                 for arm in range(self.n_reward_shares)
             )
-        self.actor = PerArmActor(
+        # sbx types actor by its own build (Actor); PerArmActor is called alike
+        self.actor = PerArmActor(  # type: ignore[assignment]
             net_arch=self.net_arch_pi,
             arm_action_dim=action_dim // self.n_reward_shares,
             n_arms=self.n_reward_shares,
@@ -256,7 +263,10 @@ class PerArmTD3Policy(TD3Policy):
             apply_fn=self.actor.apply,
             params=params,
             target_params=params,
-            tx=self.optimizer_class(learning_rate=lr_schedule(1), **self.optimizer_kwargs),
+            # as in build: optax's optimizer_class under SB3's torch annotation
+            tx=self.optimizer_class(  # type: ignore[call-arg]
+                learning_rate=lr_schedule(1), **self.optimizer_kwargs
+            ),
         )
         self.actor.apply = jax.jit(self.actor.apply)  # type: ignore[method-assign]
 
@@ -290,19 +300,19 @@ class PerArmTD3(TD3):
             if not per_arm_networks:
                 raise ValueError("actor_observation other than full needs per_arm_networks")
             policy_kwargs["actor_observation"] = actor_observation
-        super().__init__(
-            policy, env, *args,
+        # through kwargs: mypy cannot tell that *args stops before these parameters
+        kwargs.update(
             replay_buffer_class=RewardShareReplayBuffer,
             replay_buffer_kwargs={**(replay_buffer_kwargs or {}), "n_shares": n_reward_shares},
             policy_kwargs=policy_kwargs,
-            **kwargs,
         )
+        super().__init__(policy, env, *args, **kwargs)
 
     def train(self, gradient_steps: int, batch_size: int) -> None:
         assert self.replay_buffer is not None
         sample = self.replay_buffer.sample(batch_size * gradient_steps, env=self._vec_normalize_env)
         self._maybe_reset_params()
-        data = ReplayBufferSamplesNp(  # type: ignore[call-arg]
+        data = ReplayBufferSamplesNp(
             sample.observations.numpy(),
             sample.actions.numpy(),
             sample.next_observations.numpy(),
