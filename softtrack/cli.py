@@ -11,6 +11,7 @@ import functools
 import inspect
 import json
 import math
+import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -708,7 +709,7 @@ def quickstart(
                   "give a directory made by `softtrack export`, or --no-pretrained")
         # evaluated in a copy in the runs directory, so the report reads this evaluation
         copy = None if shipped is None else api.copy_run(shipped, runs_dir=runs_dir)
-        typer.echo(f"1/4 training {spec_path} (progress on stderr)")
+        typer.echo(f"1/4 training {_shown(spec_path)} (progress on stderr)")
         outcomes = api.train(spec_path, overrides or [], runs_dir=runs_dir,
                              on_start=lambda record: typer.echo(f"    run {record.run_id}"))
         if not outcomes or outcomes[-1].status != "completed":
@@ -720,14 +721,20 @@ def quickstart(
         if shipped is None or copy is None:
             typer.echo("3/4 no shipped policy to show (skipped)")
         else:
-            typer.echo(f"3/4 the shipped policy {shipped} on the same trajectories "
-                       f"(evaluated in its copy {copy})")
+            typer.echo(f"3/4 the shipped policy {_shown(shipped)} on the same trajectories "
+                       f"(evaluated in its copy {_shown(copy)})")
             api.evaluate([str(copy)], on_episode=_print_episode)
             extra = [copy]
         typer.echo("4/4 building the report")
         index = api.report(run_ids, out, runs_dir=runs_dir, extra_runs=extra,
                            command_line=["softtrack", "quickstart", "--out", out])
     typer.echo(f"report: {index}")
+
+
+def _shown(path: str | os.PathLike[str]) -> str:
+    """``path`` relative to the current directory when it lies inside it, else absolute."""
+    full = Path(path).resolve()
+    return str(full.relative_to(Path.cwd())) if full.is_relative_to(Path.cwd()) else str(full)
 
 
 if __name__ == "__main__":  # python -m softtrack.cli
