@@ -1,6 +1,6 @@
 """Integration steps per second: softtrack's numba engine against PyElastica 1.0.0.
 
-Both simulate the identical SPEC scenario (two clamped 20-element rods, dt = 2e-4 s, the
+Both simulate the identical study scenario (two clamped 20-element rods, dt = 2e-4 s, the
 PyElastica-0.1 damping, random actions held for 10 steps), side by side in one process.
 Each measurement is repeated and the median is reported, so the ratio is robust to the noise
 of a shared machine. Run on one core:

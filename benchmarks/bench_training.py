@@ -2,7 +2,7 @@
 
 The setting: TD3, actor and critics [64, 64] ReLU, batch 128, one gradient step per
 environment step (``n_envs`` environments per vector step and ``gradient_steps = n_envs``),
-Gaussian exploration noise 0.1, the SPEC's physics, random target. Each backend trains the same
+Gaussian exploration noise 0.1, the default physics, random target. Each backend trains the same
 model through softtrack's own factory (what ``softtrack train`` runs) after a warm-up, and the
 same number of environment steps is then timed for the environment alone (random actions) and
 for the physics alone (the rod engine), so the time splits into physics, environment layer and

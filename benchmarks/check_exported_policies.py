@@ -36,9 +36,13 @@ SAME_EPISODE = 1e-9
 
 
 def plain_model(spec_algo: str, backend: str, path: Path):  # type: ignore[no-untyped-def]
-    """The model at ``path`` loaded with the library's own class, e.g. ``sbx.TD3``."""
-    library = importlib.import_module("sbx" if backend == "sbx" else "stable_baselines3")
-    return getattr(library, spec_algo.upper()).load(str(path), device="cpu")
+    """The model at ``path`` loaded with the library's own class, e.g. ``sbx.TD3``,
+    ``sbx.CrossQ`` or, for tqc with backend sb3, ``sb3_contrib.TQC``."""
+    library = importlib.import_module(
+        "sbx" if backend == "sbx" else "sb3_contrib" if spec_algo == "tqc" else "stable_baselines3"
+    )
+    name = "CrossQ" if spec_algo == "crossq" else spec_algo.upper()
+    return getattr(library, name).load(str(path), device="cpu")
 
 
 def circle_rmse(run_dir: Path) -> np.ndarray:

@@ -220,7 +220,7 @@ def evaluate(
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
             so another model's results are only returned, never stored.
         full_moments: also store every element torque at every step (table
-            ``eval_element_moments``, about 2 MB per trajectory); by default only the SPEC §5
+            ``eval_element_moments``, about 2 MB per trajectory); by default only the docs/environment.md
             summaries (``eval_moments``, ``eval_moment_peaks``) are stored.
 
     Returns:

@@ -622,7 +622,7 @@ def upgrade(
 ) -> None:
     """Rewrite the tables of runs made by earlier softtrack versions in the current format.
 
-    Element-torque histories become the SPEC §5 summaries (eval_moments: per-step RMS;
+    Element-torque histories become the docs/environment.md summaries (eval_moments: per-step RMS;
     eval_moment_peaks: each element's peak) and positions float32, about 14x smaller, computed
     from the stored tables alone. Runs already current are left as they are.
     Example: softtrack upgrade models/*/

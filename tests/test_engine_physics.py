@@ -1,4 +1,4 @@
-"""Closed-form checks of the numba Cosserat-rod engine (SPEC §1–2).
+"""Closed-form checks of the numba Cosserat-rod engine (docs/physics.md).
 
 Each test compares the engine with an answer derived independently of its code:
 
@@ -166,7 +166,7 @@ def test_quarter_circle_director_curvature(quarter_circle) -> None:
 def test_quarter_circle_shape_and_sign_convention(quarter_circle) -> None:
     """Nodes lie on the discrete arc: equal chords dl turning by θ = κ·dl from node 1 on.
 
-    SPEC §2 signs: the positive normal (d₁ = +z) couple curls arm 0 toward −x in the x–y
+    docs/physics.md signs: the positive normal (d₁ = +z) couple curls arm 0 toward −x in the x–y
     plane; the positive binormal (d₂ = +x) couple curls arm 1 toward +z in the y–z plane.
     """
     p, batch, moment = quarter_circle

@@ -1,7 +1,7 @@
-"""The numba engine reproduces the stored PyElastica 1.0.0 reference rollouts (SPEC §1–2).
+"""The numba engine reproduces the stored PyElastica 1.0.0 reference rollouts (docs/physics.md).
 
 ``shared/reference/pyelastica/*.npz`` hold two 2-s open-loop rollouts of the dual-arm scenario
-made with the real PyElastica 1.0.0 at the SPEC defaults. Halving the time step moves the tips
+made with the real PyElastica 1.0.0 at the default settings. Halving the time step moves the tips
 by 0.2–0.5 mm over those 2 s, so an engine with the same discretisation agrees to round-off
 (measured: ≤ 2e-14 m) and any difference above 1e-6 m means a convention differs.
 

@@ -7,7 +7,7 @@ against the closed-form limit with the coupled bending mode (``softtrack.sim.sta
     damping ν_d   dt_limit     diverges at
     0            4.202e-4 s   1.001–1.002× (actions ±0.01; undamped, larger forcing blows up)
     10           3.434e-4 s   1.001–1.002×
-    30 (SPEC)    2.323e-4 s   1.001–1.002×
+    30 (default)    2.323e-4 s   1.001–1.002×
     60           1.453e-4 s   1.001–1.002×
 
 (An earlier closed form treated the alternating element rotation as a mode of its own and was

@@ -1,4 +1,4 @@
-"""The Gymnasium environments and the SB3 vectorised env (SPEC.md §3, "The environment").
+"""The Gymnasium environments and the SB3 vectorised env (docs/environment.md, "The environment").
 
 The pure pieces (targets, observation layout, reward formula) have their own tests; these
 check the environments built from them against the engine state they expose.
@@ -43,7 +43,7 @@ def _actions(n_steps: int, dim: int, seed: int = 0, scale: float = 0.4) -> np.nd
 
 
 def _expected_reward(d: np.ndarray, n_arms: int) -> float:
-    """The SPEC §3 reward written out by hand from the tip distances."""
+    """The docs/environment.md reward written out by hand from the tip distances."""
     if n_arms == 2:
         d1, d2 = float(d[0]), float(d[1])
         r = -(1.0 * d1**2 + 1.0 * d2**2)
@@ -220,7 +220,7 @@ def test_observation_layout_against_engine_state(kind: str) -> None:
     tail = 37 * n_arms
     np.testing.assert_array_equal(obs[tail : tail + 3], targets.position[0].astype(np.float32))
     target_speed = np.linalg.norm(targets.velocity[0])
-    assert obs[tail + 3] == pytest.approx(0.3, rel=1e-6)  # random target, SPEC speed
+    assert obs[tail + 3] == pytest.approx(0.3, rel=1e-6)  # random target, default speed
     assert obs[tail + 3] == pytest.approx(target_speed, rel=1e-6)
     np.testing.assert_allclose(obs[tail + 4 : tail + 7], targets.velocity[0] / target_speed,
                                rtol=1e-6, atol=1e-7)
@@ -337,7 +337,7 @@ def test_out_of_range_actions_are_clipped(kind: str) -> None:
         results.append(trace)
     for a, b in zip(*results, strict=True):
         np.testing.assert_array_equal(a, b)
-    assert np.max(np.abs(results[0][-1])) > 75.0  # spline overshoot is not clipped (SPEC §2)
+    assert np.max(np.abs(results[0][-1])) > 75.0  # spline overshoot is not clipped (docs/physics.md)
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
@@ -575,7 +575,7 @@ def test_vec_env_full_info_matches_single_env_info() -> None:
             for key in ("tip_positions", "target_position", "distances", "element_torques",
                         "time"):
                 np.testing.assert_array_equal(g[key], e[key], err_msg=key)
-    # by default the per-step SPEC keys are left out (training speed)
+    # by default the per-step info keys are left out (training speed)
     lean = TrackingVecEnv(2)
     lean.reset()
     _, _, _, infos = lean.step(np.zeros((2, 24), np.float32))

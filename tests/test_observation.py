@@ -1,4 +1,4 @@
-"""Observation layout (SPEC.md §3, "Observation")."""
+"""Observation layout (docs/environment.md, "Observation")."""
 
 from __future__ import annotations
 

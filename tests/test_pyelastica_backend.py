@@ -1,4 +1,4 @@
-"""The PyElastica 1.0.0 backend reproduces the stored reference rollouts (SPEC §1–2).
+"""The PyElastica 1.0.0 backend reproduces the stored reference rollouts (docs/physics.md).
 
 The reference files in ``shared/reference/pyelastica`` were made with the real PyElastica
 1.0.0; the backend rebuilds the scenario from ``SimParams`` defaults and must agree with

@@ -1,4 +1,4 @@
-"""Reward and safety penalty (SPEC.md §3, "Reward")."""
+"""Reward and safety penalty (docs/environment.md, "Reward")."""
 
 from __future__ import annotations
 

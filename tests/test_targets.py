@@ -1,4 +1,4 @@
-"""Target motions (SPEC.md §3, "Target")."""
+"""Target motions (docs/environment.md, "Target")."""
 
 from __future__ import annotations
 

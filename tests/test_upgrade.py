@@ -25,7 +25,7 @@ def _episode(trajectory: str, seed: int, n: int = 50) -> Episode:
 
 
 def _old_moments(run_id: str, episode: Episode) -> pd.DataFrame:
-    """``eval_moments`` as versions before the SPEC §5 summaries stored it."""
+    """``eval_moments`` as versions before the docs/environment.md summaries stored it."""
     torques = episode.element_torques
     n = len(torques)
     return pd.DataFrame({

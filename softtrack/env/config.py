@@ -19,9 +19,9 @@ class TrackingConfig:
     """Everything that defines a tracking environment.
 
     Attributes:
-        sim: physics and actuation (SPEC §1–2).
-        target: target motion (SPEC §3).
-        reward: reward terms (SPEC §3).
+        sim: physics and actuation (docs/physics.md).
+        target: target motion (docs/environment.md).
+        reward: reward terms (docs/environment.md).
         episode_duration: simulated seconds before truncation, s.
     """
 

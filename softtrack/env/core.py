@@ -147,7 +147,7 @@ class TrackingCore:
         return StepResult(self.observe(), reward, terminated, truncated, distances)
 
     def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
-        """The SPEC's info dict of environment ``i`` after a step (copies, SI units)."""
+        """The info dict (docs/environment.md) of environment ``i`` after a step (copies, SI units)."""
         return {
             "tip_positions": self.engine.tip_position[i].copy(),
             "target_position": self.targets.position[i].copy(),

@@ -1,4 +1,4 @@
-"""Observation vector of the tracking environment (``SPEC.md`` §3, "Observation").
+"""Observation vector of the tracking environment (``docs/environment.md``, "Observation").
 
 Layout for A arms (A·37 + 7 values; 81 for two arms, 44 for one):
 

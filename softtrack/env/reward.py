@@ -1,4 +1,4 @@
-"""Reward of the tracking environment (``SPEC.md`` §3, "Reward" and the safety penalty).
+"""Reward of the tracking environment (``docs/environment.md``, "Reward" and the safety penalty).
 
 With dᵢ the distance of arm i's tip to the target centre (m):
 

@@ -1,4 +1,4 @@
-"""Kinematic spherical targets, batched over environments (``SPEC.md`` §3, "Target").
+"""Kinematic spherical targets, batched over environments (``docs/environment.md``, "Target").
 
 Modes:
 
@@ -60,7 +60,7 @@ def _finite_vector(value: object, length: int) -> np.ndarray | None:
 
 @dataclass(frozen=True)
 class TargetConfig:
-    """Target motion settings (SI units; defaults are the study's, ``SPEC.md`` §3).
+    """Target motion settings (SI units; defaults are the study's, ``docs/environment.md``).
 
     Attributes:
         name: one of ``random``, ``circle``, ``rectangle``, ``figure8``, ``fixed``.

@@ -113,7 +113,7 @@ class DualArmTrackingEnv(_TrackingEnv):
         gymnasium.make("softtrack/DualArmTracking-v0", target="circle", gravity=True)
 
     ## Version History
-    * v0: the study's setting (SPEC.md).
+    * v0: the study's setting (docs/physics.md, docs/environment.md).
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -143,7 +143,7 @@ class SingleArmTrackingEnv(_TrackingEnv):
     ``arm``: 0 (base at x = −0.1 m, default) or 1 (x = +0.1 m); otherwise as the dual-arm env.
 
     ## Version History
-    * v0: the study's setting (SPEC.md).
+    * v0: the study's setting (docs/physics.md, docs/environment.md).
     """
 
     def __init__(self, arm: int = 0, **kwargs: Any) -> None:

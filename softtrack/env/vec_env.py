@@ -36,7 +36,7 @@ class TrackingVecEnv(VecEnv):
     Args:
         n_envs: number of environments.
         config: a :class:`TrackingConfig`; if omitted, built from ``env_kwargs``.
-        full_info: include the SPEC's per-step info keys (tip positions, target, distances,
+        full_info: include the documented per-step info keys (tip positions, target, distances,
             torques, time) in every info dict; off saves time during training.
         reward_shares: add ``info["reward_shares"]``, the (A,) float32 per-arm split of the
             reward (:func:`softtrack.env.reward.reward_shares`), for per-arm critics.

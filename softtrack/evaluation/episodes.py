@@ -1,7 +1,7 @@
 """Deterministic evaluation episodes: one policy driving both arms while the target moves.
 
 An evaluation drives both arms from the straight initial state for ``duration`` seconds while
-the target follows a circle, rectangle or figure-eight (SPEC §3), or the run's random training
+the target follows a circle, rectangle or figure-eight (docs/environment.md), or the run's random training
 target, and records every control step (:class:`Episode`). A centralized controller maps the
 81-value observation to 24 actions; an independent controller is two single-arm policies, each
 fed its arm's 37 values plus the target's 7 (:func:`independent_policy`). The tables of an

@@ -1,4 +1,4 @@
-"""Tracking-accuracy and actuation metrics of SPEC §5: pure NumPy, no state.
+"""Tracking-accuracy and actuation metrics of docs/environment.md: pure NumPy, no state.
 
 With e(t) = tip(t) − target(t) of one arm over the N control steps of an episode:
 

@@ -5,13 +5,13 @@ writes its tables into the run's ``tables/`` (atomically, replacing the rows of 
 trajectories it evaluated and keeping the others):
 
 * ``eval_trajectories.parquet``: tip and target positions at every control step;
-* ``eval_metrics.parquet``: the SPEC §5 metrics per arm (also over the steady window t ≥ 1 s),
+* ``eval_metrics.parquet``: the docs/environment.md metrics per arm (also over the steady window t ≥ 1 s),
   the CPU kind that computed them (``cpu``: a deterministic episode's rounding, and so its
   numbers, differ slightly between CPU kinds; tables written before lack it), and the arm's
   action statistics (``action_saturation``, ``action_change``, ``action_rms``;
   tables written before these were added lack them, and readers treat them as optional);
 * ``eval_moments.parquet``: the spatial RMS of the element torques per step, arm and direction
-  (SPEC §5, float32);
+  (docs/environment.md, float32);
 * ``eval_moment_peaks.parquet``: each element's largest absolute torque over the episode, per
   arm and direction;
 * ``eval_element_moments.parquet``, only with ``full_moments=True``: every element torque at

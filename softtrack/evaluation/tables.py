@@ -1,7 +1,7 @@
 """The tables of an evaluation episode (:class:`~softtrack.evaluation.episodes.Episode`).
 
 One function per table a run stores (:mod:`softtrack.evaluation.runs`): tip and target
-positions per step (``eval_trajectories``), the SPEC §5 metrics per arm (``eval_metrics``, also
+positions per step (``eval_trajectories``), the docs/environment.md metrics per arm (``eval_metrics``, also
 the rows of ``validation``, ``confirmation`` and ``eval_random``), the spatial RMS of the
 element torques per step (``eval_moments``), each element's peak torque (``eval_moment_peaks``)
 and, on request, every element torque (``eval_element_moments``); and the validation score
@@ -56,7 +56,7 @@ def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 
 def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
-    """One row per arm: every SPEC §5 metric over the episode, and ``*_steady`` over t ≥ 1 s
+    """One row per arm: every docs/environment.md metric over the episode, and ``*_steady`` over t ≥ 1 s
     (NaN when the episode is shorter than that), and the arm's action statistics
     (``action_saturation``, ``action_change``, ``action_rms``, see
     :func:`softtrack.evaluation.metrics.action_statistics`) over the steps the episode ran."""
@@ -86,7 +86,7 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
 
 
 def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
-    """The SPEC §5 moment history: one row per step, arm and direction (0 normal,
+    """The docs/environment.md moment history: one row per step, arm and direction (0 normal,
     1 binormal) with the spatial RMS of the element torques at that step (``rms_moment``,
     N·m, float32)."""
     torques = episode.element_torques  # (N, A, 2, n_elem)
@@ -103,7 +103,7 @@ def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 
 def moment_peaks_table(run_id: str, episode: Episode) -> pd.DataFrame:
-    """The SPEC §5 peak moments: one row per arm, direction and element with the largest
+    """The docs/environment.md peak moments: one row per arm, direction and element with the largest
     absolute torque of that element over the episode (``peak_abs_moment``, N·m)."""
     peaks = np.abs(episode.element_torques.astype(np.float32)).max(axis=0)  # (A, 2, n_elem)
     return element_peaks_frame(run_id, episode.trajectory, peaks)

@@ -77,14 +77,14 @@ def _missing(summary: pd.DataFrame, group: Group) -> bool:
 
 
 def actions_caption(summary: pd.DataFrame, groups: Sequence[Group]) -> str:
-    """What the columns mean, the SPEC's calibration values to compare them with, and, only
+    """What the columns mean, the calibration values of docs/environment.md to compare them with, and, only
     where a run's metrics table lacks the statistics, which controllers that concerns."""
     text = (
         "Per arm over each evaluation episode, actions clipped to [−1, 1] as the environment "
         "applies them: saturation is the share of the arm's 12 control values with "
         f"|a| ≥ {SATURATION_THRESHOLD:g}, mean |Δa| their mean absolute change from one control "
         "step to the next (0–2) and RMS their root mean square (0–1), each as mean ± sample std "
-        "across seeds; for comparison, the SPEC's TD3 calibration prototype (§5) had "
+        "across seeds; for comparison, the TD3 calibration prototype of docs/environment.md had "
         f"{100 * CALIBRATION_ACTION_SATURATION:.0f} % saturation and a mean change of "
         f"{CALIBRATION_ACTION_CHANGE:.2f}, i.e. accurate but bang-bang."
     )

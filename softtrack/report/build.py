@@ -34,7 +34,7 @@ from pathlib import Path
 from softtrack.report.data import group_runs, load_runs, trajectories_in
 from softtrack.report.document import (
     FIGURES_DIR,
-    NOT_IN_SPEC,
+    NOT_IN_STUDY,
     Context,
     Doc,
     provenance_section,
@@ -129,7 +129,7 @@ def build_report(
     doc.p(
         f"Generated {generated} by `{command}` from the stored tables of {len(runs)} run(s); "
         "rebuild it at any time with the same command. Beside each measured number is the "
-        f"study's value from the SPEC ({NOT_IN_SPEC} where the SPEC gives none)."
+        f"study's published value ({NOT_IN_STUDY} where it gives none)."
     )
     runs_section(doc, ctx, runs)
     provenance_section(doc, ctx)

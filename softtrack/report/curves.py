@@ -174,7 +174,7 @@ def training_curves(
 
 # ---- final-stage return ---------------------------------------------------------------------
 def run_final_stage_returns(run: RunData) -> dict[int | None, tuple[float | None, int]]:
-    """SPEC §4 for one run: mean return of the episodes that ended after
+    """docs/environment.md for one run: mean return of the episodes that ended after
     ``(1 − final_stage_fraction) · budget`` env steps, per arm policy. The budget is the run's
     ``total_timesteps``; for an arm policy of an independent run (``arm`` column ≥ 0, whose
     ``global_step`` counts that arm's own steps) it is the arm's budget (:attr:`RunData.arm_budget`).

@@ -52,7 +52,8 @@ _MOMENT_COLUMNS = (
 _PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
-_ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3}
+_ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3, "tqc": 4, "crossq": 5}
+_ALGO_LABELS = {"crossq": "CrossQ"}  # display names that are not the upper-cased algo name
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
 
 
@@ -237,8 +238,9 @@ def _slug(text: str) -> str:
 
 def group_runs(runs: Sequence[RunData]) -> list[Group]:
     """Group runs by (algo, controller, experiment name, spec hash), ordered TD3, DDPG, PPO, SAC,
-    centralized before independent. Labels are ``TD3`` / ``TD3 (independent)``, with the
-    experiment name (and spec hash) added where two groups would otherwise share a label."""
+    TQC, CrossQ, centralized before independent. Labels are ``TD3`` / ``TD3 (independent)``
+    (``CrossQ`` for crossq), with the experiment name (and spec hash) added where two groups
+    would otherwise share a label."""
     buckets: dict[tuple[str, str, str, str], list[RunData]] = {}
     for run in runs:
         info = run.record.info
@@ -249,7 +251,7 @@ def group_runs(runs: Sequence[RunData]) -> list[Group]:
     )
 
     def base(key: tuple[str, str, str, str]) -> str:
-        algo, controller = key[0].upper(), key[1]
+        algo, controller = _ALGO_LABELS.get(key[0], key[0].upper()), key[1]
         return algo if controller == "centralized" else f"{algo} ({controller})"
 
     labels = {k: base(k) for k in keys}

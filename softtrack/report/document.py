@@ -22,7 +22,7 @@ from softtrack.report.reference import STUDY_BUDGET_TEXT
 
 __all__ = [
     "FIGURES_DIR",
-    "NOT_IN_SPEC",
+    "NOT_IN_STUDY",
     "Context",
     "Doc",
     "commit_text",
@@ -35,8 +35,8 @@ __all__ = [
 
 #: The report's figure directory, relative to the report directory.
 FIGURES_DIR = "figures"
-#: The cell shown where the SPEC gives no study value.
-NOT_IN_SPEC = "—"
+#: The cell shown where the study gives no value.
+NOT_IN_STUDY = "—"
 #: A figure footer names the experiments, specs and commits of at most this many experiments
 #: (more are counted, and listed in the report's *Behind these numbers*).
 FOOTER_LISTS_UP_TO = 4
@@ -144,8 +144,8 @@ def num_text(value: float | None, digits: int) -> str:
 
 
 def study_text(value: float | None, digits: int) -> str:
-    """A study value with ``digits`` decimals, or :data:`NOT_IN_SPEC` (``None``)."""
-    return NOT_IN_SPEC if value is None else f"{value:.{digits}f}"
+    """A study value with ``digits`` decimals, or :data:`NOT_IN_STUDY` (``None``)."""
+    return NOT_IN_STUDY if value is None else f"{value:.{digits}f}"
 
 
 def seeds_text(seeds: Iterable[int]) -> str:

@@ -16,7 +16,7 @@ from softtrack.evaluation import RANDOM_TARGET_SEED
 from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
 from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
-from softtrack.report.document import NOT_IN_SPEC, Context, Doc, num_text, study_text
+from softtrack.report.document import NOT_IN_STUDY, Context, Doc, num_text, study_text
 from softtrack.report.featured import Featured
 from softtrack.report.reference import (
     STUDY_PEAK_MOMENTS,
@@ -106,8 +106,8 @@ def errors_section(
         doc.table(header, _metric_rows(summary, group, trajectories))
         doc.p(
             "Mean ± sample std across seeds of one deterministic evaluation episode per "
-            "trajectory (SPEC §5). The SPEC gives the study's 3-D RMSE only (centralized TD3 "
-            f"and the independent TD3 baseline); {NOT_IN_SPEC}: no study value."
+            "trajectory (docs/environment.md). The study gives its 3-D RMSE only (centralized TD3 "
+            f"and the independent TD3 baseline); {NOT_IN_STUDY}: no study value."
         )
     doc.h(3, "Centralized against independent controllers")
     cells = [(t, arm) for t in trajectories for arm in (0, 1)]
@@ -400,5 +400,5 @@ def moments_section(
         "Peak: the largest absolute element torque over the evaluation episode, mean ± sample "
         "std across seeds. The study reports peaks during the figure-eight only (centralized "
         f"TD3: {STUDY_PEAK_MOMENTS['normal']} N·m normal, {STUDY_PEAK_MOMENTS['binormal']} N·m "
-        f"binormal); {NOT_IN_SPEC}: no study value."
+        f"binormal); {NOT_IN_STUDY}: no study value."
     )

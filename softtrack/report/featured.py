@@ -4,7 +4,7 @@ A report of many experiment variants would otherwise hold one figure per variant
 trajectory; by default (:func:`featured_groups`) it draws at most a few chosen controllers,
 side by side, and leaves every other controller to the tables:
 
-* the study protocol: centralized TD3 trained for the study's budget (SPEC §4,
+* the study protocol: centralized TD3 trained for the study's budget (docs/environment.md,
   :data:`~softtrack.report.reference.STUDY_TOTAL_TIMESTEPS` env steps per run);
 * the best centralized variant: the lowest mean 3-D RMSE over the trajectories and arms;
 * the best independent controller (the baseline the centralized ones are compared with).

@@ -259,7 +259,7 @@ def final_returns_figure(
         )
     ax.set_xticks(x, labels, fontsize=9)
     ax.set_ylabel("final-stage episode return (–)")
-    ax.set_title("Final-stage return: mean episode return at the end of training (SPEC §4)")
+    ax.set_title("Final-stage return: mean episode return at the end of training (docs/environment.md)")
     ax.axhline(0, color="0.5", lw=0.8)
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8)

@@ -1,11 +1,11 @@
-"""The study's published values (SPEC §4 and §5) as data, for display beside measured numbers.
+"""The study's published values (docs/environment.md and §5) as data, for display beside measured numbers.
 
-Only what the SPEC states is here: the 3-D RMSE per trajectory and arm for centralized TD3 and
+Only what the study publishes is here: the 3-D RMSE per trajectory and arm for centralized TD3 and
 for the independent single-arm TD3 baseline, the peak element moments during the figure-eight,
 and the training budget. The study's final-stage returns (its Table 3), its axis RMSE/MAE and
-mean spatial errors are not in the SPEC, so they have no reference value (``None``).
+mean spatial errors are not published, so they have no reference value (``None``).
 
-Beside them, SPEC §5 states the action statistics of this project's calibration prototype
+Beside them, docs/environment.md states the action statistics of this project's calibration prototype
 (a TD3 prototype, not the study), as a yardstick for "bang-bang" control.
 """
 
@@ -30,7 +30,7 @@ __all__ = [
     "study_rmse_3d",
 ]
 
-#: 3-D RMSE (m) of the study, ``[controller][trajectory] = (arm 1, arm 2)``; TD3 only (SPEC §5).
+#: 3-D RMSE (m) of the study, ``[controller][trajectory] = (arm 1, arm 2)``; TD3 only (docs/environment.md).
 STUDY_RMSE_3D: Final[dict[str, dict[str, tuple[float, float]]]] = {
     "centralized": {
         "circle": (0.065, 0.043),
@@ -44,11 +44,11 @@ STUDY_RMSE_3D: Final[dict[str, dict[str, tuple[float, float]]]] = {
     },
 }
 
-#: Peak absolute element moment (N·m) over both arms during the figure-eight (SPEC §5).
+#: Peak absolute element moment (N·m) over both arms during the figure-eight (docs/environment.md).
 STUDY_PEAK_MOMENTS: Final[dict[str, float]] = {"normal": 138.9, "binormal": 121.7}
 STUDY_PEAK_MOMENT_TRAJECTORY: Final[str] = "figure8"
 
-#: The study's training protocol (SPEC §4).
+#: The study's training protocol (docs/environment.md).
 STUDY_TOTAL_TIMESTEPS: Final[int] = 10_000_000  # env steps per run
 STUDY_TRAINING_HOURS: Final[float] = 8.5  # wall-clock hours per run
 STUDY_TRAINING_HARDWARE: Final[str] = "laptop i7 + RTX 4070"
@@ -59,7 +59,7 @@ STUDY_BUDGET_TEXT: Final[str] = (
     f"{STUDY_TRAINING_HARDWARE}), seeds {', '.join(map(str, STUDY_SEEDS))}"
 )
 
-#: The calibration prototype's actions (SPEC §5, last paragraph): saturated at ±1 66 % of the
+#: The calibration prototype's actions (docs/environment.md, last paragraph): saturated at ±1 66 % of the
 #: time, changed by 0.30 on average from one control step to the next.
 CALIBRATION_ACTION_SATURATION: Final[float] = 0.66  # fraction of action values
 CALIBRATION_ACTION_CHANGE: Final[float] = 0.30  # mean |Δa| per control step

@@ -16,7 +16,7 @@ from softtrack.evaluation import CONFIRM_SEED, VALIDATION_SEED
 from softtrack.report import figures as fg
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import RunData
-from softtrack.report.document import NOT_IN_SPEC, Context, Doc, commit_text, seeds_text
+from softtrack.report.document import NOT_IN_STUDY, Context, Doc, commit_text, seeds_text
 from softtrack.report.summaries import validation_scores, validation_summary
 from softtrack.report.text import mean_pm_std
 from softtrack.store.status import training_seconds
@@ -103,7 +103,7 @@ def training_section(doc: Doc, ctx: Context) -> None:
                 "length)" if smoothing.per_second else "Episode return")
         doc.p(
             f"{unit[0].upper()}{unit[1:]} against environment steps, mean ± 1 sample std across "
-            f"seeds; smoothing: {smoothing.describe()}. The study's curves are not in the SPEC."
+            f"seeds; smoothing: {smoothing.describe()}. The study's curves are not published as numbers."
         )
     else:
         doc.p("No data: no selected run has stored training episodes.")
@@ -126,7 +126,7 @@ def final_section(doc: Doc, ctx: Context) -> None:
                 f"{row.n} of {len(row.seeds)}",
                 mean_pm_std(row.mean, row.std, 2),
                 per_seed,
-                NOT_IN_SPEC,
+                NOT_IN_STUDY,
                 ", ".join(group.budgets),
                 "10,000,000 env steps per run",
             ]
@@ -146,8 +146,8 @@ def final_section(doc: Doc, ctx: Context) -> None:
     )
     doc.p(
         "Final-stage return: the mean episode return over the last 10 % of a run's training "
-        "budget (SPEC §4; the run's `training.final_stage_fraction`), then mean ± sample std "
-        f"across seeds. Study values: {NOT_IN_SPEC} = the SPEC does not state them."
+        "budget (docs/environment.md; the run's `training.final_stage_fraction`), then mean ± sample std "
+        f"across seeds. Study values: {NOT_IN_STUDY} = the study does not state them."
     )
     path, rel = ctx.figure("final_returns.png")
     fg.final_returns_figure(table, path, ctx.footer())

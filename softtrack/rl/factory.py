@@ -1,6 +1,7 @@
 """Build the Stable-Baselines3 algorithm, its environment and its exploration noise from a spec.
 
-The core algorithms are SB3's or SBX's TD3, DDPG, SAC and PPO (:func:`algo_class`). A research
+The core algorithms are SB3's or SBX's TD3, DDPG, SAC, PPO and TQC (sb3-contrib's for SB3),
+and SBX's CrossQ (:func:`algo_class`). A research
 variant that the spec enables (:mod:`softtrack.rl.variants`) may replace the algorithm class,
 add constructor arguments (e.g. its replay buffer class) and environment arguments; the factory
 asks the variants' registry for them and names no variant itself. The environment settings come
@@ -36,7 +37,7 @@ __all__ = [
     "model_class",
 ]
 
-ALGO_NAMES = ("td3", "ddpg", "sac", "ppo")
+ALGO_NAMES = ("td3", "ddpg", "sac", "tqc", "crossq", "ppo")
 
 
 def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
@@ -50,6 +51,16 @@ def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
                 "algo.backend 'sbx' needs the JAX backend, which is not installed",
                 "pip install -c constraints.txt -e '.[sbx]' or use algo.backend: sb3",
                 field="algo.backend",
+            ) from None
+    elif spec.algo.name == "tqc":
+        try:
+            import sb3_contrib  # noqa: F401
+        except ImportError:
+            raise SpecError(
+                file,
+                "algo.name 'tqc' with backend sb3 needs sb3-contrib, which is not installed",
+                "pip install -c constraints.txt -e . or use algo.backend: sbx",
+                field="algo.name",
             ) from None
 
 
@@ -95,7 +106,9 @@ def make_vec_env(
 def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any:
     """Exploration noise from ``algo.noise_type`` / ``algo.noise_std`` (off-policy only).
 
-    Returns ``None`` for PPO, ``noise_type: null`` or ``noise_std: 0``; otherwise a
+    Returns ``None`` for PPO, for the algorithms that explore by sampling their stochastic
+    policy (SAC, TQC, CrossQ: ``noise_type`` does not apply), ``noise_type: null`` or
+    ``noise_std: 0``; otherwise a
     ``VectorizedActionNoise`` over ``n_envs`` copies of ``NormalActionNoise`` or
     ``OrnsteinUhlenbeckActionNoise`` with mean 0 and std ``noise_std`` on every action.
     """
@@ -106,7 +119,8 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
     )
 
     algo = spec.algo
-    if not algo.is_off_policy or algo.noise_type is None or algo.noise_std == 0:
+    if (not algo.is_off_policy or algo.explores_by_entropy or algo.noise_type is None
+            or algo.noise_std == 0):
         return None
     mean = np.zeros(action_dim)
     sigma = algo.noise_std * np.ones(action_dim)
@@ -119,13 +133,22 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
 
 
 def algo_class(name: str, backend: str = "sb3") -> Any:
-    """The core algorithm class of a name (td3, ddpg, sac, ppo) in a backend (sb3 or sbx)."""
+    """The core algorithm class of a name (td3, ddpg, sac, tqc, crossq, ppo) in a backend (sb3
+    or sbx): ``sbx.<ALGO>``, else ``stable_baselines3.<ALGO>`` or, for tqc,
+    ``sb3_contrib.TQC``; crossq exists in sbx only (``KeyError`` for sb3, which the spec
+    rejects)."""
     library: ModuleType
     if backend == "sbx":
         import sbx as library
+
+        if name == "crossq":
+            return library.CrossQ
+    elif name == "tqc":
+        import sb3_contrib as library
     else:
         import stable_baselines3 as library
-    return {"td3": library.TD3, "ddpg": library.DDPG, "sac": library.SAC, "ppo": library.PPO}[name]
+    return getattr(library, {"td3": "TD3", "ddpg": "DDPG", "sac": "SAC", "tqc": "TQC",
+                             "ppo": "PPO"}[name])
 
 
 def model_class(spec: ExperimentSpec) -> Any:

@@ -1,10 +1,12 @@
 """Inference-only copies of trained models, for exported runs.
 
 A JAX (sbx) model file holds, beside the policy network, the critics, the target networks,
-the optimiser moments and references to training-only classes (e.g. a custom replay buffer).
+the optimiser moments, the entropy coefficient's state (SAC, TQC, CrossQ) and references to
+training-only classes (e.g. a custom replay buffer).
 Evaluation needs none of them: :func:`save_inference_model` keeps the actor's parameters, so
 the file is about a third of the size, loads with the plain algorithm class
-(``sbx.TD3.load(path)``) and ``predict`` gives bit-for-bit the actions of the full model.
+(``sbx.TD3.load(path)``, ``sbx.SAC``, ``sbx.TQC``, ``sbx.CrossQ``: whose actor keeps its batch
+renormalisation statistics) and ``predict`` gives bit-for-bit the actions of the full model.
 It cannot be trained further; resume from the run's checkpoints instead. Stable-Baselines3
 (PyTorch) models are copied unchanged.
 """
@@ -22,15 +24,18 @@ __all__ = ["save_inference_model", "strip_training_state"]
 
 # Model attributes that only training reads; set to None in an inference copy.
 _TRAINING_ONLY = ("actor", "qf", "vf", "replay_buffer", "action_noise", "_last_obs",
-                  "_last_original_obs", "ep_info_buffer", "ep_success_buffer")
+                  "_last_original_obs", "ep_info_buffer", "ep_success_buffer",
+                  "ent_coef_state")
 
 
 def strip_training_state(model: Any) -> None:
     """Drop what only training uses from an sbx ``model``, in place (module docstring).
 
     Each train state of the policy (``*_state``: parameters, target parameters, optimiser
-    state) keeps only the parameters of the actor; the critics' and value functions' states
-    go. The policy itself (``model.policy``) and its ``predict`` are untouched otherwise.
+    state) keeps only the parameters of the actor (and a CrossQ actor's ``batch_stats``); the
+    critics' and value functions' states (``qf_state``, TQC's ``qf1_state``/``qf2_state``)
+    go, and so does the model's entropy coefficient state (``ent_coef_state``). The policy
+    itself (``model.policy``) and its ``predict`` are untouched otherwise.
     """
     policy = model.policy
     for name, value in list(vars(policy).items()):

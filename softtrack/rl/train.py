@@ -12,7 +12,7 @@ with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
   the full traceback.
 
 A **centralized** run has one policy (``model.zip`` and ``checkpoints/`` in the run directory).
-An **independent** run (SPEC §3) trains one single-arm policy per arm, one after the other
+An **independent** run (docs/environment.md) trains one single-arm policy per arm, one after the other
 (arm 0, then arm 1), each on the single-arm environment of its arm, with the run's algorithm
 settings and ``training.total_timesteps`` env steps *per arm*; arm k's files are under
 ``models/arm<k>/`` (:mod:`softtrack.store.layout`), its seed is

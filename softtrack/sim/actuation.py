@@ -1,4 +1,4 @@
-"""B-spline distributed torques: control values → per-element couples (SPEC §2).
+"""B-spline distributed torques: control values → per-element couples (docs/physics.md).
 
 Per arm and direction, six control values a₁…a₆ are placed at s = linspace(0, 1, 8)[1:7]
 with zero torque at both ends, interpolated by a cubic not-a-knot spline and evaluated at the

@@ -8,7 +8,7 @@ The discretisation is PyElastica 1.0.0's (Gazzola et al. 2018, RSOS), written ou
 shear/stretch strain σ = e·Q·t − d₃, curvature from the rotation log map between neighbouring
 frames divided by the rest Voronoi length, Voronoi-averaged bend stiffness, the 1/e and 1/ε³
 dilatation factors, the Lagrangian-transport and unsteady-dilatation couples, and the
-PyElastica-0.1 explicit damping of SPEC §1.
+PyElastica-0.1 explicit damping of docs/physics.md.
 
 Speed: the loops run over elements with unit stride and no branches, so LLVM vectorises them.
 Each rod is copied into work arrays padded to ``n_pad`` elements (the next multiple of 8 above

@@ -1,6 +1,6 @@
 """Physical and numerical parameters of the dual-arm Cosserat-rod scenario.
 
-Defaults are the study's setting (``SPEC.md`` §1–2). Every field can be overridden, and
+Defaults are the study's setting (``docs/physics.md``). Every field can be overridden, and
 :meth:`SimParams.validate` rejects values that would crash or silently blow up the
 integrator later (non-positive sizes, an unstable time step, ...).
 """

@@ -1,13 +1,13 @@
-"""Optional backend: the SPEC scenario built in the real PyElastica 1.0.0.
+"""Optional backend: the study's scenario built in the real PyElastica 1.0.0.
 
-This module is the independent reference for the numba engine (``SPEC.md`` §1–2). It uses
+This module is the independent reference for the numba engine (``docs/physics.md``). It uses
 PyElastica's own public classes (``CosseratRod.straight_rod``, ``OneEndFixedBC``,
 ``GravityForces``, ``PositionVerlet``) and adds two forcing classes of its own:
 
 * :class:`LegacyExplicitDamping` — the PyElastica-0.1 "dissipation coefficient" damping. It
   is a *forcing* (added to ``external_forces`` / ``external_torques`` during the
   synchronize stage), not a PyElastica ``Damping`` module: 1.0.0's dampers act on the rates
-  *after* the kick, whereas the SPEC's damping is an explicit force evaluated inside the step
+  *after* the kick, whereas this project's damping (docs/physics.md) is an explicit force evaluated inside the step
   with the half-step positions (current element lengths) and the start-of-step velocities.
 * :class:`ElementCouples` — the actuation: per-element couples in the local frame, normal
   value on d₁ (component 0), binormal on d₂ (component 1), read every step from an array
@@ -15,7 +15,7 @@ PyElastica's own public classes (``CosseratRod.straight_rod``, ``OneEndFixedBC``
 
 Because both are added to ``external_torques``, PyElastica multiplies them, like the
 internal couples, by the element dilatation e in ``update_accelerations``
-(ω += dt·J⁻¹·(τ_int + τ_ext)·e), which is what the SPEC's step 3 states.
+(ω += dt·J⁻¹·(τ_int + τ_ext)·e), which is step 3 of docs/physics.md.
 
 PyElastica is imported lazily, so ``softtrack`` imports without it; every entry point
 raises an :class:`ImportError` naming ``pip install pyelastica==1.0.0`` when it is missing.
@@ -136,7 +136,7 @@ def _elastica_classes() -> dict[str, Any]:
     from elastica.external_forces import NoForces
 
     class _LegacyExplicitDamping(NoForces):
-        """PyElastica-0.1 explicit damping as a PyElastica 1.0.0 forcing (SPEC §1).
+        """PyElastica-0.1 explicit damping as a PyElastica 1.0.0 forcing (docs/physics.md).
 
         Evaluated in the synchronize stage of every Position Verlet step, i.e. with the
         half-step positions (``rod.lengths`` is refreshed by
@@ -172,7 +172,7 @@ def _elastica_classes() -> dict[str, Any]:
             )
 
     class _ElementCouples(NoForces):
-        """Per-element actuation couples in the local frame (SPEC §2).
+        """Per-element actuation couples in the local frame (docs/physics.md).
 
         Args:
             couples: (2, N) N·m array, rows (normal on d₁, binormal on d₂). The array is
@@ -211,7 +211,7 @@ def __getattr__(name: str) -> Any:
 
 
 class PyElasticaDualArm:
-    """The clamped multi-arm scenario of ``SPEC.md`` §1–2 in PyElastica 1.0.0.
+    """The clamped multi-arm scenario of ``docs/physics.md`` in PyElastica 1.0.0.
 
     One ``CosseratRod.straight_rod`` per entry of ``params.base_positions``; each is clamped
     at node 0 / element 0 with ``OneEndFixedBC``, damped by :class:`LegacyExplicitDamping`,

@@ -14,7 +14,7 @@ stiffness and damping per unit inertia, A = M⁻¹K and D = M⁻¹C:
 
 Position Verlet with an explicit damping kick maps (q, q') by the matrix
 drift(½dt)·kick(dt)·drift(½dt); a mode is stable while its spectral radius is ≤ 1. The limit
-is found by bisection on dt. At the SPEC defaults it is 2.32e-4 s; the full nonlinear engine
+is found by bisection on dt. At the default settings it is 2.32e-4 s; the full nonlinear engine
 diverges within 0.3 % of this limit at damping 0–60 (tests/test_engine_validation.py).
 """
 

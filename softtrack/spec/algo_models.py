@@ -7,11 +7,19 @@ import copy
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from softtrack.spec.fields import Float, Int, SpecModel, custom_error, section_field, unit_field
 
-OFF_POLICY_ALGOS = frozenset({"td3", "ddpg", "sac"})
+OFF_POLICY_ALGOS = frozenset({"td3", "ddpg", "sac", "tqc", "crossq"})
+# Off-policy algorithms with a stochastic (squashed Gaussian) policy and an entropy bonus: they
+# explore by sampling their policy, so noise_type / noise_std do not apply to them.
+ENTROPY_ALGOS = frozenset({"sac", "tqc", "crossq"})
+# policy_kwargs keys beyond net_arch and activation_fn, by the algorithm that takes them.
+_POLICY_KWARGS_OF = {
+    "tqc": ("n_quantiles", "n_critics"),
+    "crossq": ("batch_norm", "batch_norm_actor", "batch_norm_momentum", "renorm_warmup_steps"),
+}
 
 NetArch = (
     list[Annotated[int, Field(ge=1)]]
@@ -40,16 +48,58 @@ class PolicyKwargsSpec(SpecModel):
     activation_fn: Literal["relu", "tanh", "elu", "leaky_relu", "gelu", "silu"] = unit_field(
         "relu", "activation of the hidden layers", "-"
     )
+    # tqc (sb3: sb3-contrib's TQC; sbx: sbx's TQC)
+    n_quantiles: Int = unit_field(
+        25, "quantiles each critic predicts of the return distribution (tqc)", "quantiles", ge=1
+    )
+    n_critics: Int = unit_field(
+        2,
+        "critic networks (tqc); backend sbx implements exactly 2",
+        "critics",
+        ge=1,
+    )
+    # crossq (sbx only)
+    batch_norm: bool = unit_field(
+        True,
+        "batch renormalisation layers in the critics (crossq; its critics have no target "
+        "networks)",
+        "-",
+    )
+    batch_norm_actor: bool = unit_field(
+        True, "batch renormalisation layers in the actor (crossq)", "-"
+    )
+    batch_norm_momentum: Float = unit_field(
+        0.99,
+        "momentum of the batch renormalisation running statistics (crossq)",
+        "-",
+        ge=0,
+        lt=1,
+    )
+    renorm_warmup_steps: Int = unit_field(
+        100_000,
+        "training passes of a batch renormalisation layer before its corrections apply "
+        "(crossq)",
+        "gradient steps",
+        ge=0,
+    )
 
 
 class AlgoSpec(SpecModel):
     """The RL algorithm and its hyperparameters, with rl-baselines3-zoo key names.
 
-    Defaults are the study's TD3 settings (SPEC §4); the PPO-only keys default to SB3's values.
-    Keys an algorithm does not use are ignored for it (see :meth:`sb3_kwargs`).
+    Defaults are the study's TD3 settings (docs/environment.md) for every off-policy algorithm (network,
+    learning rate, batch, gamma, tau, buffer, warm-up); the keys of one algorithm only default
+    to its library's values (PPO's to SB3's, TQC's and SAC's to SB3/sb3-contrib's and sbx's,
+    CrossQ's to sbx's; ``policy_delay`` is 3 for crossq where not given). Keys an algorithm does
+    not use are ignored for it (see :meth:`sb3_kwargs`).
     """
 
-    name: Literal["td3", "ddpg", "ppo", "sac"] = unit_field("td3", "algorithm", "-")
+    name: Literal["td3", "ddpg", "ppo", "sac", "tqc", "crossq"] = unit_field(
+        "td3",
+        "algorithm; tqc with backend sb3 is sb3-contrib's TQC, crossq is in sbx only "
+        "(backend sbx)",
+        "-",
+    )
     backend: Literal["sb3", "sbx"] = unit_field(
         "sb3", "implementation: sb3 = Stable-Baselines3 (PyTorch), sbx = SBX (JAX)", "-"
     )
@@ -97,30 +147,38 @@ class AlgoSpec(SpecModel):
         ge=1,
     )
     gamma: Float = unit_field(0.99, "discount factor", "-", gt=0, le=1)
-    # off-policy (td3, ddpg, sac)
+    # off-policy (td3, ddpg, sac, tqc, crossq)
     buffer_size: Int = unit_field(
-        2_000_000, "replay buffer capacity (td3, ddpg, sac)", "transitions", ge=1
+        2_000_000, "replay buffer capacity (off-policy)", "transitions", ge=1
     )
     learning_starts: Int = unit_field(
-        50_000, "random-action warm-up before learning starts (td3, ddpg, sac)", "env steps", ge=0
+        50_000, "random-action warm-up before learning starts (off-policy)", "env steps", ge=0
     )
     train_freq: Int = unit_field(
         1,
-        "update the model every train_freq vectorised env steps (td3, ddpg, sac)",
+        "update the model every train_freq vectorised env steps (off-policy)",
         "vectorised env steps",
         ge=1,
     )
     gradient_steps: Int = unit_field(
         1,
-        "gradient steps per update; -1 = as many as transitions collected (td3, ddpg, sac)",
+        "gradient steps per update; -1 = as many as transitions collected (off-policy)",
         "gradient steps",
         ge=-1,
     )
     tau: Float = unit_field(
-        0.005, "soft target-update coefficient (td3, ddpg, sac)", "-", gt=0, le=1
+        0.005,
+        "soft target-update coefficient (td3, ddpg, sac, tqc; crossq has no target networks)",
+        "-",
+        gt=0,
+        le=1,
     )
     policy_delay: Int = unit_field(
-        2, "critic updates per actor update (td3)", "gradient steps", ge=1
+        2,
+        "critic updates per actor update (td3; crossq, where it is 3 when not given: CrossQ's "
+        "default)",
+        "gradient steps",
+        ge=1,
     )
     target_policy_noise: Float = unit_field(
         0.2, "std of the target policy smoothing noise (td3)", "action units", ge=0
@@ -129,10 +187,26 @@ class AlgoSpec(SpecModel):
         0.5, "clip of the target policy smoothing noise (td3)", "action units", ge=0
     )
     noise_type: Literal["normal", "ornstein-uhlenbeck"] | None = unit_field(
-        "normal", "exploration noise added to actions (td3, ddpg, sac); null = none", "-"
+        "normal",
+        "exploration noise added to actions (td3, ddpg; sac, tqc and crossq explore by "
+        "sampling their stochastic policy and ignore it); null = none",
+        "-",
     )
     noise_std: Float = unit_field(
-        0.1, "std of the exploration noise (td3, ddpg, sac)", "action units", ge=0
+        0.1, "std of the exploration noise (td3, ddpg)", "action units", ge=0
+    )
+    # entropy-regularised off-policy (sac, tqc, crossq)
+    target_entropy: Float | Literal["auto"] = unit_field(
+        "auto",
+        "entropy the automatic entropy coefficient aims at (sac, tqc, crossq; with ent_coef "
+        "'auto…'); auto = −(action dimension): −24 centralized, −12 per arm independent",
+        "nats",
+    )
+    top_quantiles_to_drop_per_net: Int = unit_field(
+        2,
+        "highest target quantiles dropped per critic against overestimation (tqc)",
+        "quantiles",
+        ge=0,
     )
     # on-policy (ppo)
     n_steps: Int = unit_field(
@@ -145,8 +219,9 @@ class AlgoSpec(SpecModel):
     max_grad_norm: Float = unit_field(0.5, "gradient norm clip (ppo)", "-", gt=0)
     ent_coef: Float | str | None = unit_field(
         None,
-        "entropy coefficient; null = the algorithm's default (ppo 0.0, sac 'auto'); "
-        "sac also accepts 'auto' or 'auto_<initial value>'",
+        "entropy coefficient; null = the algorithm's default (ppo 0.0; sac, tqc, crossq "
+        "'auto': learned, starting at 1); sac, tqc and crossq also accept 'auto' or "
+        "'auto_<initial value>'",
         "-",
     )
     normalize: bool = unit_field(
@@ -175,18 +250,64 @@ class AlgoSpec(SpecModel):
             )
         return value
 
+    @field_validator("target_entropy", mode="before")
+    @classmethod
+    def _check_target_entropy(cls, value: Any) -> Any:
+        if isinstance(value, bool) or (isinstance(value, str) and value != "auto"):
+            raise custom_error(f"invalid value {value!r}; use a number (nats) or auto")
+        return value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _crossq_policy_delay(cls, data: Any) -> Any:
+        """``policy_delay`` not given: CrossQ's own default, 3, for crossq (2, TD3's, else)."""
+        if isinstance(data, dict) and data.get("name") == "crossq" and "policy_delay" not in data:
+            data = {**data, "policy_delay": 3}
+        return data
+
+    @model_validator(mode="after")
+    def _check_algorithm(self) -> AlgoSpec:
+        """Raise the spec error of the first setting the chosen algorithm cannot run with."""
+        if self.name == "crossq" and self.backend != "sbx":
+            raise custom_error(
+                "crossq is implemented in sbx only (Stable-Baselines3 and sb3-contrib have no "
+                "CrossQ); set algo.backend: sbx",
+                "backend",
+            )
+        if self.name == "tqc":
+            kwargs = self.policy_kwargs
+            if self.backend == "sbx" and kwargs.n_critics != 2:
+                raise custom_error(
+                    f"sbx's TQC has exactly 2 critics, not {kwargs.n_critics}; set "
+                    "algo.policy_kwargs.n_critics: 2 or algo.backend: sb3 (sb3-contrib's TQC)",
+                    "policy_kwargs.n_critics",
+                )
+            if self.top_quantiles_to_drop_per_net >= kwargs.n_quantiles:
+                raise custom_error(
+                    f"top_quantiles_to_drop_per_net {self.top_quantiles_to_drop_per_net} drops "
+                    f"every one of a critic's n_quantiles {kwargs.n_quantiles}; use a value "
+                    "below policy_kwargs.n_quantiles",
+                    "top_quantiles_to_drop_per_net",
+                )
+        return self
+
     @property
     def is_off_policy(self) -> bool:
         return self.name in OFF_POLICY_ALGOS
+
+    @property
+    def explores_by_entropy(self) -> bool:
+        """SAC, TQC, CrossQ: a stochastic policy explores; no action noise is added."""
+        return self.name in ENTROPY_ALGOS
 
     def sb3_kwargs(self, *, resolve_activation: bool = True) -> dict[str, Any]:
         """Constructor keyword arguments of the chosen algorithm class (SB3 or SBX).
 
         Only keys that the core algorithm accepts are included. Left out on purpose: ``env``
         and ``seed`` (per run), ``action_noise`` (the factory builds it from ``noise_type`` and
-        ``noise_std``, which needs the action shape), ``normalize`` (a VecNormalize wrapper)
-        and what a research variant adds (e.g. ``per_arm_networks`` for ``critic: per_arm``:
-        :func:`softtrack.rl.variants.model_kwargs`).
+        ``noise_std`` for td3 and ddpg, which needs the action shape), ``normalize`` (a
+        VecNormalize wrapper) and what a research variant adds (e.g. ``per_arm_networks`` for
+        ``critic: per_arm``: :func:`softtrack.rl.variants.model_kwargs`).
 
         Args:
             resolve_activation: replace ``policy_kwargs.activation_fn`` by the backend's
@@ -195,17 +316,19 @@ class AlgoSpec(SpecModel):
         """
         common = ["policy", "learning_rate", "batch_size", "gamma"]
         if self.is_off_policy:
-            keys = common + [
-                "buffer_size",
-                "learning_starts",
-                "train_freq",
-                "gradient_steps",
-                "tau",
-            ]
+            keys = common + ["buffer_size", "learning_starts", "train_freq", "gradient_steps"]
+            if self.name != "crossq":  # CrossQ has no target networks
+                keys.append("tau")
             if self.name == "td3":
                 keys += ["policy_delay", "target_policy_noise", "target_noise_clip"]
-            if self.name == "sac" and self.ent_coef is not None:
-                keys.append("ent_coef")
+            if self.name == "crossq":
+                keys.append("policy_delay")
+            if self.name == "tqc":
+                keys.append("top_quantiles_to_drop_per_net")
+            if self.explores_by_entropy:
+                keys.append("target_entropy")
+                if self.ent_coef is not None:
+                    keys.append("ent_coef")
         else:  # ppo
             keys = common + [
                 "n_steps",
@@ -220,7 +343,10 @@ class AlgoSpec(SpecModel):
         kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
         if self.backend == "sb3":
             kwargs["device"] = self.device
-        policy_kwargs: dict[str, Any] = copy.deepcopy(self.policy_kwargs.model_dump())
+        policy_keys = ("net_arch", "activation_fn", *_POLICY_KWARGS_OF.get(self.name, ()))
+        policy_kwargs: dict[str, Any] = copy.deepcopy(
+            self.policy_kwargs.model_dump(include=set(policy_keys))
+        )
         if resolve_activation:
             torch_name, jax_name = _ACTIVATIONS[self.policy_kwargs.activation_fn]
             if self.backend == "sb3":

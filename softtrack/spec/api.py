@@ -181,6 +181,14 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("training", "validation_episodes"): 0,
     ("training", "final_policy"): "last",
     ("training", "confirm_episodes"): 0,
+    ("algo", "target_entropy"): "auto",
+    ("algo", "top_quantiles_to_drop_per_net"): 2,
+    ("algo", "policy_kwargs", "n_quantiles"): 25,
+    ("algo", "policy_kwargs", "n_critics"): 2,
+    ("algo", "policy_kwargs", "batch_norm"): True,
+    ("algo", "policy_kwargs", "batch_norm_actor"): True,
+    ("algo", "policy_kwargs", "batch_norm_momentum"): 0.99,
+    ("algo", "policy_kwargs", "renorm_warmup_steps"): 100_000,
 }
 
 

@@ -22,7 +22,7 @@ from softtrack.spec.fields import (
 
 
 class PhysicsSpec(SpecModel):
-    """Physical and numerical parameters of the two Cosserat rods (SPEC §1–2).
+    """Physical and numerical parameters of the two Cosserat rods (docs/physics.md).
 
     Field names equal those of :class:`softtrack.sim.params.SimParams`; the whole section is
     checked by ``SimParams.validate()``, which enforces the explicit stability limit on ``dt``.
@@ -110,7 +110,7 @@ class PhysicsSpec(SpecModel):
 
 
 class TargetSpec(SpecModel):
-    """The kinematic target sphere (SPEC §3, "Target"). ``name`` is the training target;
+    """The kinematic target sphere (docs/environment.md, "Target"). ``name`` is the training target;
     evaluation uses the trajectories listed in ``training.eval_trajectories`` with these
     geometry parameters."""
 
@@ -180,7 +180,7 @@ class TargetSpec(SpecModel):
 
 
 class RewardSpec(SpecModel):
-    """Reward shaping (SPEC §3, "Reward"): r = -(w1 d1² + w2 d2²) + per-arm bonuses
+    """Reward shaping (docs/environment.md, "Reward"): r = -(w1 d1² + w2 d2²) + per-arm bonuses
     + cooperative bonus; optional inter-arm collision penalty."""
 
     arm_weights: Pair = unit_field(
@@ -231,10 +231,10 @@ class EnvSpec(SpecModel):
     """The dual-arm tracking environment: physics, target, reward and episode length."""
 
     physics: PhysicsSpec = section_field(
-        PhysicsSpec, "rods, actuation scale and integrator (SPEC §1–2)"
+        PhysicsSpec, "rods, actuation scale and integrator (docs/physics.md)"
     )
-    target: TargetSpec = section_field(TargetSpec, "the moving target (SPEC §3)")
-    reward: RewardSpec = section_field(RewardSpec, "reward terms (SPEC §3)")
+    target: TargetSpec = section_field(TargetSpec, "the moving target (docs/environment.md)")
+    reward: RewardSpec = section_field(RewardSpec, "reward terms (docs/environment.md)")
     episode_duration: Float = unit_field(
         10.0, "simulated length of a training episode (then truncated)", "s", gt=0
     )

@@ -242,7 +242,7 @@ class ExperimentSpec(SpecModel):
     controller: Literal["centralized", "independent"] = unit_field(
         "centralized",
         "centralized: one policy drives both arms; independent: one single-arm policy per arm "
-        "(SPEC §3), trained one after the other (arm 0, then arm 1) in the single-arm "
+        "(docs/environment.md), trained one after the other (arm 0, then arm 1) in the single-arm "
         "environment of its arm, each with the algo settings and training.total_timesteps env "
         "steps, so an independent run takes twice the env steps of a centralized one",
         "-",

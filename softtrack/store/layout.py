@@ -1,7 +1,7 @@
 """Where one trained policy of a run keeps its files.
 
 A centralized run has one policy, stored in the run directory itself; an independent run
-(SPEC §3, "Independent baseline") has one per arm, each in ``models/arm<k>/``::
+(docs/environment.md, "Independent baseline") has one per arm, each in ``models/arm<k>/``::
 
     <run>/model.zip, <run>/vecnormalize.pkl, <run>/checkpoints/step-…/     centralized
     <run>/models/arm<k>/model.zip, …/vecnormalize.pkl, …/checkpoints/step-…/   independent

@@ -86,7 +86,7 @@ def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
 def final_stage_returns(
     train: pd.DataFrame, fraction: float, total_timesteps: int, arm_budget: int
 ) -> dict[int | None, tuple[float | None, int]]:
-    """SPEC §4 per policy of a run: the mean finite return of the training episodes that ended
+    """docs/environment.md per policy of a run: the mean finite return of the training episodes that ended
     after ``(1 − fraction) · budget`` env steps, and their count.
 
     Args:
@@ -123,7 +123,7 @@ def training_seconds(train: pd.DataFrame | None) -> float | None:
 def final_stage_return(
     record: RunRecord, fraction: float | None = None
 ) -> tuple[float | None, int, int]:
-    """Mean training-episode return over the last ``fraction`` of the run's budget (SPEC §4).
+    """Mean training-episode return over the last ``fraction`` of the run's budget (docs/environment.md).
 
     Episodes count when their ``global_step`` (at the episode's end) exceeds
     ``(1 - fraction) · total_timesteps`` (:func:`final_stage_returns`). ``fraction`` defaults

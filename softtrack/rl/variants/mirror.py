@@ -33,7 +33,7 @@ def mirror_observation(obs: np.ndarray) -> np.ndarray:
     """The observation of the mirror-image scene (x → −x, arms swapped).
 
     Args:
-        obs: (..., 81) dual-arm observations (SPEC §3 layout).
+        obs: (..., 81) dual-arm observations (docs/environment.md layout).
 
     Returns:
         (..., 81) array of the same dtype: arm 2's block mirrored in arm 1's place, arm 1's

@@ -1,6 +1,6 @@
 """TD3 with one critic output per arm (JAX backend), selected by ``algo.critic: per_arm``.
 
-The study's TD3 learns Q(s, a) of the summed reward r = Σᵢ rᵢ (SPEC §3). Here each of the twin
+The study's TD3 learns Q(s, a) of the summed reward r = Σᵢ rᵢ (docs/environment.md). Here each of the twin
 critics j has A outputs Q_{j,i}(s, a), one per arm i, trained on arm i's share rᵢ of the reward
 (:func:`softtrack.env.reward.reward_shares`) with the TD3 target
 
