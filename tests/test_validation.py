@@ -93,6 +93,11 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     run_spec = record.load_spec()
     scores = _check_rows(_validation(record), [200, 400, 600, 800], [0, 1])
     best_step = _best_of(scores)
+    # each checkpoint's rows carry the training clock, which validation does not advance
+    clock = _validation(record).groupby("global_step")["wall_time"].agg(["min", "max"])
+    assert (clock["min"] == clock["max"]).all() and clock["min"].is_monotonic_increasing
+    train_clock = read_table(record.table_path("train_episodes"))["wall_time"].max()
+    assert 0 < clock["min"].iloc[0] <= train_clock
     policy = PolicyDir.of_run(record.path)
     assert [p.name for p in policy.list_best()] == [f"step-{best_step:012d}"]
     state = json.loads((policy.list_best()[0] / "state.json").read_text())
@@ -243,3 +248,15 @@ def test_independent_arms_validate_in_their_own_scene(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     policies = [row.split(" | ")[2] for row in _report_rows(record, tmp_path)]
     assert policies == ["arm 1 policy", "arm 2 policy"]
+
+
+def test_training_clock_leaves_paused_time_out() -> None:
+    import time
+
+    from softtrack.rl.callbacks import TrainingClock
+
+    clock = TrainingClock(offset=10.0)
+    before = clock.elapsed()
+    with clock.paused():
+        time.sleep(0.2)
+    assert 10.0 <= before <= clock.elapsed() < before + 0.1

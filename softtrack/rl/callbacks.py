@@ -26,7 +26,8 @@ import os
 import shutil
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -56,15 +57,25 @@ PROGRESS_LINE_PERCENT = 5.0
 
 
 class TrainingClock:
-    """Wall-clock seconds of training, continuing across resumes."""
+    """Wall-clock seconds of training, continuing across resumes; time spent inside
+    :meth:`paused` (validation episodes) does not count."""
 
     def __init__(self, offset: float = 0.0) -> None:
         self.offset = float(offset)
         self.start = time.monotonic()
 
     def elapsed(self) -> float:
-        """Seconds since the clock's start plus its offset."""
+        """Seconds since the clock's start plus its offset, less the paused time."""
         return self.offset + time.monotonic() - self.start
+
+    @contextmanager
+    def paused(self) -> Iterator[None]:
+        """Stop the clock while the block runs."""
+        began = time.monotonic()
+        try:
+            yield
+        finally:
+            self.offset -= time.monotonic() - began
 
 
 class EpisodeLogger(BaseCallback):

@@ -263,7 +263,7 @@ class PolicyTrainer:
         training = spec.training
         episodes = EpisodeLogger(record, clock, next_episode, columns=job.columns)
         self.episodes = episodes
-        validator = self._validator(state)
+        validator = self._validator(state, clock)
         checkpointer = Checkpointer(
             job.policy,
             episodes,
@@ -314,7 +314,7 @@ class PolicyTrainer:
             int(self.model.num_timesteps), episodes.next_episode, clock.elapsed(), sps, finished
         )
 
-    def _validator(self, state: dict[str, Any] | None) -> Validator | None:
+    def _validator(self, state: dict[str, Any] | None, clock: TrainingClock) -> Validator | None:
         """The policy's :class:`Validator` (``None`` without ``training.validation_episodes``),
         after matching its table and best models to where training (re)starts. When the
         restored checkpoint lies in a checkpoint interval that has no validation yet (a
@@ -324,7 +324,8 @@ class PolicyTrainer:
         truncate_validation(self.record, job.policy, None if state is None else step)
         if training.validation_episodes < 1:
             return None
-        validator = Validator(self.record, self.spec, job.policy, self.stop_requested)
+        validator = Validator(self.record, self.spec, job.policy, self.stop_requested,
+                              clock=clock)
         interval = training.checkpoint_interval
         if state is not None and interval > 0 and step >= interval:
             done = {s // interval for s in validated_steps(self.record, job.policy)}

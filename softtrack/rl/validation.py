@@ -9,7 +9,9 @@ held out from both. The centralized policy is validated in the dual-arm scene; a
 run's arm policy in the single-arm scene of its arm.
 
 * ``tables/validation.parquet`` gets one row per checkpoint, episode and arm: ``global_step``
-  (the policy's env steps), ``episode``, ``seed`` and the columns of
+  (the policy's env steps), ``wall_time`` (the training clock at the checkpoint, s, which
+  validation does not advance; absent in tables written before), ``episode``, ``seed`` and the
+  columns of
   :func:`softtrack.evaluation.metrics_table`, with ``arm`` the arm's index in the dual-arm
   scene (an independent arm's rows carry its own index).
 * The checkpoint's **validation score** is the mean 3-D RMSE over its rows (m), or ∞ if an
@@ -48,6 +50,7 @@ from softtrack.evaluation import (
     run_episode,
     validation_score,
 )
+from softtrack.rl.callbacks import TrainingClock
 from softtrack.rl.policy import deterministic_policy
 from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
@@ -162,6 +165,9 @@ class Validator:
         stop_requested: a callable; when it turns true, validation stops between episodes
             and writes nothing (the checkpoint is validated when training resumes).
         log: where the one-line summary of each validation goes (default: stderr).
+        clock: the run's training clock: its reading at the checkpoint goes into each row
+            (``wall_time``, s) and it is paused while the episodes run, so training time
+            leaves validation out (time-to-accuracy is training time).
     """
 
     def __init__(
@@ -171,8 +177,10 @@ class Validator:
         policy: PolicyDir,
         stop_requested: Callable[[], bool] = lambda: False,
         log: Callable[[str], None] | None = None,
+        clock: TrainingClock | None = None,
     ) -> None:
         self.record = record
+        self.clock = clock
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
         if self.episodes < 1:
@@ -191,13 +199,18 @@ class Validator:
         step = int(model.num_timesteps)
         started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
-        rows = held_out_rows(
-            self.record.run_id, deterministic_policy(model, normalizer), self.config,
-            self.duration, VALIDATION_SEED, self.episodes, self.policy.arm, self.stop_requested,
-        )
+        wall_time = None if self.clock is None else self.clock.elapsed()
+        with self.clock.paused() if self.clock is not None else contextlib.nullcontext():
+            rows = held_out_rows(
+                self.record.run_id, deterministic_policy(model, normalizer), self.config,
+                self.duration, VALIDATION_SEED, self.episodes, self.policy.arm,
+                self.stop_requested,
+            )
         if rows is None:
             return None
         rows.insert(1, "global_step", step)
+        if wall_time is not None:
+            rows.insert(2, "wall_time", wall_time)
         score = validation_score(rows)
         improved = self.best is None or score < self.best.score
         if improved:  # before the rows: a kill in between leaves the step to validate again
