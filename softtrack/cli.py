@@ -620,11 +620,13 @@ def upgrade(
                            help="Keep the per-element torque history as eval_element_moments.")
     ] = False,
 ) -> None:
-    """Rewrite the tables of runs made by earlier softtrack versions in the current format.
+    """Rewrite runs made by earlier softtrack versions in the current format.
 
-    Element-torque histories become the docs/environment.md summaries (eval_moments: per-step RMS;
-    eval_moment_peaks: each element's peak) and positions float32, about 14x smaller, computed
-    from the stored tables alone. Runs already current are left as they are.
+    Tables: element-torque histories become the summaries of docs/environment.md (eval_moments:
+    per-step RMS; eval_moment_peaks: each element's peak) and positions float32, about 14x
+    smaller, computed from the stored tables alone. Exported runs (no checkpoints) also get the
+    current model layout: model.zip is the run's policy (policy.json says which), the other
+    model goes to other_models/, all inference-only. Runs already current are left as they are.
     Example: softtrack upgrade models/*/
     """
     with _user_errors():
