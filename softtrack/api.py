@@ -39,10 +39,12 @@ from softtrack.store.status import (
     run_summary,
 )
 from softtrack.store.tables import TableError
+from softtrack.tune import TuneError
 
 if TYPE_CHECKING:
     from softtrack.rl.policy import ModelChoice
     from softtrack.rl.train import TrainOutcome
+    from softtrack.tune.run import TuneOutcome
 
 __all__ = [
     "QUICKSTART_PRETRAINED",
@@ -69,6 +71,9 @@ __all__ = [
     "spec_schema_json",
     "sweep",
     "train",
+    "tune",
+    "tune_best",
+    "tune_status",
     "upgrade",
     "validate_spec",
     "validation_summary",
@@ -80,6 +85,7 @@ USER_ERRORS: tuple[type[Exception], ...] = (
     RunStoreError,
     TableError,
     InvalidParameterError,
+    TuneError,
 )
 
 
@@ -103,6 +109,9 @@ def validation_summary(spec: ExperimentSpec, chain: Sequence[str] = ()) -> str:
     )
     if len(chain) > 1:
         text += "\n   base: " + " → ".join(chain[1:])
+    if spec.tune is not None:
+        text += (f"\n   tune: {len(spec.tune.params)} params ({', '.join(spec.tune.params)}), "
+                 f"metric {spec.tune.metric}, pruner {spec.tune.pruner.type}")
     return text
 
 
@@ -522,3 +531,59 @@ def resume_runs(
     return dispatch.execute(store, ids, options, resume_id,
                             cluster=dispatch.cluster_of(store, ids), on_progress=on_progress,
                             label=f"resume {resume_id}")
+
+
+# ---- tuning -------------------------------------------------------------------------------
+def tune(
+    path: str | os.PathLike[str],
+    overrides: Sequence[str] = (),
+    *,
+    trials: int,
+    study: str | None = None,
+    storage: str | None = None,
+    runs_dir: str | os.PathLike[str] | None = None,
+    options: Any = None,
+    log: Callable[[str], None] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+    show_progress: bool | None = None,
+) -> TuneOutcome:
+    """Search the spec's ``tune:`` space with Optuna until ``trials`` trials are finished
+    (complete or pruned), each a run of the store; running it again with the same ``study``
+    continues the study (:mod:`softtrack.tune.run`, docs/tuning.md).
+
+    Args:
+        study: the study name (default: the spec's name).
+        storage: an Optuna RDB URL (default ``sqlite:///<runs dir>/optuna.db``).
+        options: :class:`~softtrack.executors.dispatch.ExecOptions`: ``workers`` processes
+            (default 1: in this process), local or SLURM, detached or not.
+        log: called with a line per trial event (in-process worker) and the start summary.
+        on_progress: called with the study's summary line whenever it changes (workers in
+            other processes).
+
+    Returns:
+        A :class:`~softtrack.tune.run.TuneOutcome` (counts, summary, exit code).
+    """
+    from softtrack.tune.run import tune as run_tune
+
+    return run_tune(path, overrides, trials=trials, study=study, storage=storage,
+                    runs_dir=runs_dir, options=options, log=log, on_progress=on_progress,
+                    show_progress=show_progress)
+
+
+def tune_status(study: str, *, storage: str | None = None,
+                runs_dir: str | os.PathLike[str] | None = None) -> str:
+    """A study's summary line and its trials (number, state, score, step, run id, params)."""
+    from softtrack.tune.run import tune_status as status
+
+    return status(study, storage=storage, runs_dir=runs_dir)
+
+
+def tune_best(study: str, out: str | os.PathLike[str] | None = None, *,
+              storage: str | None = None,
+              runs_dir: str | os.PathLike[str] | None = None) -> tuple[Path, Any]:
+    """Write a study's best complete trial as a spec file (``base:`` the tuned spec, the best
+    values set; default ``<study>-best.yaml``) that ``softtrack train`` loads; returns the
+    file and the trial."""
+    from softtrack.tune.run import tune_best as best
+
+    return best(study, out, storage=storage, runs_dir=runs_dir)

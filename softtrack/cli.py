@@ -262,27 +262,40 @@ MemOption = Annotated[
 ]
 
 
-_EXEC_PARAMETERS = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation)
-    for name, annotation, default in (
-        ("executor", ExecutorOption, ExecutorChoice.local),
-        ("workers", WorkersOption, None),
-        ("detach", DetachOption, False),
-        ("partition", PartitionOption, None),
-        ("time_min", TimeOption, None),
-        ("cpus", CpusOption, None),
-        ("mem", MemOption, None),
-    )
+TuneWorkersOption = Annotated[
+    int | None,
+    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
+                 help="Worker processes pulling trials from the study [default: 1, in this "
+                 "process] (slurm: N jobs)."),
 ]
 
 
-def _with_exec_options(command: Callable[..., None]) -> Callable[..., None]:
+def _exec_parameters(workers: Any = WorkersOption) -> list[inspect.Parameter]:
+    return [
+        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default,
+                          annotation=annotation)
+        for name, annotation, default in (
+            ("executor", ExecutorOption, ExecutorChoice.local),
+            ("workers", workers, None),
+        ("detach", DetachOption, False),
+        ("partition", PartitionOption, None),
+        ("time_min", TimeOption, None),
+            ("cpus", CpusOption, None),
+            ("mem", MemOption, None),
+        )
+    ]
+
+
+def _with_exec_options(
+    command: Callable[..., None], *, workers: Any = WorkersOption
+) -> Callable[..., None]:
     """Give a command the executor options (``--executor`` … ``--mem``), in place of its
-    ``options`` parameter, which receives them as one :class:`ExecOptions`."""
+    ``options`` parameter, which receives them as one :class:`ExecOptions` (``workers``: the
+    annotation of ``--workers``, for its help text)."""
     signature = inspect.signature(command, eval_str=True)
     parameters = list(signature.parameters.values())
     at = list(signature.parameters).index("options")
-    parameters[at : at + 1] = _EXEC_PARAMETERS
+    parameters[at : at + 1] = _exec_parameters(workers)
 
     @functools.wraps(command)
     def with_options(
@@ -406,6 +419,102 @@ def resume_command(
                    "matches", err=True)
         return
     _finish(outcome, "resume")
+
+
+@app.command("tune")
+@functools.partial(_with_exec_options, workers=TuneWorkersOption)
+def tune_command(
+    spec: Annotated[
+        str | None,
+        typer.Argument(metavar="[SPEC]", show_default=False,
+                       help="Experiment spec (YAML) with a tune: section (the search space)."),
+    ] = None,
+    overrides: SetOption = None,
+    trials: Annotated[
+        int | None,
+        typer.Option("--trials", "-n", metavar="N", min=1, show_default=False,
+                     help="Finished trials (complete or pruned) the study should have."),
+    ] = None,
+    study: Annotated[
+        str | None,
+        typer.Option("--study", metavar="NAME", show_default=False,
+                     help="The study: started, or continued if it exists [default: the spec's "
+                     "name]."),
+    ] = None,
+    storage: Annotated[
+        str | None,
+        typer.Option("--storage", metavar="URL", show_default=False,
+                     help="Optuna RDB storage URL, e.g. postgresql://user@host/db [default: "
+                     "sqlite:///RUNS_DIR/optuna.db]."),
+    ] = None,
+    best: Annotated[
+        str | None,
+        typer.Option("--best", metavar="STUDY", show_default=False,
+                     help="Write the study's best trial as a spec file (see --out) instead."),
+    ] = None,
+    out: Annotated[
+        str | None,
+        typer.Option("--out", "-o", metavar="FILE", show_default=False,
+                     help="With --best: the spec file to write [default: STUDY-best.yaml]."),
+    ] = None,
+    status: Annotated[
+        str | None,
+        typer.Option("--status", metavar="STUDY", show_default=False,
+                     help="Print the study's trials (state, score, params, run id) instead."),
+    ] = None,
+    *,
+    options: ExecOptions,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Search the spec's `tune:` space with Optuna (TPE, pruning on the validation score).
+
+    Each trial is a run of the store (the spec with the sampled values, named NAME-tK) whose
+    objective is its best validation score (mean 3-D RMSE, m; minimised); the pruner stops
+    unpromising runs at a validated checkpoint (the run is kept, `interrupted`). Running it
+    again with the same --study continues until --trials trials are finished: interrupted
+    trials and those of dead workers are retried, resuming their runs. `--best STUDY` writes
+    the best trial as a spec for `softtrack train`; `--status STUDY` lists the trials.
+    Details: docs/tuning.md.
+    """
+    modes = sum([spec is not None, best is not None, status is not None])
+    example = "e.g. `softtrack tune SPEC --trials 30 --study NAME`"
+    if modes != 1:
+        _fail(f"tune: give a SPEC to tune, or --best STUDY, or --status STUDY; {example}")
+    if out is not None and best is None:
+        _fail("tune: --out goes with --best STUDY (the spec file to write)")
+    with _user_errors():
+        if status is not None:
+            typer.echo(api.tune_status(status, storage=storage, runs_dir=runs_dir))
+            return
+        if best is not None:
+            path, trial = api.tune_best(best, out, storage=storage, runs_dir=runs_dir)
+            typer.echo(str(path))
+            typer.echo(f"best trial {trial.number} of study {best}: validation score "
+                       f"{trial.value:.4f} m (run {trial.user_attrs.get('run_id', '?')}); "
+                       f"train it with `softtrack train {path}`", err=True)
+            return
+        if trials is None:
+            _fail(f"tune: --trials N is needed (finished trials the study should have); "
+                  f"{example}")
+        assert spec is not None
+        outcome = api.tune(spec, overrides or [], trials=trials, study=study, storage=storage,
+                           runs_dir=runs_dir, options=options, log=_progress,
+                           on_progress=_progress)
+    if outcome.detached:
+        typer.echo(f"tune {outcome.study}: workers started; follow them with `softtrack tune "
+                   f"--status {outcome.study}` (logs: {outcome.log})", err=True)
+        return
+    typer.echo(outcome.summary, err=True)
+    if outcome.missing:
+        again = f"softtrack tune {spec} --trials {trials} --study {outcome.study}"
+        typer.echo(f"  {outcome.missing} trial{'s' if outcome.missing != 1 else ''} missing; "
+                   f"continue with `{again}` (same --set and --storage); trials: "
+                   f"`softtrack tune --status {outcome.study}`", err=True)
+    else:
+        typer.echo(f"  write the best trial as a spec: `softtrack tune --best {outcome.study}`",
+                   err=True)
+    if outcome.exit_code:
+        raise typer.Exit(outcome.exit_code)
 
 
 @app.command()

@@ -20,7 +20,8 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class StopFlag:
-    """Callable that is true once a stop signal arrived; ``signum`` is the latest one.
+    """Callable that is true once a stop signal arrived (``signum`` is the latest one) or a stop
+    was :meth:`request`-ed.
 
     Args:
         second_sigint_raises: a SIGINT arriving when the flag is already set raises
@@ -29,10 +30,16 @@ class StopFlag:
 
     def __init__(self, *, second_sigint_raises: bool = False) -> None:
         self.signum: int | None = None
+        self.requested = False
         self.second_sigint_raises = second_sigint_raises
 
     def __call__(self) -> bool:
-        return self.signum is not None
+        return self.signum is not None or self.requested
+
+    def request(self) -> None:
+        """Ask for the same clean stop without a signal (``signum`` stays ``None``), e.g. when
+        ``softtrack tune`` prunes a trial."""
+        self.requested = True
 
     def handle(self, signum: int, _frame: Any = None) -> None:
         """The signal handler: set the flag (module docstring)."""

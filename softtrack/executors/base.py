@@ -8,13 +8,14 @@ import sys
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from softtrack.store.runs import RunLockedError, RunStore, RunStoreError, lock_held
 
 __all__ = [
     "EXIT_LOCKED",
     "Job",
+    "PoolJob",
     "failed_by_signal",
     "record_worker_exit",
     "run_job",
@@ -43,6 +44,30 @@ class Job:
     def log_path(self) -> Path:
         """``<run>/train.log``: the worker's stdout and stderr (appended per session)."""
         return Path(self.runs_dir) / self.run_id / "train.log"
+
+    @property
+    def key(self) -> str:
+        """What :class:`~softtrack.executors.local.LocalPool` knows the job by: the run id."""
+        return self.run_id
+
+    def after_exit(self, returncode: int) -> None:
+        """Bookkeeping once the worker ended: :func:`record_worker_exit`."""
+        record_worker_exit(self.runs_dir, self.run_id, returncode)
+
+
+class PoolJob(Protocol):
+    """What :class:`~softtrack.executors.local.LocalPool` runs: a :class:`Job`, or another
+    worker command such as a ``softtrack tune`` worker (:mod:`softtrack.tune.run`)."""
+
+    @property
+    def key(self) -> str: ...
+
+    @property
+    def command(self) -> list[str]: ...
+
+    def log_path(self) -> Path: ...
+
+    def after_exit(self, returncode: int) -> None: ...
 
 
 def worker_env(threads: int = 1) -> dict[str, str]:

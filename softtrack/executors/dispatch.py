@@ -107,7 +107,8 @@ def _records(store: RunStore, run_ids: Sequence[str]) -> list[RunRecord]:
     return out
 
 
-def _slurm_options(opts: ExecOptions, cluster: ClusterSpec, store: RunStore) -> Any:
+def slurm_options(opts: ExecOptions, cluster: ClusterSpec, store: RunStore) -> Any:
+    """The :class:`~softtrack.executors.slurm.SlurmOptions` of ``opts`` (else ``cluster``'s)."""
     from softtrack.executors.slurm import SlurmOptions
 
     return SlurmOptions(
@@ -166,7 +167,7 @@ def execute(
     elif opts.executor == "slurm":
         from softtrack.executors.slurm import submit_jobs
 
-        slurm = _slurm_options(opts, cluster or ClusterSpec(), store)
+        slurm = slurm_options(opts, cluster or ClusterSpec(), store)
         submitted = submit_jobs(jobs, slurm)
         outcome.log = slurm.folder
         if opts.detach:
@@ -189,8 +190,11 @@ def execute(
 
 
 def resumable(record: RunRecord) -> bool:
-    """Interrupted, queued (never started), failed-by-signal and lost runs."""
+    """Interrupted (but not pruned by ``softtrack tune``), queued (never started),
+    failed-by-signal and lost runs."""
     status = effective_status(record)
+    if status == "interrupted" and "pruned" in (record.info.notes or {}):
+        return False
     return status in ("interrupted", "queued", "lost") or failed_by_signal(record.info)
 
 
@@ -198,8 +202,8 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
     """The runs ``softtrack resume`` continues.
 
     Each item is an experiment name or a sweep id (its resumable runs: see :func:`resumable`)
-    or a run id / unique prefix (that run, unless it is completed or still training). No
-    items: every resumable run of the store.
+    or a run id / unique prefix (that run, unless it is completed or still training; a pruned
+    run too). No items: every resumable run of the store.
 
     Raises:
         RunStoreError: an item matches nothing, or a named run cannot be resumed.

@@ -15,7 +15,7 @@ import subprocess
 import time
 from collections.abc import Callable, Sequence
 
-from softtrack.executors.base import Job, record_worker_exit, worker_env
+from softtrack.executors.base import Job, PoolJob, worker_env
 from softtrack.signals import StopFlag, stop_on_signals
 from softtrack.store.provenance import usable_cores
 
@@ -42,7 +42,7 @@ class LocalPool:
         self.threads = int(threads)
         self.stop_signal: int | None = None
 
-    def _start(self, job: Job) -> subprocess.Popen[bytes]:
+    def _start(self, job: PoolJob) -> subprocess.Popen[bytes]:
         log = open(job.log_path(), "ab")  # noqa: SIM115 (the child keeps it)
         try:
             return subprocess.Popen(
@@ -57,16 +57,17 @@ class LocalPool:
             log.close()
 
     def run(
-        self, jobs: Sequence[Job], on_tick: Callable[[], None] | None = None,
+        self, jobs: Sequence[PoolJob], on_tick: Callable[[], None] | None = None,
         tick_s: float = 2.0,
     ) -> dict[str, int]:
-        """Run ``jobs``; returns each started job's worker exit code by run id.
+        """Run ``jobs``; returns each started job's worker exit code by its ``key`` (a
+        :class:`Job`'s: its run id); each job's ``after_exit`` runs once its worker ended.
 
         ``on_tick`` is called about every ``tick_s`` seconds (progress display). After a stop
         signal (``stop_signal`` is set) the jobs not yet started are left as they are.
         """
         pending = list(jobs)
-        running: dict[str, tuple[Job, subprocess.Popen[bytes]]] = {}
+        running: dict[str, tuple[PoolJob, subprocess.Popen[bytes]]] = {}
         codes: dict[str, int] = {}
         stop = StopFlag()
         last_tick = 0.0
@@ -80,13 +81,13 @@ class LocalPool:
                             proc.send_signal(signal.SIGTERM)
                 while pending and len(running) < self.workers:
                     job = pending.pop(0)
-                    running[job.run_id] = (job, self._start(job))
-                for run_id, (job, proc) in list(running.items()):
+                    running[job.key] = (job, self._start(job))
+                for key, (job, proc) in list(running.items()):
                     code = proc.poll()
                     if code is not None:
-                        del running[run_id]
-                        codes[run_id] = code
-                        record_worker_exit(job.runs_dir, job.run_id, code)
+                        del running[key]
+                        codes[key] = code
+                        job.after_exit(code)
                 now = time.monotonic()
                 if on_tick is not None and now - last_tick >= tick_s:
                     last_tick = now

@@ -23,7 +23,7 @@ from typing import Any
 from softtrack.executors.base import Job, record_worker_exit, worker_env
 from softtrack.store.runs import RunStore, RunStoreError, lock_held
 
-__all__ = ["CLUSTER_ENV", "RunJob", "SlurmOptions", "submit_jobs"]
+__all__ = ["CLUSTER_ENV", "CommandJob", "RunJob", "SlurmOptions", "submit_commands", "submit_jobs"]
 
 CLUSTER_ENV = "SOFTTRACK_SUBMITIT_CLUSTER"
 STOP_WAIT_S = 120.0
@@ -131,8 +131,60 @@ class RunJob(_checkpointable_base()):  # type: ignore[misc]
         return submitit.helpers.DelayedSubmission(RunJob(), runs_dir, run_id)
 
 
-def submit_jobs(jobs: Sequence[Job], options: SlurmOptions) -> list[Any]:
-    """Submit one array task per job; returns the submitit jobs."""
+class CommandJob(_checkpointable_base()):  # type: ignore[misc]
+    """The submitit callable of any worker command (a ``softtrack tune`` worker):
+    ``CommandJob()(command, log)`` runs ``command`` with its output appended to ``log`` and
+    returns its exit code. Preempted or timed out, it SIGTERMs the worker (which ends its work
+    cleanly), waits for it to exit (at most :data:`STOP_WAIT_S`, then SIGKILL) and requeues
+    the same command."""
+
+    def __init__(self) -> None:
+        self._proc: subprocess.Popen[bytes] | None = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._proc = None
+
+    def __call__(self, command: list[str], log: str) -> int:
+        threads = int(os.environ.get("SLURM_CPUS_PER_TASK", "1") or 1)
+        with open(log, "ab") as fh:
+            self._proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=fh,
+                                          stderr=subprocess.STDOUT, env=worker_env(threads))
+        while self._proc.poll() is None:
+            time.sleep(0.5)
+        return int(self._proc.returncode)
+
+    def checkpoint(self, command: list[str], log: str) -> Any:
+        proc = self._proc
+        if proc is not None and proc.returncode is None:
+            try:
+                os.kill(proc.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+            else:
+                if not _exited(proc.pid, STOP_WAIT_S):
+                    os.kill(proc.pid, signal.SIGKILL)
+        return _submitit().helpers.DelayedSubmission(CommandJob(), command, log)
+
+
+def _exited(pid: int, timeout: float) -> bool:
+    """Wait up to ``timeout`` s for child ``pid`` to exit (with ``waitpid``, not ``Popen``'s
+    methods: we may be inside a signal handler that interrupted one of them)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0]:
+                return True
+        except ChildProcessError:
+            return True
+        time.sleep(0.2)
+    return False
+
+
+def _executor(options: SlurmOptions) -> Any:
+    """submitit's executor with ``options``' resources."""
     submitit = _submitit()
     cluster = options.cluster or os.environ.get(CLUSTER_ENV) or None
     Path(options.folder).mkdir(parents=True, exist_ok=True)
@@ -152,8 +204,26 @@ def submit_jobs(jobs: Sequence[Job], options: SlurmOptions) -> list[Any]:
     if options.parallelism:
         params["slurm_array_parallelism"] = int(options.parallelism)
     executor.update_parameters(**params)
+    return executor
+
+
+def submit_jobs(jobs: Sequence[Job], options: SlurmOptions) -> list[Any]:
+    """Submit one array task per job; returns the submitit jobs."""
+    executor = _executor(options)
     if not jobs:
         return []
     return list(
         executor.map_array(RunJob(), [j.runs_dir for j in jobs], [j.run_id for j in jobs])
     )
+
+
+def submit_commands(commands: Sequence[tuple[list[str], str]], options: SlurmOptions,
+                    name: str = "softtrack") -> list[Any]:
+    """Submit one array task per (command line, log file) (:class:`CommandJob`); returns the
+    submitit jobs."""
+    executor = _executor(options)
+    executor.update_parameters(name=name)
+    if not commands:
+        return []
+    return list(executor.map_array(CommandJob(), [list(c) for c, _ in commands],
+                                   [log for _, log in commands]))

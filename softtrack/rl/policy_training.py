@@ -170,6 +170,8 @@ class PolicyTrainer:
         job: the policy to train.
         stop_requested: a callable; true once a signal asked training to stop.
         show_progress: force the progress bar on/off.
+        on_validation: called with (the policy's step, the validation score) after each
+            validation (:class:`~softtrack.rl.validation.Validator`'s ``on_score``).
     """
 
     def __init__(
@@ -180,7 +182,9 @@ class PolicyTrainer:
         job: PolicyJob,
         stop_requested: Any,
         show_progress: bool | None = None,
+        on_validation: Callable[[int, float], None] | None = None,
     ) -> None:
+        self.on_validation = on_validation
         self.store = store
         self.record = record
         self.spec = spec
@@ -325,7 +329,7 @@ class PolicyTrainer:
         if training.validation_episodes < 1:
             return None
         validator = Validator(self.record, self.spec, job.policy, self.stop_requested,
-                              clock=clock)
+                              clock=clock, on_score=self.on_validation)
         interval = training.checkpoint_interval
         if state is not None and interval > 0 and step >= interval:
             done = {s // interval for s in validated_steps(self.record, job.policy)}

@@ -11,6 +11,12 @@ with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
 * ``failed``: an exception; run.json's ``error`` has its one-line summary and ``traceback``
   the full traceback.
 
+A caller may watch the validation scores (``on_validation``, used by ``softtrack tune``) and
+stop the run after one (a *pruned* trial): training then stops as after a signal (checkpoint
+saved), the run ends ``interrupted`` with run.json's ``notes["pruned"]`` =
+``{"global_step", "score"}``, and the outcome's status is ``pruned``. ``softtrack resume``
+leaves pruned runs alone unless named by id; resuming one drops the note.
+
 A **centralized** run has one policy (``model.zip`` and ``checkpoints/`` in the run directory).
 An **independent** run (docs/environment.md) trains one single-arm policy per arm, one after the other
 (arm 0, then arm 1), each on the single-arm environment of its arm, with the run's algorithm
@@ -65,10 +71,11 @@ class TrainOutcome:
 
     Attributes:
         run_id: the run.
-        status: ``completed``, ``interrupted`` or ``failed``.
+        status: ``completed``, ``interrupted``, ``failed`` or ``pruned`` (stopped by
+            ``on_validation``; the run itself is ``interrupted``).
         global_step: env steps done (over all sessions; independent: over both arms).
         steps_per_second: throughput of this session, env steps/s.
-        exit_code: 0, 128 + signal number, or 1 (failed).
+        exit_code: 0 (completed or pruned), 128 + signal number, or 1 (failed).
         error: one-line error of a failed run.
     """
 
@@ -139,7 +146,12 @@ class _Progress:
 
 
 def train_run(
-    store: RunStore, record: RunRecord, *, resume: bool = False, show_progress: bool | None = None
+    store: RunStore,
+    record: RunRecord,
+    *,
+    resume: bool = False,
+    show_progress: bool | None = None,
+    on_validation: Callable[[int, float], bool] | None = None,
 ) -> TrainOutcome:
     """Train ``record`` to its budget; see the module docstring for the statuses.
 
@@ -148,6 +160,10 @@ def train_run(
         record: the run (its ``spec.yaml`` defines everything).
         resume: continue from the latest checkpoint(s) (the run must not be completed).
         show_progress: force the progress bar on/off (default: on a terminal without ``CI``).
+        on_validation: called after each validation of a checkpoint with the run's env steps
+            at that checkpoint (for an independent run's arm k: the budgets of the arms before
+            it plus the arm's own steps) and the validation score (m); returning true stops
+            the run there (pruned, see the module docstring).
 
     Raises:
         SpecError: the run's spec is invalid or not supported.
@@ -163,7 +179,7 @@ def train_run(
             if record.info.status == "completed":
                 check_resumable(record)
             remove_temp_files(record.path)
-        return _train_locked(store, record, spec, resume, show_progress)
+        return _train_locked(store, record, spec, resume, show_progress, on_validation)
 
 
 def _train_locked(
@@ -172,12 +188,32 @@ def _train_locked(
     spec: ExperimentSpec,
     resume: bool,
     show_progress: bool | None,
+    on_validation: Callable[[int, float], bool] | None = None,
 ) -> TrainOutcome:
     jobs = policy_jobs(spec, record)
     progress = _Progress(len(jobs), spec.controller == "independent")
     flag = StopFlag(second_sigint_raises=True)
     trainer: PolicyTrainer | None = None
     k = 0
+    pruned: dict[str, Any] = {}
+
+    def validated(k: int) -> Callable[[int, float], None] | None:
+        """The hook of policy ``k``: its steps → the run's, then ``on_validation``."""
+        if on_validation is None:
+            return None
+        offset = sum(job.total_timesteps for job in jobs[:k])
+
+        def hook(step: int, score: float) -> None:
+            if not pruned and on_validation(offset + step, score):
+                pruned.update(global_step=offset + step, score=score)
+                flag.request()
+
+        return hook
+
+    notes = store.get_run(record.run_id).info.notes
+    if "pruned" in notes:  # resumed on purpose: it is no longer a pruned run
+        store.update_run(record.run_id,
+                         notes={key: v for key, v in notes.items() if key != "pruned"})
     store.mark_running(record.run_id)
     try:
         with stop_on_signals(flag):
@@ -193,7 +229,8 @@ def _train_locked(
                     continue
                 if flag():  # stopped between two arms: nothing to checkpoint
                     break
-                trainer = PolicyTrainer(store, record, spec, job, flag, show_progress)
+                trainer = PolicyTrainer(store, record, spec, job, flag, show_progress,
+                                        on_validation=validated(k))
                 result = trainer.run(
                     resume=resume, clock_offset=clock_offset, run_fields=progress.live(k)
                 )
@@ -211,6 +248,10 @@ def _train_locked(
             step = fields["global_step"]
             if finished == len(jobs) and not confirm_run(record, spec, flag):
                 finished -= 1  # stopped during the confirmation: resuming confirms again
+            if finished < len(jobs) and pruned and flag.signum is None:
+                notes = {**store.get_run(record.run_id).info.notes, "pruned": pruned}
+                store.mark_finished(record.run_id, "interrupted", notes=notes, **fields)
+                return TrainOutcome(record.run_id, "pruned", step, sps, 0)
             if finished < len(jobs):  # only a stop request ends the loop early
                 signum = flag.signum if flag.signum is not None else signal.SIGINT
                 store.mark_finished(record.run_id, "interrupted", **fields)

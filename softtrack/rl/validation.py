@@ -168,6 +168,8 @@ class Validator:
         clock: the run's training clock: its reading at the checkpoint goes into each row
             (``wall_time``, s) and it is paused while the episodes run, so training time
             leaves validation out (time-to-accuracy is training time).
+        on_score: called with (the policy's step, the score) after each validation whose rows
+            were written (``softtrack tune`` reports it to Optuna and may stop training).
     """
 
     def __init__(
@@ -178,8 +180,10 @@ class Validator:
         stop_requested: Callable[[], bool] = lambda: False,
         log: Callable[[str], None] | None = None,
         clock: TrainingClock | None = None,
+        on_score: Callable[[int, float], None] | None = None,
     ) -> None:
         self.record = record
+        self.on_score = on_score
         self.clock = clock
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
@@ -223,6 +227,8 @@ class Validator:
             f"episodes in {time.monotonic() - started:.0f} s{' (new best)' if improved else ''}; "
             f"best {self.best.score:.4f} m at {self.best.step:,}"
         )
+        if self.on_score is not None:
+            self.on_score(step, score)
         return score
 
     def _save_best(self, model: Any, normalizer: Any, step: int, score: float) -> None:

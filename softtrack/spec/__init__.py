@@ -9,7 +9,8 @@ An experiment is a YAML file with six top-level keys::
     seeds: [0, 1, 2]          # one run per seed (an int is accepted too)
     controller: centralized   # or independent (one single-arm policy per arm)
 
-plus an optional ``base: <path>``: the spec file this one extends (relative to this file's
+plus an optional ``tune:`` section, the search space of ``softtrack tune``
+(:mod:`softtrack.spec.tune_models`, left out of the spec hash), and an optional ``base: <path>``: the spec file this one extends (relative to this file's
 directory), so a variant states only what differs; the chain is deep-merged before validation
 (:mod:`softtrack.spec.bases`; ``name`` is not inherited) and :func:`spec_chain` lists it.
 
@@ -36,6 +37,7 @@ from softtrack.spec.api import (
 from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RewardSpec, TargetSpec
 from softtrack.spec.fields import SpecError
 from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
+from softtrack.spec.tune_models import PrunerSpec, TuneParamSpec, TuneSpec
 
 __all__ = [
     "OFF_POLICY_ALGOS",
@@ -45,10 +47,13 @@ __all__ = [
     "ExperimentSpec",
     "PhysicsSpec",
     "PolicyKwargsSpec",
+    "PrunerSpec",
     "RewardSpec",
     "SpecError",
     "TargetSpec",
     "TrainingSpec",
+    "TuneParamSpec",
+    "TuneSpec",
     "chain_comment",
     "load_spec",
     "parse_spec",

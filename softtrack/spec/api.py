@@ -145,6 +145,8 @@ def _emit(
     for name, field in type(model).model_fields.items():
         value = data[name]
         child = getattr(model, name)
+        if indent == 0 and name in _LEFT_OUT_WHEN_NONE and child is None:
+            continue
         if comments and field.description:
             if indent == 0 and out:
                 out.append("")
@@ -153,8 +155,22 @@ def _emit(
         if isinstance(child, BaseModel):
             out.append(f"{pad}{name}:")
             _emit(child, value, indent + 2, comments, out)
+        elif isinstance(child, dict) and child and all(
+            isinstance(v, BaseModel) for v in child.values()
+        ):  # e.g. tune.params: one line per entry, without the settings left at their defaults
+            out.append(f"{pad}{name}:")
+            for key, entry in child.items():
+                shown = {
+                    first: value[key][first] for first in list(type(entry).model_fields)[:1]
+                } | entry.model_dump(mode="json", exclude_defaults=True)
+                out.append(f"{pad}  {key}: {_dump_scalar(shown)}")
         else:
             out.append(f"{pad}{name}: {_dump_scalar(value)}")
+
+
+# Optional top-level sections that a spec without them does not write (no ``tune: null`` line
+# in every run's spec.yaml).
+_LEFT_OUT_WHEN_NONE = frozenset({"tune"})
 
 
 def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
@@ -196,10 +212,12 @@ def spec_hash(spec: ExperimentSpec) -> str:
     """SHA-256 (hex) of the canonical JSON of the spec *without* ``seeds``.
 
     The runs of one experiment therefore share the hash across seeds; any other change
-    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what)
-    and a later-added field left at its neutral value (``_FIELDS_ADDED_LATER``).
+    (including ``name``) changes it, except the ``cluster`` section (where it runs, not what),
+    the ``tune`` section (how ``softtrack tune`` searches, not what a run is: a spec with a
+    search space hashes as the same spec without it) and a later-added field left at its
+    neutral value (``_FIELDS_ADDED_LATER``).
     """
-    data = spec.model_dump(mode="json", exclude={"seeds", "cluster"})
+    data = spec.model_dump(mode="json", exclude={"seeds", "cluster", "tune"})
     for (*parents, leaf), neutral in _FIELDS_ADDED_LATER.items():
         section = data
         for key in parents:

@@ -21,6 +21,7 @@ from softtrack.spec.fields import (
     section_field,
     unit_field,
 )
+from softtrack.spec.tune_models import TuneSpec, check_tune
 
 __all__ = ["ClusterSpec", "ExperimentSpec", "TrainingSpec"]
 
@@ -247,6 +248,11 @@ class ExperimentSpec(SpecModel):
         "steps, so an independent run takes twice the env steps of a centralized one",
         "-",
     )
+    tune: TuneSpec | None = Field(
+        None,
+        description="the search space of `softtrack tune` (docs/tuning.md); null = none. Not "
+        "part of the experiment: excluded from spec_hash and from the trials' run specs [-]",
+    )
 
     @field_validator("seeds", mode="before")
     @classmethod
@@ -317,6 +323,8 @@ class ExperimentSpec(SpecModel):
                 f"({control_dt:g} s); use at least {control_dt:g}",
                 "training.eval_duration",
             )
+        if self.tune is not None:
+            check_tune(self)
         return self
 
     @property

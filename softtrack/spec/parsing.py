@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import difflib
 import re
+import types
+import typing
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -103,6 +105,9 @@ def _sub_model(model: type[BaseModel] | None, name: str) -> type[BaseModel] | No
     if model is None or name not in model.model_fields:
         return None
     annotation = model.model_fields[name].annotation
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):  # e.g. ``tune``
+        members = [a for a in typing.get_args(annotation) if a is not type(None)]
+        annotation = members[0] if len(members) == 1 else None
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return annotation
     return None

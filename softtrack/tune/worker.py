@@ -1,0 +1,317 @@
+"""A ``softtrack tune`` worker: take a trial, train its run, report its score; repeat.
+
+:func:`work` loops until the study has no ticket left (:mod:`softtrack.tune.study`). For
+each trial it draws the values, builds and validates the trial's run spec, creates the run
+(run.json ``notes["tune"]``: study, trial number(s), storage) and trains it with
+:func:`softtrack.rl.train.train_run`, reporting every checkpoint's validation score to Optuna
+(``trial.report(score, step)``, step = the run's env steps; a centralized run's rounded down to
+a multiple of ``training.checkpoint_interval``) and stopping the run when
+``trial.should_prune()`` says so. The trial ends
+
+* ``COMPLETE`` with the run's best validation score (:func:`run_score`),
+* ``PRUNED`` (the run ``interrupted`` with ``notes["pruned"]``),
+* ``FAIL`` when interrupted (the run ``interrupted``, resumable; a retry ticket resumes it),
+  when training raised (the run ``failed``) or when its spec is invalid.
+
+A retry ticket carries the run of the trial it retries: a completed run is only scored, an
+interrupted or lost one resumes (its earlier validation scores are reported again first).
+
+``python -m softtrack.tune.worker --storage URL --study NAME --runs-dir D`` is the process
+the local pool and SLURM start; its exit code: 0 no ticket left, 128 + signal stopped, 1 it
+stopped after :data:`~softtrack.tune.study.MAX_ERRORS_IN_A_ROW` failed trials, 2 a user error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from softtrack.executors.base import failed_by_signal
+from softtrack.spec import ExperimentSpec, SpecError
+from softtrack.store.runs import N_ARMS, RunRecord, RunStore, RunStoreError
+from softtrack.tune import TuneError
+from softtrack.tune.study import (
+    HEARTBEAT_S,
+    MAX_ERRORS_IN_A_ROW,
+    TuneStudy,
+    enqueue_fresh,
+    enqueue_retry,
+    load_study,
+    optuna_module,
+    shown_url,
+    suggest,
+    take_trial,
+    trial_name,
+    trial_spec,
+)
+
+__all__ = ["main", "run_score", "run_trial", "work"]
+
+Log = Callable[[str], None]
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+@contextlib.contextmanager
+def _heartbeat(storage: Any, trial_id: int) -> Iterator[None]:
+    """Record the trial's Optuna heartbeat every :data:`HEARTBEAT_S` s while inside."""
+    stop = threading.Event()
+
+    def beat() -> None:
+        while not stop.wait(HEARTBEAT_S):
+            with contextlib.suppress(Exception):
+                storage.record_heartbeat(trial_id)
+
+    thread = threading.Thread(target=beat, name="optuna-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
+def run_score(record: RunRecord, spec: ExperimentSpec) -> float:
+    """The objective of a finished run: its best validation score (mean 3-D RMSE, m); for an
+    independent run the mean over its arms' best.
+
+    Raises:
+        TuneError: a policy of the run has no validated checkpoint.
+    """
+    from softtrack.rl.validation import best_model
+
+    arms = [None] if spec.controller == "centralized" else list(range(N_ARMS))
+    scores = []
+    for arm in arms:
+        best = best_model(record.policy_dir(arm))
+        if best is None:
+            raise TuneError(f"run {record.run_id} has no validated checkpoint to score")
+        scores.append(best.score)
+    return float(sum(scores) / len(scores))
+
+
+def _report_step(spec: ExperimentSpec, step: int) -> int:
+    interval = spec.training.checkpoint_interval
+    if spec.controller == "centralized" and interval > 0:
+        return int(step - step % interval)
+    return int(step)
+
+
+def _replay_scores(trial: Any, record: RunRecord, spec: ExperimentSpec) -> None:
+    """Report a resumed run's validation scores so far to its new trial."""
+    from softtrack.rl.validation import VALIDATION_TABLE, validation_score
+    from softtrack.store.tables import read_table
+
+    path = record.table_path(VALIDATION_TABLE)
+    if not path.exists():
+        return
+    df = read_table(path)
+    if spec.controller == "centralized":
+        for step, rows in df.groupby("global_step"):
+            trial.report(float(validation_score(rows)), _report_step(spec, int(step)))
+        return
+    budget = int(spec.training.total_timesteps)
+    for (arm, step), rows in df.groupby(["arm", "global_step"]):
+        trial.report(float(validation_score(rows)), int(arm) * budget + int(step))
+
+
+def _note_trial(store: RunStore, record: RunRecord, ts: TuneStudy, number: int) -> RunRecord:
+    notes = dict(record.info.notes)
+    tune = dict(notes.get("tune") or {})
+    trials = [*tune.get("trials", [tune["trial"]] if "trial" in tune else []), number]
+    tune.update(study=ts.name, trial=number, trials=trials, storage=shown_url(ts.url))
+    return store.update_run(record.run_id, notes={**notes, "tune": tune})
+
+
+def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec,
+               store: RunStore) -> tuple[RunRecord, str]:
+    """The trial's run and what to do with it: ``train``, ``resume``, ``score`` (completed),
+    ``pruned``, ``failed`` (raised before) or ``busy`` (still training elsewhere)."""
+    from softtrack.store.status import effective_status
+
+    run_id = trial.user_attrs.get("run_id")
+    if run_id:
+        try:
+            record = store.get_run(str(run_id))
+        except RunStoreError:
+            record = None
+        if record is not None:
+            record = _note_trial(store, record, ts, trial.number)
+            status = effective_status(record)
+            if status == "completed":
+                return record, "score"
+            if status == "interrupted" and "pruned" in record.info.notes:
+                return record, "pruned"
+            if status in ("interrupted", "lost") or failed_by_signal(record.info):
+                return record, "resume"
+            if status == "queued":
+                return record, "resume" if record.info.global_step else "train"
+            return record, "failed" if status == "failed" else "busy"
+    notes = {"tune": {"study": ts.name, "trial": trial.number, "trials": [trial.number],
+                      "storage": shown_url(ts.url)}}
+    record = store.create_run(spec, spec.seeds[0], notes=notes, spec_files=ts.spec_files)
+    trial.set_user_attr("run_id", record.run_id)
+    return record, "train"
+
+
+def _fail(ts: TuneStudy, trial: Any, key: str, text: str) -> None:
+    optuna = optuna_module()
+    with contextlib.suppress(Exception):
+        trial.set_user_attr(key, " ".join(text.split())[:500])
+    with contextlib.suppress(optuna.exceptions.UpdateFinishedTrialError):
+        ts.study.tell(trial, state=optuna.trial.TrialState.FAIL)
+
+
+def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
+              show_progress: bool | None = None) -> tuple[str, int]:
+    """Run one taken trial to its end (module docstring); returns (``complete``, ``pruned``,
+    ``interrupted`` or ``failed``, the exit code of its training)."""
+    from softtrack.rl.factory import check_supported
+    from softtrack.rl.train import train_run
+
+    optuna = optuna_module()
+    number = trial.number
+    try:
+        values = suggest(trial, ts.tune)
+        record_name = trial_name(ts.spec.name, number)
+        spec = trial_spec(ts, values, record_name)
+        check_supported(spec, f"study {ts.name} trial {number}")
+        record, action = _trial_run(ts, trial, spec, store)
+        spec = record.load_spec()
+    except (SpecError, RunStoreError) as exc:
+        log(f"trial {number}: failed: {exc}")
+        _fail(ts, trial, "error", str(exc))
+        enqueue_fresh(ts.study, replaces=number)
+        return "failed", 1
+    shown = ", ".join(f"{p}={v:.4g}" if isinstance(v, float) else f"{p}={v}"
+                      for p, v in values.items())
+    verb = {"train": "training", "resume": "resuming"}.get(action, action)
+    log(f"trial {number}: {verb} run {record.run_id} ({shown})")
+    if action in ("failed", "busy"):
+        why = record.info.error if action == "failed" else "its run is training elsewhere"
+        _fail(ts, trial, "error", f"run {record.run_id}: {why}")
+        if action == "failed":
+            enqueue_fresh(ts.study, replaces=number)
+        return "failed", 1
+    if action in ("resume", "pruned"):
+        _replay_scores(trial, record, spec)
+    if action == "pruned":
+        ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
+        return "pruned", 0
+    if action in ("train", "resume"):
+        def on_validation(step: int, score: float) -> bool:
+            trial.report(score if math.isfinite(score) else math.inf, _report_step(spec, step))
+            return bool(trial.should_prune())
+
+        try:
+            outcome = train_run(store, record, resume=action == "resume",
+                                show_progress=show_progress, on_validation=on_validation)
+        except Exception as exc:  # noqa: BLE001 (before training: recorded in the trial)
+            line = " ".join(f"{type(exc).__name__}: {exc}".split())
+            log(f"trial {number}: failed: {line}")
+            _fail(ts, trial, "error", line)
+            enqueue_fresh(ts.study, replaces=number)
+            return "failed", 1
+        if outcome.status == "interrupted":
+            log(f"trial {number}: interrupted at step {outcome.global_step:,}; run "
+                f"{record.run_id} resumes when the study continues")
+            _fail(ts, trial, "interrupted", f"interrupted at step {outcome.global_step}")
+            enqueue_retry(ts.study, ts.storage.get_trial(ts.trial_id(number)), died=False)
+            return "interrupted", outcome.exit_code
+        if outcome.status == "failed":
+            log(f"trial {number}: failed: {outcome.error}")
+            _fail(ts, trial, "error", f"run {record.run_id} failed: {outcome.error}")
+            enqueue_fresh(ts.study, replaces=number)
+            return "failed", 1
+        if outcome.status == "pruned":
+            pruned = store.get_run(record.run_id).info.notes.get("pruned", {})
+            log(f"trial {number}: pruned at step {pruned.get('global_step', 0):,} "
+                f"(validation score {pruned.get('score', math.nan):.4f} m)")
+            ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
+            return "pruned", 0
+        record = store.get_run(record.run_id)
+    try:
+        score = run_score(record, spec)
+    except TuneError as exc:
+        _fail(ts, trial, "error", str(exc))
+        enqueue_fresh(ts.study, replaces=number)
+        return "failed", 1
+    try:
+        ts.study.tell(trial, score)
+    except optuna.exceptions.UpdateFinishedTrialError:
+        log(f"trial {number}: already failed by another process (its heartbeat was late); "
+            "its score is not counted")
+        return "failed", 1
+    log(f"trial {number}: complete, validation score {score:.4f} m (run {record.run_id})")
+    return "complete", 0
+
+
+def _interrupted(ts: TuneStudy, trial: Any, why: str) -> None:
+    """Fail a trial this worker still runs as interrupted, with a retry ticket for its slot."""
+    trial_id = ts.trial_id(trial.number)
+    if ts.storage.get_trial(trial_id).state.name != "RUNNING":
+        return
+    _fail(ts, trial, "interrupted", why)
+    enqueue_retry(ts.study, ts.storage.get_trial(trial_id), died=False)
+
+
+def work(ts: TuneStudy, runs_dir: str, *, log: Log = _stderr,
+         show_progress: bool | None = None) -> int:
+    """Take and run the study's trials until none is left; the exit code (module docstring)."""
+    from softtrack.signals import StopFlag, stop_on_signals
+
+    store = RunStore(runs_dir)
+    flag = StopFlag()
+    errors = 0
+    with stop_on_signals(flag):
+        while not flag():
+            trial = take_trial(ts, store)
+            if trial is None:
+                return 0
+            if flag():  # a signal while the ticket was taken: hand it back as a retry
+                _interrupted(ts, trial, "interrupted before training")
+                break
+            try:
+                with _heartbeat(ts.storage, ts.trial_id(trial.number)):
+                    result, code = run_trial(ts, trial, store, log, show_progress)
+            except BaseException:  # a second Ctrl-C (the run is marked interrupted), a bug
+                _interrupted(ts, trial, "interrupted (stopped at once)")
+                raise
+            if result == "interrupted":
+                return code
+            errors = errors + 1 if result == "failed" else 0
+            if errors >= MAX_ERRORS_IN_A_ROW:
+                log(f"worker: {errors} failed trials in a row; stopping (see `softtrack tune "
+                    f"--status {ts.name}` and `softtrack runs --failed`)")
+                return 1
+    return 128 + (flag.signum or 2)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m softtrack.tune.worker --storage URL --study NAME --runs-dir D``."""
+    parser = argparse.ArgumentParser(prog="python -m softtrack.tune.worker")
+    parser.add_argument("--storage", required=True, help="the study's storage URL")
+    parser.add_argument("--study", required=True, help="the study name")
+    parser.add_argument("--runs-dir", required=True, help="directory holding the runs")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    args = parser.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(args.threads)
+    try:
+        ts = load_study(args.storage, args.study)
+        return work(ts, args.runs_dir, show_progress=False)
+    except (TuneError, SpecError, RunStoreError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
