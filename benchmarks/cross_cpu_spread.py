@@ -9,7 +9,7 @@ with the stored one, and prints the relative differences grouped by whether the 
 were computed on this CPU kind (``eval_metrics.cpu``; rows stored before that column existed
 count as another CPU):
 
-    .venv/bin/python benchmarks/cross_cpu_spread.py models/*/ --csv /tmp/spread.csv
+    .venv/bin/python benchmarks/cross_cpu_spread.py models/*/ --csv spread.csv
 
 ``--store`` also replaces the runs' evaluation tables by the live ones (what
 ``softtrack evaluate DIR`` does), after reading the stored rows for the comparison: one pass

@@ -43,7 +43,7 @@ def portable_path(path: str | os.PathLike[str], cwd: str | os.PathLike[str] | No
     """``path`` as it can be recorded in committed files: relative to ``cwd`` (default: the
     current directory) when it lies inside it, else only its file name; never absolute.
 
-    In ``/work/repo``: ``/work/repo/experiments/study/td3-64-1e7.yaml`` →
+    In a checkout at ``REPO``: ``REPO/experiments/study/td3-64-1e7.yaml`` →
     ``experiments/study/td3-64-1e7.yaml``, ``../other/x.yaml`` → ``x.yaml``;
     ``experiments/study/td3-64-1e7.yaml`` stays as it is.
     """
