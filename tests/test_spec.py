@@ -266,6 +266,11 @@ ERROR_CASES = {
         [],
         ["training.confirm_episodes", "set final_policy: best_validated or confirm_episodes: 0"],
     ),
+    "validation-trajectories-without-validation": (
+        "training: {validation_trajectories: true}\n",
+        [],
+        ["training.validation_trajectories", "set training.validation_episodes to at least 1"],
+    ),
     "bad-name": ("name: 'a b/c'\n", [], ["name", "invalid name"]),
     "never-learns": (
         "training: {total_timesteps: 1000}\n",

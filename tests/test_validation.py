@@ -178,6 +178,37 @@ def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend
     assert not plain.table_path("eval_metrics").exists()
 
 
+def test_validation_trajectories_track_each_checkpoint_without_entering_the_score(
+    tmp_path: Path,
+) -> None:
+    plain = _train(_spec(tmp_path, total_timesteps=400, final_policy="best_validated",
+                         **VALIDATED), tmp_path / "a")
+    spec = _spec(tmp_path, total_timesteps=400, final_policy="best_validated",
+                 validation_trajectories=True, eval_trajectories=["circle", "figure8"],
+                 **VALIDATED)
+    tracked = _train(spec, tmp_path / "b")
+    table = _validation(tracked)
+    random_rows = table[table["trajectory"] == "random"].reset_index(drop=True)
+    # the held-out episodes, the scores and the kept model are those of the plain run
+    scores = _check_rows(random_rows, [200, 400], [0, 1])
+    assert scores == _check_rows(_validation(plain), [200, 400], [0, 1])
+    assert {s: validation_score(rows) for s, rows in table.groupby("global_step")} == scores
+    best = PolicyDir.of_run(tracked.path)
+    assert [p.name for p in best.list_best()] == [f"step-{_best_of(scores):012d}"]
+    # each checkpoint adds one episode per evaluation trajectory and arm, at its training clock
+    extra = table[table["trajectory"] != "random"]
+    assert sorted(zip(extra["global_step"], extra["trajectory"], extra["arm"], strict=True)) == [
+        (step, t, arm) for step in (200, 400) for t in ("circle", "figure8") for arm in (0, 1)
+    ]
+    assert (extra["episode"] == 0).all() and (extra["seed"] == 0).all()
+    clock = table.groupby("global_step")["wall_time"].nunique()
+    assert (clock == 1).all()
+    # they are the evaluation episodes of the checkpoint's model
+    rows = extra[(extra["global_step"] == _best_of(scores)) & (extra["trajectory"] == "figure8")]
+    again = _episode_metrics(best.best_model_path, tracked.load_spec(), None, "figure8")
+    np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-12)
+
+
 def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None:
     total = 2400
     spec = _spec(tmp_path, total_timesteps=total, n_envs=4, **VALIDATED)

@@ -136,7 +136,12 @@ def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 def validation_score(rows: pd.DataFrame) -> float:
     """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
-    (one per episode and arm): the mean ``rmse_3d`` (m), or ∞ if an episode terminated."""
+    (one per episode and arm): the mean ``rmse_3d`` (m) of its random-target episodes, or ∞
+    if one terminated. Rows of the evaluation trajectories
+    (``training.validation_trajectories``) are left out: models are selected on held-out
+    random targets only."""
+    if "trajectory" in rows:
+        rows = rows[rows["trajectory"] == "random"]
     if len(rows) == 0 or rows["terminated"].astype(bool).any():
         return math.inf
     return float(rows["rmse_3d"].mean())

@@ -14,8 +14,13 @@ run's arm policy in the single-arm scene of its arm.
   columns of
   :func:`softtrack.evaluation.metrics_table`, with ``arm`` the arm's index in the dual-arm
   scene (an independent arm's rows carry its own index).
-* The checkpoint's **validation score** is the mean 3-D RMSE over its rows (m), or ∞ if an
-  episode went non-finite.
+* With ``training.validation_trajectories`` the checkpoint's model also runs one
+  deterministic episode of each ``training.eval_trajectories`` trajectory (what ``softtrack
+  evaluate`` runs after training), stored as rows with that ``trajectory``, ``episode`` 0 and
+  ``seed`` 0 (unused): the accuracy on the evaluation trajectories against env steps and
+  ``wall_time``, for time-to-accuracy (``benchmarks/bench_time_to_accuracy.py``).
+* The checkpoint's **validation score** is the mean 3-D RMSE over its random-target rows (m),
+  or ∞ if an episode went non-finite; trajectory rows never enter it.
 * A model whose score is below every earlier one of its policy is saved to
   ``<policy>/best/step-<step>/`` (:class:`~softtrack.store.layout.PolicyDir`): ``model.zip``,
   ``vecnormalize.pkl`` when normalising, ``state.json`` (``global_step``, ``score``,
@@ -66,6 +71,7 @@ __all__ = [
     "Validator",
     "best_model",
     "held_out_rows",
+    "trajectory_rows",
     "truncate_validation",
     "validated_steps",
     "validation_score",
@@ -156,6 +162,31 @@ def held_out_rows(
     return pd.concat(parts, ignore_index=True)
 
 
+def trajectory_rows(
+    run_id: str,
+    act: Policy,
+    config: TrackingConfig,
+    duration: float,
+    trajectories: list[str],
+    arm: int | None,
+    stop_requested: Callable[[], bool] = lambda: False,
+) -> pd.DataFrame | None:
+    """Run one deterministic episode of ``act`` per evaluation trajectory (``duration`` s)
+    and return their metrics as :func:`held_out_rows` does, with ``episode`` and ``seed`` 0.
+    ``None`` if ``stop_requested`` turned true between two episodes."""
+    parts = []
+    for trajectory in trajectories:
+        if stop_requested():
+            return None
+        metrics = metrics_table(run_id, run_episode(act, config, trajectory, duration))
+        if arm is not None:
+            metrics["arm"] = arm
+        metrics.insert(2, "episode", 0)
+        metrics.insert(3, "seed", 0)
+        parts.append(metrics)
+    return pd.concat(parts, ignore_index=True)
+
+
 class Validator:
     """Validate one policy of a run after its checkpoints (module docstring).
 
@@ -191,6 +222,8 @@ class Validator:
             raise ValueError(f"training.validation_episodes is {self.episodes}; a Validator needs "
                              "at least 1")
         self.duration = float(spec.training.eval_duration)
+        self.trajectories = (list(spec.training.eval_trajectories)
+                             if spec.training.validation_trajectories else [])
         self.config = env_config(spec, policy.arm)
         self.stop_requested = stop_requested
         self.log = log or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -204,14 +237,20 @@ class Validator:
         started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
         wall_time = None if self.clock is None else self.clock.elapsed()
+        act = deterministic_policy(model, normalizer)
         with self.clock.paused() if self.clock is not None else contextlib.nullcontext():
             rows = held_out_rows(
-                self.record.run_id, deterministic_policy(model, normalizer), self.config,
-                self.duration, VALIDATION_SEED, self.episodes, self.policy.arm,
-                self.stop_requested,
+                self.record.run_id, act, self.config, self.duration, VALIDATION_SEED,
+                self.episodes, self.policy.arm, self.stop_requested,
             )
-        if rows is None:
+            tracked = trajectory_rows(
+                self.record.run_id, act, self.config, self.duration, self.trajectories,
+                self.policy.arm, self.stop_requested,
+            ) if self.trajectories and rows is not None else None
+        if rows is None or (self.trajectories and tracked is None):
             return None
+        if tracked is not None:
+            rows = pd.concat([rows, tracked], ignore_index=True)
         rows.insert(1, "global_step", step)
         if wall_time is not None:
             rows.insert(2, "wall_time", wall_time)
@@ -222,10 +261,16 @@ class Validator:
         append_rows(self.record.table_path(VALIDATION_TABLE), rows.to_dict("records"))
         assert self.best is not None
         name = f"{self.record.run_id[-8:]} {self.policy.label}".rstrip()
+        tracking = ""
+        if tracked is not None:
+            cells = tracked.groupby("trajectory", sort=False)["rmse_3d"]
+            tracking = "; " + ", ".join(
+                f"{t} {'/'.join(f'{v:.3f}' for v in part)}" for t, part in cells
+            ) + " m"
         self.log(
             f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
             f"episodes in {time.monotonic() - started:.0f} s{' (new best)' if improved else ''}; "
-            f"best {self.best.score:.4f} m at {self.best.step:,}"
+            f"best {self.best.score:.4f} m at {self.best.step:,}{tracking}"
         )
         if self.on_score is not None:
             self.on_score(step, score)

@@ -195,6 +195,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "actor_observation"): "full",
     ("algo", "mirror_replay"): False,
     ("training", "validation_episodes"): 0,
+    ("training", "validation_trajectories"): False,
     ("training", "final_policy"): "last",
     ("training", "confirm_episodes"): 0,
     ("algo", "target_entropy"): "auto",

@@ -81,6 +81,14 @@ class TrainingSpec(SpecModel):
         "episodes",
         ge=0,
     )
+    validation_trajectories: bool = unit_field(
+        False,
+        "also run each eval_trajectories episode on every validated checkpoint's model "
+        "(rows of tables/validation.parquet with that trajectory): the accuracy on the "
+        "evaluation trajectories against env steps and training time; these rows never enter "
+        "the validation score, which selects models on held-out random targets only",
+        "-",
+    )
     final_policy: Literal["last", "best_validated"] = unit_field(
         "last",
         "the run's policy for evaluation, reports and export: 'last' the model at the end of "
@@ -315,6 +323,13 @@ class ExperimentSpec(SpecModel):
                 f"confirm_episodes {t.confirm_episodes} confirms the best-validated model, but "
                 "final_policy is 'last'; set final_policy: best_validated or confirm_episodes: 0",
                 "training.confirm_episodes",
+            )
+        if t.validation_trajectories and t.validation_episodes < 1:
+            raise custom_error(
+                "validation_trajectories runs the evaluation trajectories beside the validation "
+                "episodes; set training.validation_episodes to at least 1 (e.g. 10) or "
+                "validation_trajectories: false",
+                "training.validation_trajectories",
             )
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:

@@ -116,8 +116,10 @@ TABLE_DESCRIPTIONS: dict[str, str] = {
     "train_episodes": "one row per finished training episode: episode, global_step at its "
     "end, return, length, wall_time (s since training started); independent runs add arm and "
     "count episode and global_step per arm",
-    "validation": "validation during training: one row per validation point (global_step), "
-    "episode and arm, with the tracking metrics (rmse_3d, ..., *_steady for t >= 1 s)",
+    "validation": "validation during training: one row per validation point (global_step, "
+    "wall_time: training seconds), episode and arm, with the tracking metrics (rmse_3d, ..., "
+    "*_steady for t >= 1 s); trajectory 'random' for the held-out episodes, and with "
+    "training.validation_trajectories one row per evaluation trajectory and arm",
     "confirmation": "after training: one row per candidate model (best, last), held-out "
     "episode and arm, with the tracking metrics",
     "eval_metrics": "`softtrack evaluate`: one row per trajectory (circle, rectangle, figure8) "
