@@ -200,6 +200,26 @@ ERROR_CASES = {
         [],
         ["env.target.speed_min", "exceeds speed=0.3", "make speed_min <= speed"],
     ),
+    "realism-negative-std": (
+        "env:\n  realism:\n    obs_noise_node_position: -0.01\n",
+        [],
+        [":3:", "env.realism.obs_noise_node_position", "out of range", "use a value ≥ 0"],
+    ),
+    "realism-probability": (
+        "env: {realism: {obs_drop_probability: 1.0}}\n",
+        [],
+        ["env.realism.obs_drop_probability", "out of range", "use a value < 1"],
+    ),
+    "realism-delay": (
+        "env: {realism: {action_delay: -1}}\n",
+        [],
+        ["env.realism.action_delay", "out of range", "use a value ≥ 0"],
+    ),
+    "realism-tau": (
+        "env: {realism: {actuator_time_constant: 0}}\n",
+        [],
+        ["env.realism.actuator_time_constant", "out of range", "use a value > 0"],
+    ),
     "bool-as-number": ("training: {n_envs: yes}\n", [], ["training.n_envs", "expected a number"]),
     "per-arm-critic-sb3": (
         "algo: {critic: per_arm}\n",
@@ -484,6 +504,8 @@ def test_spec_hash() -> None:
     assert spec_hash(base.with_seed(7)) == spec_hash(base)  # seed-independent
     assert spec_hash(parse_spec({"algo": {"tau": 0.01}})) != spec_hash(base)
     assert spec_hash(parse_spec({"env": {"target": {"speed_min": 0.1}}})) != spec_hash(base)
+    assert spec_hash(parse_spec({"env": {"realism": {"obs_delay": 0}}})) == spec_hash(base)
+    assert spec_hash(parse_spec({"env": {"realism": {"obs_delay": 1}}})) != spec_hash(base)
     per_arm = parse_spec({"algo": {"backend": "sbx", "critic": "per_arm"}})
     assert spec_hash(per_arm) != spec_hash(parse_spec({"algo": {"backend": "sbx"}}))
     nets = {"backend": "sbx", "critic": "per_arm", "per_arm_networks": True}

@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from softtrack.env.realism import RealismConfig
 from softtrack.env.reward import RewardConfig
 from softtrack.env.targets import TargetConfig
 from softtrack.sim.params import InvalidParameterError, SimParams
@@ -23,12 +24,14 @@ class TrackingConfig:
         target: target motion (docs/environment.md).
         reward: reward terms (docs/environment.md).
         episode_duration: simulated seconds before truncation, s.
+        realism: sensing and actuation imperfections (docs/environment.md); off by default.
     """
 
     sim: SimParams
     target: TargetConfig
     reward: RewardConfig
     episode_duration: float = 10.0
+    realism: RealismConfig = RealismConfig()
 
     @property
     def n_arms(self) -> int:
@@ -42,7 +45,7 @@ class TrackingConfig:
     def validate(self) -> None:
         """Raise :class:`InvalidParameterError` naming the first invalid setting."""
         self.sim.validate()
-        for part in (self.target, self.reward):
+        for part in (self.target, self.reward, self.realism):
             try:
                 part.validate()
             except ValueError as err:
@@ -70,7 +73,8 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
 
     Any field of :class:`SimParams`, :class:`TargetConfig` or :class:`RewardConfig` may be
     given by name, plus ``target`` (a mode name or a ``TargetConfig``), ``reward`` (a
-    ``RewardConfig``) and ``episode_duration``.
+    ``RewardConfig``), ``episode_duration`` and ``realism`` (a ``RealismConfig`` or a mapping
+    of its fields; default all off).
 
     Args:
         n_arms: 2 for the dual-arm scene, 1 for a single arm.
@@ -83,12 +87,16 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     target = kwargs.pop("target", "random")
     reward = kwargs.pop("reward", None)
     episode_duration = float(kwargs.pop("episode_duration", 10.0))
+    try:
+        realism = RealismConfig.from_value(kwargs.pop("realism", None))
+    except ValueError as err:
+        raise InvalidParameterError(str(err)) from None
     sim_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _SIM_FIELDS}
     target_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _TARGET_FIELDS}
     reward_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _REWARD_FIELDS}
     if kwargs:
         valid = sorted(_SIM_FIELDS | _TARGET_FIELDS | _REWARD_FIELDS
-                       | {"target", "reward", "episode_duration"})
+                       | {"target", "reward", "episode_duration", "realism"})
         raise InvalidParameterError(
             f"unknown environment parameter {min(kwargs)!r}; valid names: {', '.join(valid)}"
         )
@@ -111,7 +119,7 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     if reward is None:
         reward = RewardConfig() if n_arms == 2 else RewardConfig.single_arm()
     reward_config = dataclasses.replace(reward, **_tuples(reward_kw))
-    config = TrackingConfig(sim, target_config, reward_config, episode_duration)
+    config = TrackingConfig(sim, target_config, reward_config, episode_duration, realism)
     config.validate()
     return config
 

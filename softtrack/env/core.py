@@ -16,6 +16,7 @@ import numpy as np
 
 from softtrack.env.config import TrackingConfig
 from softtrack.env.observation import build_observation, observation_size
+from softtrack.env.realism import RealismModel
 from softtrack.env.reward import collision_penalty, tracking_reward
 from softtrack.env.targets import BatchedTargets
 from softtrack.sim.actuation import N_CONTROL_POINTS
@@ -69,6 +70,13 @@ class TrackingCore:
         self.obs_dim = observation_size(self.n_arms, config.sim.n_nodes)
         self._obs = np.zeros((self.n_envs, self.obs_dim), dtype=np.float32)
         self._control_dt = config.sim.control_dt
+        # Sensing/actuation imperfections (softtrack.env.realism); None when all are off, so a
+        # default environment takes exactly the path (and the random draws) it always took.
+        self.realism: RealismModel | None = (
+            RealismModel(config.realism, self.n_envs, self.n_arms, config.sim.n_nodes,
+                         self._control_dt)
+            if config.realism.active else None
+        )
 
     # ---- state ----------------------------------------------------------------------------
     @property
@@ -82,7 +90,9 @@ class TrackingCore:
         return self.engine.tip_position.copy()
 
     def observe(self, env_indices: np.ndarray | slice = slice(None)) -> np.ndarray:
-        """Current observations of the listed environments: (k, obs_dim) float32 copy."""
+        """Current true observations of the listed environments: (k, obs_dim) float32 copy
+        (without the realism's delay, noise and drops, which :meth:`reset` and :meth:`step`
+        apply)."""
         engine, targets = self.engine, self.targets
         build_observation(engine.position, engine.tip_velocity, targets.position,
                           targets.velocity, out=self._obs)
@@ -100,7 +110,8 @@ class TrackingCore:
             rngs: k generators, kept by those environments for their random draws.
 
         Returns:
-            (k, obs_dim) float32 initial observations.
+            (k, obs_dim) float32 initial observations (as the policy sees them: with the
+            realism's noise and drops when it is on).
         """
         idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
         for i, rng in zip(idx.tolist(), rngs, strict=True):
@@ -108,13 +119,17 @@ class TrackingCore:
         self.engine.reset(idx)
         self.targets.reset(idx, list(rngs))
         self.step_count[idx] = 0
-        return self.observe(idx)
+        obs = self.observe(idx)
+        if self.realism is not None:
+            obs = self.realism.reset(idx, list(rngs), obs)
+        return obs
 
     def step(self, actions: np.ndarray) -> StepResult:
         """Advance every environment by one control step.
 
         Args:
-            actions: (n, 12·A) control values in [−1, 1]; out-of-range values are clipped.
+            actions: (n, 12·A) control values in [−1, 1]; out-of-range values are clipped
+                (then delayed, lagged and rate-limited when the realism says so).
 
         Raises:
             NonFiniteActionError: if an action is NaN or inf.
@@ -127,9 +142,15 @@ class TrackingCore:
         if not np.isfinite(actions).all():
             row = int(np.argwhere(~np.isfinite(actions))[0, 0])
             raise NonFiniteActionError(f"action of environment {row} contains NaN or inf")
-        clipped = np.clip(actions, -1.0, 1.0).reshape(self.n_envs, self.n_arms, 2, N_CONTROL_POINTS)
+        realism = self.realism
+        if realism is None:
+            clipped = np.clip(actions, -1.0, 1.0)
+        else:
+            clipped = realism.filter_actions(np.clip(actions, -1.0, 1.0))
         engine = self.engine
-        engine.set_actions(clipped)
+        engine.set_actions(clipped.reshape(self.n_envs, self.n_arms, 2, N_CONTROL_POINTS))
+        if realism is not None:
+            realism.saturate_torques(engine.torques)
         engine.advance()
         self.targets.step(self._control_dt)
         self.step_count += 1
@@ -144,7 +165,10 @@ class TrackingCore:
         if terminated.any():
             reward[terminated] = self.config.reward.nonfinite_reward
         truncated = (self.step_count >= self.max_steps) & finite
-        return StepResult(self.observe(), reward, terminated, truncated, distances)
+        observation = self.observe()
+        if realism is not None:
+            observation = realism.filter_obs(observation)
+        return StepResult(observation, reward, terminated, truncated, distances)
 
     def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
         """The info dict (docs/environment.md) of environment ``i`` after a step (copies, SI units)."""

@@ -108,7 +108,9 @@ class DualArmTrackingEnv(_TrackingEnv):
     ``torque_scale``, ``base_positions``, …), of ``TargetConfig`` (``speed``, ``center``,
     ``period``, ``circle_radius``, …) or of ``RewardConfig`` (``bonus_thresholds``,
     ``collision_penalty``, …), plus ``target`` (``random``, ``circle``, ``rectangle``,
-    ``figure8``, ``fixed``) and ``episode_duration`` (s)::
+    ``figure8``, ``fixed``), ``episode_duration`` (s) and ``realism`` (observation noise,
+    delays, actuator lag, rate and torque limits; a mapping of ``RealismConfig`` fields, all
+    off by default; docs/environment.md)::
 
         gymnasium.make("softtrack/DualArmTracking-v0", target="circle", gravity=True)
 

@@ -34,7 +34,7 @@ from softtrack.spec.api import (
     spec_json_schema,
     spec_to_yaml,
 )
-from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RewardSpec, TargetSpec
+from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RealismSpec, RewardSpec, TargetSpec
 from softtrack.spec.fields import SpecError
 from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
 from softtrack.spec.tune_models import PrunerSpec, TuneParamSpec, TuneSpec
@@ -48,6 +48,7 @@ __all__ = [
     "PhysicsSpec",
     "PolicyKwargsSpec",
     "PrunerSpec",
+    "RealismSpec",
     "RewardSpec",
     "SpecError",
     "TargetSpec",

@@ -206,6 +206,21 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "policy_kwargs", "batch_norm_actor"): True,
     ("algo", "policy_kwargs", "batch_norm_momentum"): 0.99,
     ("algo", "policy_kwargs", "renorm_warmup_steps"): 100_000,
+    # env.realism: every field at its "off" value, then the section itself once emptied (so a
+    # field added to it later only needs its own line here)
+    ("env", "realism", "obs_noise_node_position"): 0.0,
+    ("env", "realism", "obs_noise_target_position"): 0.0,
+    ("env", "realism", "obs_noise_speed"): 0.0,
+    ("env", "realism", "obs_noise_direction"): 0.0,
+    ("env", "realism", "obs_drop_probability"): 0.0,
+    ("env", "realism", "obs_stuck_probability"): 0.0,
+    ("env", "realism", "obs_stuck_steps"): 1,
+    ("env", "realism", "obs_delay"): 0,
+    ("env", "realism", "action_delay"): 0,
+    ("env", "realism", "actuator_time_constant"): None,
+    ("env", "realism", "action_rate_limit"): None,
+    ("env", "realism", "torque_limit"): None,
+    ("env", "realism"): {},
 }
 
 

@@ -34,6 +34,8 @@ def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
     target = env.target_kwargs()
     common = {"target": target.pop("name"), "episode_duration": env.episode_duration,
               **target}
+    if env.realism.active:  # only then, so the kwargs of a default spec stay as they were
+        common["realism"] = env.realism.realism_kwargs()
     if arm is None:
         return {**common, **sim, **env.reward_kwargs()}
     sim["base_positions"] = (tuple(sim["base_positions"][arm]),)

@@ -227,6 +227,88 @@ class RewardSpec(SpecModel):
         return self
 
 
+class RealismSpec(SpecModel):
+    """Imperfect sensing and actuation (docs/environment.md, "Realism: sensing and actuation"),
+    in the spirit of realworldrl_suite. Every default is "off": an env whose section is all
+    defaults computes exactly the study's transitions. Field names equal those of
+    :class:`softtrack.env.realism.RealismConfig`."""
+
+    obs_noise_node_position: Float = unit_field(
+        0.0, "std of Gaussian noise on every observed node coordinate; 0 = off", "m", ge=0
+    )
+    obs_noise_target_position: Float = unit_field(
+        0.0, "std of Gaussian noise on each coordinate of the target centre; 0 = off", "m", ge=0
+    )
+    obs_noise_speed: Float = unit_field(
+        0.0, "std of Gaussian noise on the tip speeds and the target speed; 0 = off", "m/s", ge=0
+    )
+    obs_noise_direction: Float = unit_field(
+        0.0,
+        "std of Gaussian noise on each component of the tip and target velocity directions "
+        "(unit vectors; not renormalised); 0 = off",
+        "-",
+        ge=0,
+    )
+    obs_drop_probability: Float = unit_field(
+        0.0,
+        "per observed value and control step, probability that it reads 0 (dropped); 0 = off",
+        "-",
+        ge=0,
+        lt=1,
+    )
+    obs_stuck_probability: Float = unit_field(
+        0.0,
+        "per observed value and control step, probability that it gets stuck and repeats its "
+        "last reading for obs_stuck_steps steps; 0 = off",
+        "-",
+        ge=0,
+        lt=1,
+    )
+    obs_stuck_steps: Int = unit_field(
+        1, "how long a stuck value repeats its last reading (the step it sticks included)",
+        "control steps", ge=1,
+    )
+    obs_delay: Int = unit_field(
+        0,
+        "the policy sees the observation of this many control steps ago (the initial one "
+        "until then); 0 = off",
+        "control steps",
+        ge=0,
+    )
+    action_delay: Int = unit_field(
+        0,
+        "the arms apply the action of this many control steps ago (zeros until then); 0 = off",
+        "control steps",
+        ge=0,
+    )
+    actuator_time_constant: Float | None = unit_field(
+        None,
+        "time constant tau of a first-order lag on every control value (0 at reset, exact "
+        "discretisation alpha = 1 - exp(-control_dt / tau)); null = off",
+        "s",
+        gt=0,
+    )
+    action_rate_limit: Float | None = unit_field(
+        None,
+        "largest change of an applied control value per second (from 0 at reset); null = off",
+        "control units/s",
+        gt=0,
+    )
+    torque_limit: Float | None = unit_field(
+        None, "each element torque is clipped to +-this after the spline; null = off", "N·m",
+        gt=0,
+    )
+
+    def realism_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`softtrack.env.realism.RealismConfig`."""
+        return self.model_dump()
+
+    @property
+    def active(self) -> bool:
+        """True when any field differs from its default ("off")."""
+        return self != RealismSpec()
+
+
 class EnvSpec(SpecModel):
     """The dual-arm tracking environment: physics, target, reward and episode length."""
 
@@ -237,6 +319,12 @@ class EnvSpec(SpecModel):
     reward: RewardSpec = section_field(RewardSpec, "reward terms (docs/environment.md)")
     episode_duration: Float = unit_field(
         10.0, "simulated length of a training episode (then truncated)", "s", gt=0
+    )
+    realism: RealismSpec = section_field(
+        RealismSpec,
+        "imperfect sensing and actuation: observation noise, drops, stuck values and delay; "
+        "action delay, actuator lag, rate limit, torque saturation; all off by default "
+        "(docs/environment.md)",
     )
 
     @model_validator(mode="after")

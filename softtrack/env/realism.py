@@ -1,0 +1,300 @@
+"""Imperfect sensing and actuation of the tracking environment (docs/environment.md, "Realism:
+sensing and actuation"), in the spirit of google-research/realworldrl_suite.
+
+:class:`RealismConfig` holds the settings (all off by default); :class:`RealismModel` applies
+them to a batch of ``n`` environments between the policy and the simulation. ``TrackingCore``
+builds a model only when a setting is not at its default, so a default environment draws no
+extra random numbers and computes exactly the transitions it computed before this module.
+
+Observation path, per control step (each stage only when switched on):
+
+1. delay: the observation of ``obs_delay`` control steps ago (at a reset the queue is filled
+   with the initial observation);
+2. Gaussian noise, one standard deviation per observation group (:func:`observation_groups`):
+   node positions (m), target centre (m), tip and target speeds (m/s), tip and target
+   velocity directions (unit vectors, noise per component, not renormalised);
+3. stuck sensors: each value, not already stuck, gets stuck with ``obs_stuck_probability``
+   and then repeats the value it reported on the previous step for ``obs_stuck_steps`` steps
+   (the step it gets stuck included);
+4. dropped values: each value reads 0 with ``obs_drop_probability`` for that step.
+
+Action path: clip to [−1, 1] (TrackingCore) → delay of ``action_delay`` control steps (zeros
+until the first real action comes out) → first-order lag y ← y + α (u − y),
+α = 1 − exp(−control_dt / τ), y = 0 at reset → rate limit
+|Δ| ≤ ``action_rate_limit``·control_dt per step relative to the value applied on the previous
+step (0 at reset) → spline torques (engine) → clip of each element torque to ±``torque_limit``.
+
+The random numbers come from one generator per environment, spawned at every reset from the
+environment's own generator (``Generator.spawn``, which draws nothing from it), so the target's
+random stream is that of a plain environment and an episode is reproducible from its seed.
+Per step and environment the draws are, in this order and only where switched on:
+``obs_dim`` standard normals (noise), ``obs_dim`` uniforms (stuck), ``obs_dim`` uniforms (drop).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from softtrack.env.observation import observation_labels
+
+__all__ = ["OBSERVATION_GROUPS", "RealismConfig", "RealismModel", "observation_groups"]
+
+# Observation group → the noise field of RealismConfig that sets its standard deviation.
+OBSERVATION_GROUPS = {
+    "node_position": "obs_noise_node_position",
+    "target_position": "obs_noise_target_position",
+    "speed": "obs_noise_speed",
+    "direction": "obs_noise_direction",
+}
+
+
+@dataclass(frozen=True)
+class RealismConfig:
+    """Sensing and actuation imperfections; every default is "off".
+
+    Attributes:
+        obs_noise_node_position: std of the Gaussian noise on node coordinates, m.
+        obs_noise_target_position: std of the noise on the target centre, m.
+        obs_noise_speed: std of the noise on the tip and target speeds, m/s.
+        obs_noise_direction: std of the noise on each component of the tip and target velocity
+            directions (unit vectors), -.
+        obs_drop_probability: per value and step, probability that it reads 0, in [0, 1).
+        obs_stuck_probability: per value and step, probability that it gets stuck, in [0, 1).
+        obs_stuck_steps: control steps a stuck value repeats its last reading, ≥ 1.
+        obs_delay: the policy sees the observation of this many control steps ago, ≥ 0.
+        action_delay: the engine applies the action of this many control steps ago, ≥ 0.
+        actuator_time_constant: τ of the first-order lag on the control values, s (> 0);
+            ``None`` = no lag.
+        action_rate_limit: largest |change| of an applied control value per second, 1/s (> 0);
+            ``None`` = no limit.
+        torque_limit: each element torque is clipped to ±this, N·m (> 0); ``None`` = no limit.
+    """
+
+    obs_noise_node_position: float = 0.0
+    obs_noise_target_position: float = 0.0
+    obs_noise_speed: float = 0.0
+    obs_noise_direction: float = 0.0
+    obs_drop_probability: float = 0.0
+    obs_stuck_probability: float = 0.0
+    obs_stuck_steps: int = 1
+    obs_delay: int = 0
+    action_delay: int = 0
+    actuator_time_constant: float | None = None
+    action_rate_limit: float | None = None
+    torque_limit: float | None = None
+
+    @classmethod
+    def from_value(cls, value: RealismConfig | Mapping[str, Any] | None) -> RealismConfig:
+        """A config from ``None`` (defaults), a :class:`RealismConfig` or a mapping of fields.
+
+        Raises:
+            ValueError: an unknown field name (with the valid ones).
+        """
+        if value is None:
+            return cls()
+        if isinstance(value, RealismConfig):
+            return value
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise ValueError(
+                f"unknown realism setting {unknown[0]!r}; valid names: {', '.join(sorted(names))}"
+            )
+        return cls(**dict(value))
+
+    @property
+    def active(self) -> bool:
+        """True when any setting differs from its default ("off")."""
+        return self != RealismConfig()
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first invalid field and how to fix it."""
+        for name in (*OBSERVATION_GROUPS.values(), "obs_drop_probability", "obs_stuck_probability"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}={value!r} must be a finite number ≥ 0 (0 = off)")
+        for name in ("obs_drop_probability", "obs_stuck_probability"):
+            if getattr(self, name) >= 1:
+                raise ValueError(f"{name}={getattr(self, name)!r} must be a probability in [0, 1)")
+        for name, low in (("obs_stuck_steps", 1), ("obs_delay", 0), ("action_delay", 0)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ValueError(f"{name}={value!r} must be a whole number ≥ {low}")
+        for name in ("actuator_time_constant", "action_rate_limit", "torque_limit"):
+            value = getattr(self, name)
+            if value is not None and not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+            ):
+                raise ValueError(f"{name}={value!r} must be a finite number > 0 (or None = off)")
+
+
+def observation_groups(n_arms: int, n_nodes: int = 21) -> dict[str, np.ndarray]:
+    """Column indices of each observation group of :data:`OBSERVATION_GROUPS`.
+
+    ``node_position``: the sampled nodes' x, y, z of every arm; ``target_position``: the target
+    centre; ``speed``: each tip speed and the target speed; ``direction``: each tip's and the
+    target's velocity direction. Together they cover every column once.
+    """
+    groups: dict[str, list[int]] = {name: [] for name in OBSERVATION_GROUPS}
+    for column, label in enumerate(observation_labels(n_arms, n_nodes)):
+        if ".node" in label:
+            groups["node_position"].append(column)
+        elif label.startswith("target.pos."):
+            groups["target_position"].append(column)
+        elif label.endswith("speed"):
+            groups["speed"].append(column)
+        else:  # arm<k>.tip_dir.* and target.dir.*
+            groups["direction"].append(column)
+    return {name: np.asarray(columns, dtype=np.intp) for name, columns in groups.items()}
+
+
+def _spawn(rng: np.random.Generator) -> np.random.Generator:
+    """A generator of its own for the realism draws, derived from ``rng`` without drawing from
+    it (a generator without a seed sequence falls back to one draw)."""
+    try:
+        return rng.spawn(1)[0]
+    except (TypeError, ValueError):
+        return np.random.default_rng(int(rng.integers(2**63)))
+
+
+class RealismModel:
+    """The settings of a :class:`RealismConfig` applied to ``n_envs`` environments.
+
+    Args:
+        config: the validated settings.
+        n_envs: n, environments.
+        n_arms: A, arms per environment.
+        n_nodes: nodes per arm (for the observation groups).
+        control_dt: duration of one control step, s.
+
+    Arrays: observations (n, obs_dim) float32 with obs_dim = A·(3·⌈n_nodes/2⌉ + 4) + 7;
+    actions (n, 12·A) float64 control values; torques (n, A, 2, n_elem) N·m.
+    """
+
+    def __init__(self, config: RealismConfig, n_envs: int, n_arms: int, n_nodes: int,
+                 control_dt: float) -> None:
+        config.validate()
+        self.config = c = config
+        self.n_envs = n = int(n_envs)
+        groups = observation_groups(n_arms, n_nodes)
+        self.obs_dim = d = sum(len(columns) for columns in groups.values())
+        self.action_dim = a = 12 * n_arms
+        self.control_dt = float(control_dt)
+        self.rngs: list[np.random.Generator | None] = [None] * n
+        sigma = np.zeros(d)
+        for group, field_name in OBSERVATION_GROUPS.items():
+            sigma[groups[group]] = float(getattr(c, field_name))
+        self.obs_sigma = sigma if sigma.any() else None  # (obs_dim,) std per column
+        self._obs_queue = np.zeros((n, c.obs_delay, d), dtype=np.float32)
+        self._stuck_left = np.zeros((n, d), dtype=np.int64)  # steps a value stays stuck
+        self._last_reading = np.zeros((n, d), dtype=np.float32)  # before dropping
+        self._action_queue = np.zeros((n, c.action_delay, a))
+        tau = c.actuator_time_constant
+        self.lag_alpha = None if tau is None else -math.expm1(-self.control_dt / tau)
+        self._lagged = np.zeros((n, a))
+        self.max_change = (None if c.action_rate_limit is None
+                           else c.action_rate_limit * self.control_dt)
+        self._applied = np.zeros((n, a))
+
+    # ---- reset ------------------------------------------------------------------------------
+    def reset(self, env_indices: Sequence[int] | np.ndarray,
+              rngs: Sequence[np.random.Generator], observations: np.ndarray) -> np.ndarray:
+        """Restart the listed environments' sensors and actuators.
+
+        Args:
+            env_indices: (k,) environment indices.
+            rngs: k generators of those environments (each spawns the realism generator).
+            observations: (k, obs_dim) their true initial observations.
+
+        Returns:
+            (k, obs_dim) float32: the initial observations as the policy sees them (noise and
+            drops applied; nothing is stuck yet).
+        """
+        idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        for i, rng in zip(idx.tolist(), rngs, strict=True):
+            self.rngs[i] = _spawn(rng)
+        obs = np.array(observations, dtype=np.float32)
+        self._obs_queue[idx] = obs[:, None, :]
+        self._stuck_left[idx] = 0
+        self._action_queue[idx] = 0.0
+        self._lagged[idx] = 0.0
+        self._applied[idx] = 0.0
+        reading = self._noisy(obs, idx)
+        self._last_reading[idx] = reading
+        return self._dropped(reading, idx)
+
+    # ---- observations -----------------------------------------------------------------------
+    def filter_obs(self, observations: np.ndarray) -> np.ndarray:
+        """(n, obs_dim) true observations after a step → (n, obs_dim) float32 as the policy
+        sees them (delay, noise, stuck values, drops; the module docstring)."""
+        idx = np.arange(self.n_envs)
+        obs = np.asarray(observations, dtype=np.float32)
+        if self.config.obs_delay:
+            queue = self._obs_queue
+            delayed = queue[:, 0].copy()
+            queue[:, :-1] = queue[:, 1:]
+            queue[:, -1] = obs
+            obs = delayed
+        reading = self._noisy(obs, idx)
+        p_stuck = self.config.obs_stuck_probability
+        if p_stuck > 0:
+            draws = np.stack([self._rng(i).random(self.obs_dim) for i in idx.tolist()])
+            left = self._stuck_left
+            left[(left == 0) & (draws < p_stuck)] = self.config.obs_stuck_steps
+            stuck = left > 0
+            reading = np.where(stuck, self._last_reading, reading)
+            left[stuck] -= 1
+        self._last_reading[...] = reading
+        return self._dropped(reading, idx)
+
+    def _rng(self, i: int) -> np.random.Generator:
+        rng = self.rngs[i]
+        if rng is None:
+            raise RuntimeError(f"environment {i} was stepped before its first reset")
+        return rng
+
+    def _noisy(self, obs: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        if self.obs_sigma is None:
+            return obs.astype(np.float32, copy=True)
+        noise = np.stack([self._rng(i).standard_normal(self.obs_dim) for i in idx.tolist()])
+        return (obs + self.obs_sigma * noise).astype(np.float32)
+
+    def _dropped(self, reading: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        p_drop = self.config.obs_drop_probability
+        if p_drop <= 0:
+            return reading.copy()
+        draws = np.stack([self._rng(i).random(self.obs_dim) for i in idx.tolist()])
+        return np.where(draws < p_drop, np.float32(0.0), reading).astype(np.float32)
+
+    # ---- actions and torques ----------------------------------------------------------------
+    def filter_actions(self, actions: np.ndarray) -> np.ndarray:
+        """(n, 12·A) clipped control values → (n, 12·A) float64 values the actuators apply
+        (delay, first-order lag, rate limit; the module docstring)."""
+        u = np.array(actions, dtype=np.float64)
+        if self.config.action_delay:
+            queue = self._action_queue
+            delayed = queue[:, 0].copy()
+            queue[:, :-1] = queue[:, 1:]
+            queue[:, -1] = u
+            u = delayed
+        if self.lag_alpha is not None:
+            self._lagged += self.lag_alpha * (u - self._lagged)
+            u = self._lagged.copy()
+        if self.max_change is not None:
+            step = np.clip(u - self._applied, -self.max_change, self.max_change)
+            u = self._applied + step
+        self._applied[...] = u
+        return u
+
+    def saturate_torques(self, torques: np.ndarray) -> None:
+        """Clip (n, A, 2, n_elem) element torques, N·m, to ±torque_limit in place (no-op
+        without a limit)."""
+        limit = self.config.torque_limit
+        if limit is not None:
+            np.clip(torques, -limit, limit, out=torques)
