@@ -220,6 +220,33 @@ ERROR_CASES = {
         [],
         ["env.realism.actuator_time_constant", "out of range", "use a value > 0"],
     ),
+    "model-error-range-order": (
+        "env:\n  realism:\n    radius_scale: [1.1, 0.9]\n",
+        [],
+        [":3:", "env.realism.radius_scale", "low > high", "write it as [0.9, 1.1]"],
+    ),
+    "model-error-factor": (
+        "env: {realism: {density_scale: 0}}\n",
+        [],
+        ["env.realism.density_scale", "finite number > 0", "write a factor such as 1.2"],
+    ),
+    "model-error-range-length": (
+        "env: {realism: {damping_scale: [0.5, 1, 2]}}\n",
+        [],
+        ["env.realism.damping_scale", "a range has 2 values", "[low, high]"],
+    ),
+    "model-error-unstable": (
+        "env:\n  realism:\n    youngs_modulus_scale: [0.8, 2.0]\n",
+        [],
+        [":3:", "env.realism.youngs_modulus_scale", "up to 2 needs dt ≤",
+         "lower env.physics.dt to", "or narrow the range"],
+    ),
+    "model-error-unstable-override": (
+        "{}\n",
+        ["env.realism.radius_scale=[0.8, 1.2]"],
+        ["--set env.realism.radius_scale", "env.realism.radius_scale", "down to 0.8 needs dt",
+         "or narrow the range"],
+    ),
     "bool-as-number": ("training: {n_envs: yes}\n", [], ["training.n_envs", "expected a number"]),
     "per-arm-critic-sb3": (
         "algo: {critic: per_arm}\n",
@@ -506,6 +533,9 @@ def test_spec_hash() -> None:
     assert spec_hash(parse_spec({"env": {"target": {"speed_min": 0.1}}})) != spec_hash(base)
     assert spec_hash(parse_spec({"env": {"realism": {"obs_delay": 0}}})) == spec_hash(base)
     assert spec_hash(parse_spec({"env": {"realism": {"obs_delay": 1}}})) != spec_hash(base)
+    assert spec_hash(parse_spec({"env": {"realism": {"radius_scale": 1}}})) == spec_hash(base)
+    ranged = parse_spec({"env": {"realism": {"torque_scale_factor": [0.8, 1.2]}}})
+    assert spec_hash(ranged) != spec_hash(base)
     per_arm = parse_spec({"algo": {"backend": "sbx", "critic": "per_arm"}})
     assert spec_hash(per_arm) != spec_hash(parse_spec({"algo": {"backend": "sbx"}}))
     nets = {"backend": "sbx", "critic": "per_arm", "per_arm_networks": True}

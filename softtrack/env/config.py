@@ -50,6 +50,10 @@ class TrackingConfig:
                 part.validate()
             except ValueError as err:
                 raise InvalidParameterError(str(err)) from None
+        try:
+            self.realism.check_stability(self.sim)
+        except ValueError as err:
+            raise InvalidParameterError(str(err)) from None
         if self.reward.n_arms != self.sim.n_arms:
             raise InvalidParameterError(
                 f"arm_weights has {self.reward.n_arms} entries but the scene has "

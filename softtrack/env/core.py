@@ -21,6 +21,7 @@ from softtrack.env.reward import collision_penalty, tracking_reward
 from softtrack.env.targets import BatchedTargets
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
+from softtrack.sim.params import MODEL_PARAMETERS
 
 __all__ = ["NonFiniteActionError", "StepResult", "TrackingCore"]
 
@@ -77,6 +78,12 @@ class TrackingCore:
                          self._control_dt)
             if config.realism.active else None
         )
+        # Model error (env.realism): fixed factors are set once here, ranges at every reset.
+        self.model_error = config.realism.model_error_active
+        self._randomised = config.realism.randomised
+        if self.model_error and not self._randomised:
+            fixed = {name: low for name, (low, _) in config.realism.model_error_ranges.items()}
+            self.engine.set_parameters(None, fixed, validate=False)  # checked by validate()
 
     # ---- state ----------------------------------------------------------------------------
     @property
@@ -122,6 +129,9 @@ class TrackingCore:
         obs = self.observe(idx)
         if self.realism is not None:
             obs = self.realism.reset(idx, list(rngs), obs)
+            if self._randomised:  # this episode's model error (the initial state is the same)
+                factors = self.realism.sample_model_error(idx)
+                self.engine.set_parameters(idx, factors, validate=False)  # range checked
         return obs
 
     def step(self, actions: np.ndarray) -> StepResult:
@@ -172,10 +182,18 @@ class TrackingCore:
 
     def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
         """The info dict (docs/environment.md) of environment ``i`` after a step (copies, SI units)."""
-        return {
+        info: dict[str, Any] = {
             "tip_positions": self.engine.tip_position[i].copy(),
             "target_position": self.targets.position[i].copy(),
             "distances": distances[i].copy(),
             "element_torques": self.engine.torques[i].copy(),
             "time": float(self.step_count[i] * self._control_dt),
         }
+        if self.model_error:
+            info["parameters"] = self.parameters(i)
+        return info
+
+    def parameters(self, i: int) -> dict[str, float]:
+        """The model-error factors of environment ``i``'s current episode (name → factor, all
+        five of ``softtrack.sim.params.MODEL_PARAMETERS``; 1 = nominal)."""
+        return dict(zip(MODEL_PARAMETERS, self.engine.factors[i].tolist(), strict=True))

@@ -1,5 +1,6 @@
-"""Imperfect sensing and actuation of the tracking environment (docs/environment.md, "Realism:
-sensing and actuation"), in the spirit of google-research/realworldrl_suite.
+"""Imperfect sensing and actuation, and model error, of the tracking environment
+(docs/environment.md, "Realism: sensing and actuation" and "Model error"), in the spirit of
+google-research/realworldrl_suite.
 
 :class:`RealismConfig` holds the settings (all off by default); :class:`RealismModel` applies
 them to a batch of ``n`` environments between the policy and the simulation. ``TrackingCore``
@@ -29,6 +30,13 @@ environment's own generator (``Generator.spawn``, which draws nothing from it), 
 random stream is that of a plain environment and an episode is reproducible from its seed.
 Per step and environment the draws are, in this order and only where switched on:
 ``obs_dim`` standard normals (noise), ``obs_dim`` uniforms (stuck), ``obs_dim`` uniforms (drop).
+
+Model error: ``youngs_modulus_scale``, ``density_scale``, ``radius_scale``, ``damping_scale`` and
+``torque_scale_factor`` multiply the physics section's values, each either a fixed factor or a
+``(low, high)`` range drawn uniformly per episode and environment (domain randomisation). The
+draws come from a generator spawned, at every reset, from that reset's realism generator (so
+the sensing noise is the same with and without randomisation): one ``uniform(low, high)`` per
+ranged factor, in the order of :data:`~softtrack.sim.params.MODEL_PARAMETERS`.
 """
 
 from __future__ import annotations
@@ -42,8 +50,18 @@ from typing import Any
 import numpy as np
 
 from softtrack.env.observation import observation_labels
+from softtrack.sim.params import MODEL_PARAMETERS, SimParams, model_error_stability
 
-__all__ = ["OBSERVATION_GROUPS", "RealismConfig", "RealismModel", "observation_groups"]
+__all__ = [
+    "MODEL_PARAMETERS",
+    "OBSERVATION_GROUPS",
+    "Factor",
+    "RealismConfig",
+    "RealismModel",
+    "observation_groups",
+]
+
+Factor = float | tuple[float, float]  # a fixed factor, or a (low, high) range drawn per episode
 
 # Observation group → the noise field of RealismConfig that sets its standard deviation.
 OBSERVATION_GROUPS = {
@@ -74,6 +92,10 @@ class RealismConfig:
         action_rate_limit: largest |change| of an applied control value per second, 1/s (> 0);
             ``None`` = no limit.
         torque_limit: each element torque is clipped to ±this, N·m (> 0); ``None`` = no limit.
+        youngs_modulus_scale, density_scale, radius_scale, damping_scale,
+            torque_scale_factor: model error, factors (> 0) on the physics' Young's modulus,
+            density, radius, damping and torque scale; a float is a fixed factor, a
+            ``(low, high)`` pair a range drawn uniformly per episode; 1 = off.
     """
 
     obs_noise_node_position: float = 0.0
@@ -88,6 +110,11 @@ class RealismConfig:
     actuator_time_constant: float | None = None
     action_rate_limit: float | None = None
     torque_limit: float | None = None
+    youngs_modulus_scale: Factor = 1.0
+    density_scale: Factor = 1.0
+    radius_scale: Factor = 1.0
+    damping_scale: Factor = 1.0
+    torque_scale_factor: Factor = 1.0
 
     @classmethod
     def from_value(cls, value: RealismConfig | Mapping[str, Any] | None) -> RealismConfig:
@@ -106,12 +133,47 @@ class RealismConfig:
             raise ValueError(
                 f"unknown realism setting {unknown[0]!r}; valid names: {', '.join(sorted(names))}"
             )
-        return cls(**dict(value))
+        values = dict(value)
+        for name in MODEL_PARAMETERS:  # YAML/JSON lists → tuples (the config stays hashable)
+            if isinstance(values.get(name), list):
+                values[name] = tuple(values[name])
+        return cls(**values)
 
     @property
     def active(self) -> bool:
         """True when any setting differs from its default ("off")."""
         return self != RealismConfig()
+
+    @property
+    def model_error_ranges(self) -> dict[str, tuple[float, float]]:
+        """Each model-error factor that is not 1 → its (low, high) range ((f, f) when fixed)."""
+        out = {}
+        for name in MODEL_PARAMETERS:
+            value = getattr(self, name)
+            pair = ((float(value[0]), float(value[1])) if isinstance(value, (tuple, list))
+                    else (float(value), float(value)))
+            if pair != (1.0, 1.0):
+                out[name] = pair
+        return out
+
+    @property
+    def model_error_active(self) -> bool:
+        """True when a model-error factor is not 1."""
+        return bool(self.model_error_ranges)
+
+    @property
+    def randomised(self) -> bool:
+        """True when a model-error factor is a range (drawn at every reset)."""
+        return any(low != high for low, high in self.model_error_ranges.values())
+
+    def check_stability(self, sim: SimParams) -> None:
+        """Raise ``ValueError`` when ``sim.dt`` is unstable for the worst case of the model
+        error (the stiffest, lightest rod of the ranges), naming the factor and the fix."""
+        ranges = self.model_error_ranges
+        result = model_error_stability(sim, ranges) if ranges else None
+        if result is not None:
+            name, problem, fix = result
+            raise ValueError(f"{name}: {problem}; {fix}")
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first invalid field and how to fix it."""
@@ -132,6 +194,18 @@ class RealismConfig:
                 isinstance(value, (int, float)) and math.isfinite(value) and value > 0
             ):
                 raise ValueError(f"{name}={value!r} must be a finite number > 0 (or None = off)")
+        for name in MODEL_PARAMETERS:
+            value = getattr(self, name)
+            pair = value if isinstance(value, (tuple, list)) else (value,)
+            if isinstance(value, (tuple, list)) and len(value) != 2:
+                raise ValueError(f"{name}={value!r} must be a factor or a (low, high) range")
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                       and math.isfinite(v) and v > 0 for v in pair):
+                raise ValueError(f"{name}={value!r} must be a finite factor > 0 (1 = off) or a "
+                                 "(low, high) range of them")
+            if len(pair) == 2 and pair[0] > pair[1]:
+                raise ValueError(f"{name}={value!r}: low must not exceed high; write "
+                                 f"({pair[1]!r}, {pair[0]!r})")
 
 
 def observation_groups(n_arms: int, n_nodes: int = 21) -> dict[str, np.ndarray]:
@@ -201,6 +275,7 @@ class RealismModel:
         self.max_change = (None if c.action_rate_limit is None
                            else c.action_rate_limit * self.control_dt)
         self._applied = np.zeros((n, a))
+        self.model_error_ranges = c.model_error_ranges
 
     # ---- reset ------------------------------------------------------------------------------
     def reset(self, env_indices: Sequence[int] | np.ndarray,
@@ -228,6 +303,25 @@ class RealismModel:
         reading = self._noisy(obs, idx)
         self._last_reading[idx] = reading
         return self._dropped(reading, idx)
+
+    def sample_model_error(self, env_indices: Sequence[int] | np.ndarray) -> dict[str, np.ndarray]:
+        """This episode's model-error factors of the listed environments (call after
+        :meth:`reset`): name → (k,) factors, for every factor that is not 1; a range is drawn
+        uniformly from a generator spawned from the environment's realism generator (the module
+        docstring), a fixed factor is repeated."""
+        idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        ranges = self.model_error_ranges
+        out = {name: np.empty(idx.size) for name in ranges}
+        for row, i in enumerate(idx.tolist()):
+            rng = None
+            for name, (low, high) in ranges.items():  # MODEL_PARAMETERS order
+                if low == high:
+                    out[name][row] = low
+                    continue
+                if rng is None:
+                    rng = _spawn(self._rng(i))
+                out[name][row] = rng.uniform(low, high)
+        return out
 
     # ---- observations -----------------------------------------------------------------------
     def filter_obs(self, observations: np.ndarray) -> np.ndarray:

@@ -101,7 +101,8 @@ class DualArmTrackingEnv(_TrackingEnv):
 
     ## Info
     ``tip_positions`` (2, 3) m, ``target_position`` (3,) m, ``distances`` (2,) m,
-    ``element_torques`` (2 arms, 2 directions, 20 elements) N·m as applied, ``time`` s.
+    ``element_torques`` (2 arms, 2 directions, 20 elements) N·m as applied, ``time`` s; with
+    model error (``realism``), ``parameters``: the episode's factors.
 
     ## Arguments
     Any field of ``SimParams`` (``n_elem``, ``dt``, ``damping``, ``gravity``,
@@ -109,8 +110,9 @@ class DualArmTrackingEnv(_TrackingEnv):
     ``period``, ``circle_radius``, …) or of ``RewardConfig`` (``bonus_thresholds``,
     ``collision_penalty``, …), plus ``target`` (``random``, ``circle``, ``rectangle``,
     ``figure8``, ``fixed``), ``episode_duration`` (s) and ``realism`` (observation noise,
-    delays, actuator lag, rate and torque limits; a mapping of ``RealismConfig`` fields, all
-    off by default; docs/environment.md)::
+    delays, actuator lag, rate and torque limits, model error: fixed or per-episode random
+    factors on E, density, radius, damping and torque scale; a mapping of ``RealismConfig``
+    fields, all off by default; docs/environment.md)::
 
         gymnasium.make("softtrack/DualArmTracking-v0", target="circle", gravity=True)
 

@@ -37,7 +37,9 @@ class TrackingVecEnv(VecEnv):
         n_envs: number of environments.
         config: a :class:`TrackingConfig`; if omitted, built from ``env_kwargs``.
         full_info: include the documented per-step info keys (tip positions, target, distances,
-            torques, time) in every info dict; off saves time during training.
+            torques, time) in every info dict; off saves time during training. With model
+            error (``env.realism``), ``parameters`` (the episode's factors) is in the reset
+            infos and in the info of every finished episode either way.
         reward_shares: add ``info["reward_shares"]``, the (A,) float32 per-arm split of the
             reward (:func:`softtrack.env.reward.reward_shares`), for per-arm critics.
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
@@ -71,6 +73,9 @@ class TrackingVecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
+        if self.core.model_error:  # each episode's model-error factors, also without full_info
+            for i, info in enumerate(self.reset_infos):
+                info["parameters"] = self.core.parameters(i)
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -94,6 +99,8 @@ class TrackingVecEnv(VecEnv):
             for i in finished.tolist():
                 infos[i]["terminal_observation"] = obs[i].copy()
                 infos[i]["TimeLimit.truncated"] = bool(result.truncated[i])
+                if self.core.model_error:  # the factors of the episode that just ended
+                    infos[i]["parameters"] = self.core.parameters(i)
             rngs = [self._rng_for(i, None) for i in finished.tolist()]
             obs[finished] = self.core.reset(finished, rngs)
         return obs, result.reward.astype(np.float32), dones, infos

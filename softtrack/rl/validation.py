@@ -41,7 +41,7 @@ import json
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -167,7 +167,7 @@ def trajectory_rows(
     act: Policy,
     config: TrackingConfig,
     duration: float,
-    trajectories: list[str],
+    trajectories: Sequence[str],
     arm: int | None,
     stop_requested: Callable[[], bool] = lambda: False,
 ) -> pd.DataFrame | None:

@@ -2,13 +2,24 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from softtrack.sim.actuation import spline_matrix
 from softtrack.sim.kernels import advance as _advance_kernel
-from softtrack.sim.params import RodConstants, SimParams
+from softtrack.sim.params import (
+    MODEL_PARAMETERS,
+    InvalidParameterError,
+    RodConstants,
+    SimParams,
+    scaled_params,
+)
 
 __all__ = ["RodBatch"]
+
+_TORQUE_COLUMN = list(MODEL_PARAMETERS).index("torque_scale_factor")
 
 
 class RodBatch:
@@ -24,6 +35,11 @@ class RodBatch:
 
     Every environment starts straight and at rest. :meth:`advance` integrates all of them in
     one compiled call.
+
+    Model error: each environment has its own material constants (masses, inertias,
+    stiffnesses), damping and torque factor, the nominal ones of ``params`` until
+    :meth:`set_parameters` scales them; ``factors`` (E, 5) holds the factors of
+    :data:`~softtrack.sim.params.MODEL_PARAMETERS`, in that order.
     """
 
     def __init__(self, n_envs: int, params: SimParams | None = None) -> None:
@@ -42,6 +58,18 @@ class RodBatch:
         self.time = np.zeros(n_envs)
         self._finite = np.ones(n_envs, dtype=np.bool_)
         self._spline_scaled = p.torque_scale * spline_matrix(p.n_elem)  # (N, 6)
+        # per-environment constants (model error), the nominal ones to start with
+        c = self.constants
+        self.factors = np.ones((n_envs, len(MODEL_PARAMETERS)))
+        self._mass = np.tile(c.mass, (n_envs, 1))  # (E, N+1) kg
+        self._inv_mass = np.tile(c.inv_mass, (n_envs, 1))
+        self._inertia = np.tile(c.inertia, (n_envs, 1, 1))  # (E, 3, N) kg·m²
+        self._inv_inertia = np.tile(c.inv_inertia, (n_envs, 1, 1))
+        self._shear = np.tile(c.shear_stiffness, (n_envs, 1, 1))  # (E, 3, N) N
+        self._bend = np.tile(c.bend_stiffness, (n_envs, 1, 1))  # (E, 3, N−1) N·m²
+        self._damping = np.full(n_envs, float(p.damping))  # (E,) N·s/m²
+        self._torque_factor = np.ones(n_envs)  # (E,)
+        self._scaled_torques = False  # any torque factor ≠ 1
         self.reset()
 
     @property
@@ -70,6 +98,81 @@ class RodBatch:
         self.time[idx] = 0.0
         self._finite[idx] = True
 
+    def set_parameters(
+        self,
+        env_indices: Sequence[int] | np.ndarray | None,
+        factors: Mapping[str, ArrayLike],
+        *,
+        validate: bool = True,
+    ) -> None:
+        """Scale the listed environments' physical parameters (model error).
+
+        The factors multiply the nominal ``params`` (not the current values), and stay until
+        the next call (a :meth:`reset` keeps them). The constants are those of
+        :class:`~softtrack.sim.params.RodConstants` built from the scaled ``SimParams``, so
+        the radius changes area, second moments, masses, inertias and stiffnesses together, as
+        for a rod built with that radius; a factor of exactly 1 gives the nominal constants
+        bit for bit. ``torque_scale_factor`` multiplies the torques of :meth:`set_actions`
+        (not those given to :meth:`set_element_torques`).
+
+        Args:
+            env_indices: (k,) environments (``None``: all).
+            factors: some of ``youngs_modulus_scale``, ``density_scale``, ``radius_scale``,
+                ``damping_scale``, ``torque_scale_factor`` → a factor (> 0) for all k or a
+                (k,) array of them; a missing name means 1 (nominal).
+            validate: check each environment's scaled parameters with
+                ``SimParams.validate()`` (which includes the stability limit of ``dt``,
+                ~10 ms each); callers that checked the worst case of a range may skip it.
+
+        Raises:
+            InvalidParameterError: an unknown name, a factor that is not a finite number > 0,
+                or (``validate``) scaled parameters that are invalid or unstable at ``dt``.
+        """
+        idx = (np.arange(self.n_envs) if env_indices is None
+               else np.atleast_1d(np.asarray(env_indices, dtype=np.intp)))
+        unknown = sorted(set(factors) - set(MODEL_PARAMETERS))
+        if unknown:
+            raise InvalidParameterError(
+                f"unknown model-error factor {unknown[0]!r}; valid names: "
+                + ", ".join(MODEL_PARAMETERS)
+            )
+        table = np.ones((idx.size, len(MODEL_PARAMETERS)))
+        for column, name in enumerate(MODEL_PARAMETERS):
+            if name in factors:
+                table[:, column] = np.broadcast_to(
+                    np.asarray(factors[name], dtype=np.float64), (idx.size,)
+                )
+        if not (np.all(np.isfinite(table)) and np.all(table > 0)):
+            raise InvalidParameterError(
+                f"model-error factors must be finite numbers > 0, got {table.tolist()}"
+            )
+        built = []  # everything is checked before anything changes
+        for row, env in zip(table, idx.tolist(), strict=True):
+            if np.all(row == 1.0):
+                built.append((env, row, self.params, self.constants))
+                continue
+            named = dict(zip(MODEL_PARAMETERS, row.tolist(), strict=True))
+            params = scaled_params(self.params, named)
+            if validate:
+                try:
+                    params.validate()
+                except InvalidParameterError as err:
+                    raise InvalidParameterError(
+                        f"environment {env} with factors {named}: {err}"
+                    ) from None
+            built.append((env, row, params, RodConstants.build(params)))
+        for env, row, params, c in built:
+            self._mass[env] = c.mass
+            self._inv_mass[env] = c.inv_mass
+            self._inertia[env] = c.inertia
+            self._inv_inertia[env] = c.inv_inertia
+            self._shear[env] = c.shear_stiffness
+            self._bend[env] = c.bend_stiffness
+            self._damping[env] = float(params.damping)
+            self._torque_factor[env] = row[_TORQUE_COLUMN]
+            self.factors[env] = row
+        self._scaled_torques = bool(np.any(self._torque_factor != 1.0))
+
     def set_actions(self, actions: np.ndarray) -> None:
         """Set the element torques from control values.
 
@@ -80,6 +183,8 @@ class RodBatch:
         e, a = self.torques.shape[:2]
         np.matmul(np.reshape(actions, (e * a * 2, -1)), self._spline_scaled.T,
                   out=self.torques.reshape(e * a * 2, -1))
+        if self._scaled_torques:
+            self.torques *= self._torque_factor[:, None, None, None]
 
     def set_element_torques(self, element_torques: np.ndarray) -> None:
         """Set the element torques directly: (E, A, 2, N) N·m."""
@@ -96,9 +201,10 @@ class RodBatch:
         c = self.constants
         _advance_kernel(
             self.position, self.velocity, self.directors, self.omega, self.torques, steps,
-            float(p.dt), float(p.damping), float(p.gravity), c.rest_lengths, c.rest_voronoi_lengths, c.inv_mass,
-            c.mass, c.inertia, c.inv_inertia, c.shear_stiffness, c.bend_stiffness,
-            c.base_position, c.base_directors, self._finite,
+            float(p.dt), self._damping, float(p.gravity), c.rest_lengths,
+            c.rest_voronoi_lengths, self._inv_mass, self._mass, self._inertia,
+            self._inv_inertia, self._shear, self._bend, c.base_position, c.base_directors,
+            self._finite,
         )
         self.time += steps * p.dt
 

@@ -239,20 +239,10 @@ def _build_advance(n_pad):
         for k in range(n_elem):
             rest_len[k] = rest_lengths[k]
             inv_rest_len[k] = 1.0 / rest_lengths[k]
-            damp_coef[k] = -0.25 * damping
-            for i in range(3):
-                inert[i, k] = inertia[i, k]
-                inv_inert[i, k] = inv_inertia[i, k]
-                shear_k[i, k] = shear[i, k]
         for j in range(n_elem - 1):
             rest_vor[j] = rest_voronoi[j]
             inv_rest_vor[j] = 1.0 / rest_voronoi[j]
             vor_mask[j] = 1.0
-            for i in range(3):
-                bend_k[i, j] = bend[i, j]
-        for k in range(n_node):
-            inv_m[k] = inv_mass[k]
-            weight_m[k] = mass[k]
         pos = np.zeros((3, width))
         vel = np.zeros((3, width))
         dirs = np.zeros((3, 3, width))
@@ -263,6 +253,20 @@ def _build_advance(n_pad):
         half_dt = 0.5 * dt
         for env in range(n_env):
             finite[env] = True
+            # this environment's material, damping (model error; the same for all by default)
+            env_damping = damping[env]
+            for k in range(n_elem):
+                damp_coef[k] = -0.25 * env_damping
+                for i in range(3):
+                    inert[i, k] = inertia[env, i, k]
+                    inv_inert[i, k] = inv_inertia[env, i, k]
+                    shear_k[i, k] = shear[env, i, k]
+            for j in range(n_elem - 1):
+                for i in range(3):
+                    bend_k[i, j] = bend[env, i, j]
+            for k in range(n_node):
+                inv_m[k] = inv_mass[env, k]
+                weight_m[k] = mass[env, k]
             for arm in range(n_arm):
                 for i in range(3):
                     for k in range(n_node):
@@ -395,7 +399,7 @@ def _build_advance(n_pad):
                         n1 = n_local[1, k]
                         n2 = n_local[2, k]
                         dl = rest_len[k]
-                        damp = damping * lengths[k]
+                        damp = env_damping * lengths[k]
                         t0 = (ti0 + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
                               + jw0 * unsteady + tq[0, k] - damp * w0)
                         t1 = (ti1 + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
@@ -445,9 +449,10 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
         omega: (E, A, 3, N) rad/s, local frame.
         torques: (E, A, 2, N) N·m, external couples on d₁ and d₂ held over the steps.
         n_steps: number of integration steps.
-        dt: time step, s. damping: ν_d, N·s/m². gravity: m/s² along −y.
-        rest_lengths (N,), rest_voronoi (N−1,) m; inv_mass, mass (N+1,); inertia,
-        inv_inertia (3, N) kg·m²; shear (3, N) N; bend (3, N−1) N·m²;
+        dt: time step, s. damping: (E,) ν_d per environment, N·s/m². gravity: m/s² along −y.
+        rest_lengths (N,), rest_voronoi (N−1,) m (shared); per environment (model error):
+        inv_mass, mass (E, N+1) 1/kg and kg; inertia, inv_inertia (E, 3, N) kg·m²;
+        shear (E, 3, N) N; bend (E, 3, N−1) N·m²;
         base_position (A, 3) m; base_directors (A, 3, 3).
         finite: (E,) bool output: False where any state value of the environment is NaN/inf.
     """

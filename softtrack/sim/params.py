@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,9 +17,33 @@ import numpy as np
 
 from softtrack.sim.stability import stable_time_step_limit
 
-__all__ = ["STANDARD_GRAVITY", "InvalidParameterError", "RodConstants", "SimParams"]
+__all__ = [
+    "MODEL_PARAMETERS",
+    "STANDARD_GRAVITY",
+    "InvalidParameterError",
+    "RodConstants",
+    "SimParams",
+    "model_error_stability",
+    "scaled_params",
+]
 
 STANDARD_GRAVITY = 9.81  # m/s², along −y when gravity is switched on
+
+
+# Model error (env.realism): each factor's name → the SimParams field it multiplies. The order
+# is that of the engine's per-environment factor arrays and of the random draws.
+MODEL_PARAMETERS: dict[str, str] = {
+    "youngs_modulus_scale": "youngs_modulus",
+    "density_scale": "density",
+    "radius_scale": "radius",
+    "damping_scale": "damping",
+    "torque_scale_factor": "torque_scale",
+}
+# The end of each factor's range that gives the smallest stable time step: the stiffest,
+# lightest, thinnest and most damped rod (docs/environment.md, "Model error"); the torque scale
+# does not enter the limit.
+_WORST_END = {"youngs_modulus_scale": 1, "density_scale": 0, "radius_scale": 0,
+              "damping_scale": 1, "torque_scale_factor": 0}
 
 
 class InvalidParameterError(ValueError):
@@ -248,3 +273,81 @@ class RodConstants:
             base_directors=np.repeat(directors[None], len(bases), axis=0),
             rest_position=rest_position,
         )
+
+
+def scaled_params(params: SimParams, factors: Mapping[str, float]) -> SimParams:
+    """``params`` with the model-error factors applied (not validated).
+
+    Args:
+        params: the nominal settings.
+        factors: some of :data:`MODEL_PARAMETERS`' names → factor (> 0); a missing name or a
+            factor of exactly 1 leaves its field as it is (so all-ones give ``params`` itself,
+            bit for bit).
+
+    Raises:
+        InvalidParameterError: an unknown name.
+    """
+    unknown = sorted(set(factors) - set(MODEL_PARAMETERS))
+    if unknown:
+        raise InvalidParameterError(
+            f"unknown model-error factor {unknown[0]!r}; valid names: "
+            + ", ".join(MODEL_PARAMETERS)
+        )
+    changes = {
+        MODEL_PARAMETERS[name]: getattr(params, MODEL_PARAMETERS[name]) * float(factor)
+        for name, factor in factors.items()
+        if float(factor) != 1.0
+    }
+    return dataclasses.replace(params, **changes) if changes else params
+
+
+def _floor_3g(value: float) -> float:
+    """``value`` rounded *down* to 3 significant digits (a dt that is still stable)."""
+    if value <= 0 or not math.isfinite(value):
+        return value
+    scale = 10.0 ** (math.floor(math.log10(value)) - 2)
+    return math.floor(value / scale) * scale
+
+
+def model_error_stability(
+    params: SimParams, ranges: Mapping[str, tuple[float, float]]
+) -> tuple[str, str, str] | None:
+    """Check the time step against the worst case of the model-error ranges.
+
+    The explicit stability limit (:attr:`SimParams.dt_limit`) falls with the Young's modulus
+    and the damping and rises with the density and the radius, so the worst case of the ranges
+    is the stiffest, lightest, thinnest, most damped rod: each factor at the end of its range
+    that lowers the limit.
+
+    Args:
+        params: the nominal settings (their ``dt`` is checked).
+        ranges: factor name → (low, high); a fixed factor is (f, f).
+
+    Returns:
+        ``None`` when ``params.dt`` is stable at the worst case, else (field, problem, fix):
+        the factor whose worst end alone lowers the limit most, what is wrong, and how to fix it.
+    """
+    worst = {name: float(ranges[name][_WORST_END[name]]) for name in ranges
+             if name != "torque_scale_factor"}
+    worst = {name: value for name, value in worst.items() if value != 1.0}
+    if not worst:
+        return None
+    limit = scaled_params(params, worst).dt_limit
+    if params.dt <= limit:
+        return None
+    # blame the factor that alone lowers the limit most
+    field_name = min(worst, key=lambda name: scaled_params(params, {name: worst[name]}).dt_limit)
+    low, high = ranges[field_name]
+    value = worst[field_name]
+    if low == high:
+        where = f"= {value:g}"
+    else:
+        where = f"{'up to' if _WORST_END[field_name] else 'down to'} {value:g}"
+    others = [f"{name} {value:g}" for name, value in worst.items() if name != field_name]
+    problem = (
+        f"{where} needs dt ≤ {limit:.4g} s (the explicit stability limit of the stiffest, "
+        f"lightest rod{' with ' + ', '.join(others) if others else ''}), but dt = "
+        f"{params.dt:g} s"
+    )
+    fix = f"lower dt to {_floor_3g(limit):.3g} s or narrow the range"
+    return field_name, problem, fix

@@ -220,6 +220,11 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "realism", "actuator_time_constant"): None,
     ("env", "realism", "action_rate_limit"): None,
     ("env", "realism", "torque_limit"): None,
+    ("env", "realism", "youngs_modulus_scale"): 1.0,
+    ("env", "realism", "density_scale"): 1.0,
+    ("env", "realism", "radius_scale"): 1.0,
+    ("env", "realism", "damping_scale"): 1.0,
+    ("env", "realism", "torque_scale_factor"): 1.0,
     ("env", "realism"): {},
 }
 

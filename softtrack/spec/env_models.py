@@ -8,8 +8,15 @@ from typing import Any, Literal
 
 from pydantic import field_validator, model_validator
 
-from softtrack.sim.params import STANDARD_GRAVITY, InvalidParameterError, SimParams
+from softtrack.sim.params import (
+    MODEL_PARAMETERS,
+    STANDARD_GRAVITY,
+    InvalidParameterError,
+    SimParams,
+    model_error_stability,
+)
 from softtrack.spec.fields import (
+    Factor,
     Float,
     Int,
     Pair,
@@ -298,10 +305,51 @@ class RealismSpec(SpecModel):
         None, "each element torque is clipped to +-this after the spline; null = off", "N·m",
         gt=0,
     )
+    # model error: a fixed factor, or a [low, high] range drawn uniformly per episode and env
+    youngs_modulus_scale: Factor = unit_field(
+        1.0,
+        "model error: factor on env.physics.youngs_modulus (stiffness), or a [low, high] range "
+        "drawn uniformly per episode and environment; 1 = off",
+        "-",
+    )
+    density_scale: Factor = unit_field(
+        1.0,
+        "model error: factor on env.physics.density (masses, inertias), or a [low, high] range "
+        "drawn per episode; 1 = off",
+        "-",
+    )
+    radius_scale: Factor = unit_field(
+        1.0,
+        "model error: factor on env.physics.radius (area, second moments, masses and "
+        "stiffnesses follow), or a [low, high] range drawn per episode; 1 = off",
+        "-",
+    )
+    damping_scale: Factor = unit_field(
+        1.0,
+        "model error: factor on env.physics.damping, or a [low, high] range drawn per "
+        "episode; 1 = off",
+        "-",
+    )
+    torque_scale_factor: Factor = unit_field(
+        1.0,
+        "model error: factor on env.physics.torque_scale (actuator gain), or a [low, high] "
+        "range drawn per episode; 1 = off",
+        "-",
+    )
 
     def realism_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :class:`softtrack.env.realism.RealismConfig`."""
         return self.model_dump()
+
+    def model_error_ranges(self) -> dict[str, tuple[float, float]]:
+        """Each model-error factor that is not 1 → (low, high) ((f, f) when fixed)."""
+        out = {}
+        for name in MODEL_PARAMETERS:
+            value = getattr(self, name)
+            pair = tuple(value) if isinstance(value, tuple) else (value, value)
+            if pair != (1.0, 1.0):
+                out[name] = (float(pair[0]), float(pair[1]))
+        return out
 
     @property
     def active(self) -> bool:
@@ -323,8 +371,9 @@ class EnvSpec(SpecModel):
     realism: RealismSpec = section_field(
         RealismSpec,
         "imperfect sensing and actuation: observation noise, drops, stuck values and delay; "
-        "action delay, actuator lag, rate limit, torque saturation; all off by default "
-        "(docs/environment.md)",
+        "action delay, actuator lag, rate limit, torque saturation; model error: fixed or "
+        "per-episode random factors on Young's modulus, density, radius, damping and torque "
+        "scale; all off by default (docs/environment.md)",
     )
 
     @model_validator(mode="after")
@@ -335,6 +384,15 @@ class EnvSpec(SpecModel):
                 f"episode_duration {self.episode_duration:g} s is shorter than one control step "
                 f"({control_dt:g} s); use at least {control_dt:g}",
                 "episode_duration",
+            )
+        ranges = self.realism.model_error_ranges()
+        result = model_error_stability(self.sim_params(), ranges) if ranges else None
+        if result is not None:
+            name, problem, fix = result
+            raise custom_error(
+                f"{problem.replace('dt = ', 'env.physics.dt = ')}; "
+                f"{fix.replace('lower dt', 'lower env.physics.dt')}",
+                f"realism.{name}",
             )
         return self
 

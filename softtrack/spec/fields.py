@@ -5,6 +5,7 @@ See :mod:`softtrack.spec`."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -85,6 +86,34 @@ Float = Annotated[float, BeforeValidator(_reject_bool)]
 Vec3 = Annotated[tuple[Float, Float, Float], _fixed_length(3, "[x, y, z]")]
 Pair = Annotated[tuple[Float, Float], _fixed_length(2, "[first, second]")]
 Seed = Annotated[int, BeforeValidator(_reject_bool), Field(ge=0, lt=2**32)]
+
+
+def _factor(value: Any) -> Any:
+    """A positive factor, or a [low, high] range of them (``[f, f]`` becomes ``f``)."""
+    example = "write a factor such as 1.2 or a range [low, high] such as [0.8, 1.2]"
+
+    def number(v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            shown = str(v).lower() if isinstance(v, bool) else repr(v)
+            raise custom_error(f"expected a number, got {shown}; {example}")
+        if not (math.isfinite(v) and v > 0):
+            raise custom_error(f"a factor must be a finite number > 0, got {v!r}; {example}")
+        return float(v)
+
+    if isinstance(value, (list, tuple)):
+        if len(value) != 2:
+            raise custom_error(f"a range has 2 values [low, high], got {len(value)}; {example}")
+        low, high = number(value[0]), number(value[1])
+        if low > high:
+            raise custom_error(
+                f"range [{low:g}, {high:g}] has low > high; write it as [{high:g}, {low:g}]"
+            )
+        return low if low == high else (low, high)
+    return number(value)
+
+
+# A fixed factor (float) or a [low, high] range drawn per episode (tuple); > 0 each.
+Factor = Annotated[float | tuple[float, float], BeforeValidator(_factor)]
 
 
 # ------------------------------------------------------------------------------------------
