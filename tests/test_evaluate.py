@@ -14,7 +14,15 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.evaluation.metrics import ACTION_STATISTICS, action_statistics, tracking_metrics
+from softtrack.evaluation.metrics import (
+    ACTION_STATISTICS,
+    SAFETY_STATISTICS,
+    TORQUE_STATISTICS,
+    action_statistics,
+    safety_statistics,
+    torque_statistics,
+    tracking_metrics,
+)
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
 
@@ -98,6 +106,13 @@ def test_evaluate_writes_tables_and_metrics_match_trajectories(trained: tuple[Pa
     assert metrics["action_saturation"].between(0.0, 1.0).all()
     assert metrics["action_change"].between(0.0, 2.0).all()
     assert metrics["action_rms"].between(0.0, 1.0).all()
+    # and the torque and clearance columns: finite, the clearance per episode (both arms' rows)
+    for key in (*TORQUE_STATISTICS, *SAFETY_STATISTICS):
+        assert np.isfinite(metrics[key].to_numpy(float)).all(), key
+    assert (metrics.groupby("trajectory")["min_arm_distance"].nunique() == 1).all()
+    for (trajectory, arm), rows in peaks.groupby(["trajectory", "arm"]):
+        stored = metrics[(metrics["trajectory"] == trajectory) & (metrics["arm"] == arm)]
+        assert np.float32(stored["peak_moment"].iloc[0]) == rows["peak_abs_moment"].max()
 
 
 def test_full_moments_on_request_agree_with_the_summaries(
@@ -144,6 +159,10 @@ def test_stored_action_statistics_match_the_episode_actions(trained: tuple[Path,
                              & (metrics["arm"] == arm)].iloc[0]
             for key, value in expected.items():
                 assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+            expected = {**torque_statistics(episode.element_torques[:, arm], episode.t),
+                        **safety_statistics(episode.clearance, episode.collision_margin)}
+            for key, value in expected.items():
+                assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
 
 
 def test_evaluate_one_trajectory_keeps_the_others(trained: tuple[Path, str]) -> None:
@@ -170,7 +189,8 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
     fresh = _own_copy(trained, tmp_path)
     assert runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(fresh)]).exit_code == 0
     path = fresh / run_id / "tables" / "eval_metrics.parquet"
-    write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))  # as written before
+    new_columns = [*ACTION_STATISTICS, *TORQUE_STATISTICS, *SAFETY_STATISTICS]
+    write_table(path, read_table(path).drop(columns=new_columns))  # as written before
     record = RunStore(fresh).get_run(run_id)
     assert has_evaluation(record)  # an old table is still a complete evaluation
     # re-evaluating one trajectory adds the columns for it; the old rows have none
@@ -179,7 +199,8 @@ def test_old_metrics_tables_without_action_columns_stay_valid(
     metrics = read_table(path)
     circle = metrics["trajectory"] == "circle"
     assert len(metrics) == 6 and metrics.loc[circle, "action_rms"].notna().all()
-    assert metrics.loc[~circle, list(ACTION_STATISTICS)].isna().all().all()
+    assert metrics.loc[circle, [*TORQUE_STATISTICS, *SAFETY_STATISTICS]].notna().all().all()
+    assert metrics.loc[~circle, new_columns].isna().all().all()
     assert has_evaluation(record)
     assert "### Policy actions" in _report_index(run_id, fresh, tmp_path / "report")
 

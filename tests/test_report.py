@@ -24,7 +24,7 @@ from softtrack.evaluation import (
     run_episode,
     trajectory_table,
 )
-from softtrack.evaluation.metrics import ACTION_STATISTICS
+from softtrack.evaluation.metrics import ACTION_STATISTICS, SAFETY_STATISTICS, TORQUE_STATISTICS
 from softtrack.report import EmptySelectionError, build_report, select_report_runs
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import Group, group_runs, load_runs
@@ -342,17 +342,33 @@ def test_policy_actions_table(report: Path) -> None:
     rows = _table_after(md, "### Policy actions\n")
     assert rows[0] == (
         "| algorithm | trajectory | arm | action saturation (%) | mean \\|Δa\\| per step "
-        "| action RMS | seeds with data |"
+        "| action RMS | seeds with data | torque rate RMS (N·m/s) | peak moment (N·m) "
+        "| min clearance (m) | collision steps |"
     )
     body = rows[2:]
     assert len(body) == 3 * 3 * 2  # groups × trajectories × arms
+    actions = ["|".join(r.split("|")[:8]) + "|" for r in body]  # up to "seeds with data"
     # arm 1 holds 0.02 (seed 0) and 0.03 (seed 1): never saturated, no change, RMS 0.025 ± 0.007
-    assert "| TD3 | circle | arm 1 | 0.0 ± 0.0 | 0.000 ± 0.000 | 0.025 ± 0.007 | 2 of 2 |" in body
+    assert (
+        "| TD3 | circle | arm 1 | 0.0 ± 0.0 | 0.000 ± 0.000 | 0.025 ± 0.007 | 2 of 2 |"
+    ) in actions
     # arm 2 flips between ±1 at every step: saturated, |Δa| = 2, RMS 1
     assert (
         "| DDPG | figure-eight | arm 2 | 100.0 ± 0.0 | 2.000 ± 0.000 | 1.000 ± 0.000 | 2 of 2 |"
-    ) in body
-    assert "| TD3 (independent) | rectangle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 1 |" in body
+    ) in actions
+    assert "| TD3 (independent) | rectangle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 1 |" in actions
+    # smoothness and safety: arm 1's constant torques do not change, arm 2's flip at every
+    # step; the arms never touch in 0.2 s, about 0.1 m apart
+    cells = [[c.strip() for c in r.strip("|").split("|")]
+             for r in body if r.startswith("| TD3 | circle |")]
+    assert cells[0][7] == "0 ± 0"
+    rate, peak = float(cells[1][7].split(" ± ")[0]), float(cells[1][8].split(" ± ")[0])
+    assert 1e4 < rate <= 2 * peak / 0.002 * 1.001  # 2·RMS of |τ| over the elements, per 2 ms
+    for c in cells:
+        clearance = float(c[9].split(" ± ")[0])
+        assert float(c[8].split(" ± ")[0]) > 0 and 0.05 < clearance <= 0.1
+        assert c[10] == "0.0 ± 0.0"
+    assert cells[0][9] == cells[1][9]  # per episode: the same in both arms' rows
     text = md.split("### Policy actions\n", 1)[1]
     caption = text.split("\n\n")[1]
     assert "66 % saturation and a mean change of 0.30" in caption
@@ -379,7 +395,9 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
-    assert "| TD3 | circle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 2 |" in rows
+    assert any(
+        r.startswith("| TD3 | circle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 2 |") for r in rows
+    )
     caption = md.split("### Policy actions\n", 1)[1].split("\n\n")[1]
     assert "Some runs of TD3 have metrics stored before these statistics existed" in caption
     # only old tables: no data, and the tracking tables are unaffected
@@ -390,8 +408,48 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
-    assert all(r.endswith("| no data | no data | no data | 0 of 2 |") for r in rows)
+    assert all("| no data | no data | no data | 0 of 2 |" in r for r in rows)
     assert " ± " in next(r for r in _table_after(md, "### TD3\n") if r.startswith("| circle |"))
+
+
+def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
+    tmp_path: Path,
+) -> None:
+    """Metrics tables written before the smoothness and safety columns existed: the report
+    builds, those cells read "–" and the other cells keep their numbers."""
+    new_columns = [*TORQUE_STATISTICS, *SAFETY_STATISTICS]
+    store = RunStore(tmp_path / "runs")
+    spec = _spec("td3")
+    for seed in (0, 1):
+        record = store.create_run(spec, seed, ["softtrack", "train", "td3.yaml"])
+        write_table(record.table_path("train_episodes"), _train_rows(record, 100.0))
+        _write_eval(record, 0.02)
+        store.mark_finished(record.run_id, "completed", global_step=BUDGET)
+        if seed == 0:  # seed 0 has an old table, seed 1 a new one
+            path = record.table_path("eval_metrics")
+            write_table(path, read_table(path).drop(columns=new_columns))
+    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
+    summary = metrics_summary(groups)
+    assert (summary["torque_rate_rms_n"] == 1).all() and (summary["action_rms_n"] == 2).all()
+    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out",
+                         "softtrack report td3")
+    md = index.read_text(encoding="utf-8")
+    rows = _table_after(md, "### Policy actions\n")[2:]
+    row = next(r for r in rows if r.startswith("| TD3 | circle | arm 2 |"))
+    assert "| 100.0 ± 0.0 | 2.000 ± 0.000 | 1.000 ± 0.000 | 2 of 2 |" in row
+    assert " ± " not in row.split("| 2 of 2 |")[1]  # one seed with the new columns: no std
+    caption = md.split("### Policy actions\n", 1)[1].split("\n\n")[1]
+    assert "before the torque and clearance columns existed" in caption
+    # only old tables: a dash in each new cell
+    record = select_report_runs(store, ["td3"])[1]
+    path = record.table_path("eval_metrics")
+    write_table(path, read_table(path).drop(columns=new_columns))
+    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out",
+                         "softtrack report td3")
+    md = index.read_text(encoding="utf-8")
+    rows = _table_after(md, "### Policy actions\n")[2:]
+    assert len(rows) == 3 * 2
+    assert all(r.endswith("| 2 of 2 | – | – | – | – |") for r in rows)
 
 
 def test_provenance_is_stated_once_per_controller(report: Path, store: RunStore) -> None:

@@ -262,6 +262,9 @@ def test_independent_arms_validate_in_their_own_scene(tmp_path: Path) -> None:
     record = _train(spec, tmp_path / "runs")
     table = _validation(record)
     assert (np.diff(table["arm"].to_numpy()) >= 0).all()  # arm 0's rows, then arm 1's
+    # each arm alone in its scene: no other arm to keep clear of
+    assert table["min_arm_distance"].isna().all() and (table["collision_steps"] == 0).all()
+    assert np.isfinite(table["torque_rate_rms"].to_numpy(float)).all()
     run_spec = record.load_spec()
     paths = []
     for arm in (0, 1):

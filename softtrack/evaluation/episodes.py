@@ -19,6 +19,7 @@ import numpy as np
 from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
 from softtrack.env.observation import arm_view_columns
+from softtrack.evaluation.metrics import arm_clearance
 
 __all__ = [
     "CONFIRM_SEED",
@@ -57,6 +58,13 @@ class Episode:
         actions: (N, 12·A) the policy's actions (before clipping); arm k's are columns
             12k … 12k + 11 (6 normal, then 6 binormal control points).
         terminated: True if the state became non-finite (the episode then stops early).
+        clearance: (N,) surface clearance between the arms after each control step, m: the
+            smallest node-to-node distance of their centrelines minus both radii (the
+            episode's radius: ``physics.radius`` times a model-error ``radius_scale``)
+            (:func:`softtrack.evaluation.metrics.arm_clearance`); NaN in a single-arm scene
+            and at a non-finite state; ``None`` when not recorded (then treated as all NaN).
+        collision_margin: the run's ``reward.collision_margin``, m: steps with a clearance
+            below it count as ``collision_steps``.
     """
 
     trajectory: str
@@ -66,6 +74,8 @@ class Episode:
     element_torques: np.ndarray
     actions: np.ndarray
     terminated: bool
+    clearance: np.ndarray | None = None
+    collision_margin: float = 0.0
 
 
 def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
@@ -109,6 +119,10 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     target = np.full((n_steps, 3), np.nan)
     torques = np.full((n_steps, core.n_arms, 2, eval_config.sim.n_elem), np.nan)
     actions = np.full((n_steps, core.action_dim), np.nan)
+    clearance = np.full(n_steps, np.nan)  # stays NaN with one arm: no other arm to clear
+    two_arms = core.n_arms >= 2
+    # the rods' radius in this episode: the nominal one, times its model-error factor if any
+    radius = float(eval_config.sim.radius) * core.parameters(0)["radius_scale"]
     terminated = False
     done_steps = n_steps
     for k in range(n_steps):
@@ -118,10 +132,13 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
         tips[k] = core.engine.tip_position[0]
         target[k] = core.targets.position[0]
         torques[k] = core.engine.torques[0]
+        if two_arms:
+            clearance[k] = arm_clearance(core.engine.position[0], radius)
         obs = result.observation[0]
         if result.terminated[0]:
             terminated, done_steps = True, k + 1
             break
     t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
     return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
-                   actions[:done_steps], terminated)
+                   actions[:done_steps], terminated, clearance[:done_steps],
+                   float(eval_config.reward.collision_margin))

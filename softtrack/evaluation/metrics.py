@@ -8,20 +8,34 @@ With e(t) = tip(t) − target(t) of one arm over the N control steps of an episo
   and the largest absolute element torque over the episode;
 * for the actions of one arm (clipped to [−1, 1] as the environment applies them): the
   fraction saturated (|a| ≥ 0.99), the mean absolute change per control step and the RMS —
-  high saturation with large changes marks a "bang-bang" policy.
+  high saturation with large changes marks a "bang-bang" policy;
+* for the element torques of one arm: the RMS of their rate of change (N·m/s, smoothness) and
+  their largest absolute value (N·m);
+* for the two arms of a scene: the surface clearance (smallest node-to-node distance of their
+  centrelines minus both radii, m) at each step, its minimum over the episode and the number
+  of steps below the collision test's margin (inter-arm safety).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
+from numpy.typing import ArrayLike
 
 __all__ = [
     "ACTION_STATISTICS",
     "AXES",
+    "SAFETY_STATISTICS",
     "SATURATION_THRESHOLD",
+    "TORQUE_STATISTICS",
     "action_statistics",
+    "arm_clearance",
     "moment_peak",
     "moment_rms",
+    "safety_statistics",
+    "torque_statistics",
     "tracking_errors",
     "tracking_metrics",
 ]
@@ -31,6 +45,10 @@ AXES = ("x", "y", "z")
 #: written before they were added).
 ACTION_STATISTICS = ("action_saturation", "action_change", "action_rms")
 SATURATION_THRESHOLD = 0.99  # |a| at or above this counts as saturated
+#: Keys of :func:`torque_statistics` and :func:`safety_statistics`, also ``eval_metrics``
+#: columns (absent in tables written before they were added).
+TORQUE_STATISTICS = ("torque_rate_rms", "peak_moment")
+SAFETY_STATISTICS = ("min_arm_distance", "collision_steps")
 
 
 def tracking_errors(tip: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -106,4 +124,117 @@ def action_statistics(actions: np.ndarray) -> dict[str, float]:
         "action_saturation": float(np.mean(np.abs(a) >= SATURATION_THRESHOLD)),
         "action_change": change,
         "action_rms": float(np.sqrt(np.mean(a * a))),
+    }
+
+
+def torque_statistics(element_torques: np.ndarray, t: np.ndarray) -> dict[str, float]:
+    """How smoothly and how hard one arm's element torques are driven over one episode.
+
+    Args:
+        element_torques: (N, ..., n_elem) the arm's element torques at the N control steps,
+            N·m (e.g. (N, 2, n_elem): normal and binormal), N ≥ 1.
+        t: (N,) the times of those steps, s, increasing.
+
+    Returns:
+        ``torque_rate_rms``: sqrt(mean (Δτ/Δt)²) over the steps k ≥ 1 and every element and
+        direction, with Δτ = τ_k − τ_{k−1} and Δt = t_k − t_{k−1} (the control step), N·m/s
+        (0 when N = 1);
+        ``peak_moment``: the largest |τ| over steps, elements and directions, N·m (the maximum
+        of the arm's ``eval_moment_peaks`` rows, :func:`moment_peak`).
+    """
+    torques = np.asarray(element_torques, dtype=np.float64)
+    times = np.asarray(t, dtype=np.float64)
+    if torques.ndim < 2 or torques.shape[0] != times.shape[0] or times.ndim != 1:
+        raise ValueError(
+            f"element_torques must have shape (N, ..., n_elem) and t shape (N,); got "
+            f"{torques.shape}, {times.shape}"
+        )
+    if times.shape[0] == 0:
+        raise ValueError("at least one time step is needed")
+    if times.shape[0] > 1:
+        dt = np.diff(times).reshape((-1,) + (1,) * (torques.ndim - 1))
+        rate = np.diff(torques, axis=0) / dt
+        rate_rms = float(np.sqrt(np.mean(rate * rate)))
+    else:
+        rate_rms = 0.0
+    return {"torque_rate_rms": rate_rms, "peak_moment": float(np.max(moment_peak(torques)))}
+
+
+def arm_clearance(nodes: np.ndarray, radius: float) -> np.ndarray | float:
+    """Surface clearance between the arms of a scene, m.
+
+    Args:
+        nodes: (..., A, 3, n_nodes) centreline node positions of the A arms, m (e.g. the
+            engine's ``position`` of one environment, (A, 3, n_nodes)).
+        radius: each arm's radius r, m.
+
+    Returns:
+        (...) (a float for one scene) the smallest distance between a node of one arm and a
+        node of another, minus 2·r (negative: the surfaces overlap); NaN with fewer than two
+        arms or a non-finite node. The reward's collision test
+        (:func:`softtrack.env.reward.collision_penalty`) compares the same clearance, with r
+        its ``arm_radius``, against ``collision_margin``.
+    """
+    x = np.asarray(nodes, dtype=np.float64)
+    if x.ndim < 3 or x.shape[-2] != 3:
+        raise ValueError(f"nodes must have shape (..., A, 3, n_nodes); got {x.shape}")
+    batch = x.shape[:-3]
+    if x.shape[-3] < 2:
+        return np.full(batch, np.nan)[()]
+    if x.ndim == 3:  # one scene (run_episode's call at every step): no batch to reshape
+        return np.float64(math.sqrt(_scene_min_distance2(x)) - 2.0 * float(radius))
+    flat = np.ascontiguousarray(x.reshape((-1,) + x.shape[-3:]))
+    return (np.sqrt(_min_node_distance2(flat)).reshape(batch) - 2.0 * float(radius))[()]
+
+
+@njit(cache=True)
+def _min_node_distance2(x):  # pragma: no cover - compiled
+    """(B, A, 3, n) nodes → (B,) smallest squared distance between nodes of different arms
+    (NaN where a node is not finite)."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = _scene_min_distance2(x[i])
+    return out
+
+
+@njit(cache=True)
+def _scene_min_distance2(x):  # pragma: no cover - compiled
+    """(A, 3, n) nodes of one scene → smallest squared distance between nodes of different
+    arms, or NaN."""
+    n_arms, _, n_nodes = x.shape
+    best = np.inf
+    for a in range(n_arms - 1):
+        for b in range(a + 1, n_arms):
+            for j in range(n_nodes):
+                for k in range(n_nodes):
+                    dx = x[a, 0, j] - x[b, 0, k]
+                    dy = x[a, 1, j] - x[b, 1, k]
+                    dz = x[a, 2, j] - x[b, 2, k]
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if math.isnan(d2):
+                        return math.nan
+                    if d2 < best:
+                        best = d2
+    return best
+
+
+def safety_statistics(clearance: ArrayLike, margin: float = 0.0) -> dict[str, float | int]:
+    """Inter-arm safety over one episode from the clearance at each step.
+
+    Args:
+        clearance: (N,) surface clearance between the arms after each control step, m
+            (:func:`arm_clearance`; NaN where undefined: one arm, non-finite state).
+        margin: the collision test's margin (``reward.collision_margin``), m ≥ 0.
+
+    Returns:
+        ``min_arm_distance``: the smallest finite clearance, m (NaN if none is finite, e.g.
+        a single-arm scene);
+        ``collision_steps``: the number of steps with clearance < margin (with margin 0:
+        steps in contact), those on which the reward's collision penalty applies.
+    """
+    c = np.asarray(clearance, dtype=np.float64).reshape(-1)
+    finite = c[np.isfinite(c)]
+    return {
+        "min_arm_distance": float(finite.min()) if finite.size else float("nan"),
+        "collision_steps": int(np.count_nonzero(finite < float(margin))),
     }

@@ -8,8 +8,10 @@ trajectories it evaluated and keeping the others):
 * ``eval_metrics.parquet``: the docs/environment.md metrics per arm (also over the steady window t ≥ 1 s),
   the CPU kind that computed them (``cpu``: a deterministic episode's rounding, and so its
   numbers, differ slightly between CPU kinds; tables written before lack it), and the arm's
-  action statistics (``action_saturation``, ``action_change``, ``action_rms``;
-  tables written before these were added lack them, and readers treat them as optional);
+  action statistics (``action_saturation``, ``action_change``, ``action_rms``), its torque
+  smoothness and peak (``torque_rate_rms``, ``peak_moment``) and the episode's inter-arm
+  safety (``min_arm_distance``, ``collision_steps``); tables written before these were added
+  lack them, and readers treat them as optional;
 * ``eval_moments.parquet``: the spatial RMS of the element torques per step, arm and direction
   (docs/environment.md, float32);
 * ``eval_moment_peaks.parquet``: each element's largest absolute torque over the episode, per

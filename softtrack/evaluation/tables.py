@@ -16,7 +16,14 @@ import numpy as np
 import pandas as pd
 
 from softtrack.evaluation.episodes import Episode
-from softtrack.evaluation.metrics import AXES, action_statistics, moment_rms, tracking_metrics
+from softtrack.evaluation.metrics import (
+    AXES,
+    action_statistics,
+    moment_rms,
+    safety_statistics,
+    torque_statistics,
+    tracking_metrics,
+)
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
@@ -59,7 +66,12 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     """One row per arm: every docs/environment.md metric over the episode, and ``*_steady`` over t ≥ 1 s
     (NaN when the episode is shorter than that), and the arm's action statistics
     (``action_saturation``, ``action_change``, ``action_rms``, see
-    :func:`softtrack.evaluation.metrics.action_statistics`) over the steps the episode ran."""
+    :func:`softtrack.evaluation.metrics.action_statistics`) over the steps the episode ran;
+    after ``terminated`` and ``duration``, the arm's torque statistics (``torque_rate_rms``
+    N·m/s, ``peak_moment`` N·m: :func:`~softtrack.evaluation.metrics.torque_statistics`) and
+    the episode's inter-arm safety, the same in both arms' rows (``min_arm_distance`` m,
+    ``collision_steps``: :func:`~softtrack.evaluation.metrics.safety_statistics`; NaN and 0
+    in a single-arm scene)."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
     n_arms = episode.tips.shape[1]
@@ -68,6 +80,9 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
             f"actions have shape {episode.actions.shape}; expected "
             f"{(len(episode.t), _ARM_ACTIONS * n_arms)}"
         )
+    clearance = episode.clearance if episode.clearance is not None else np.full(len(episode.t),
+                                                                                 np.nan)
+    safety = safety_statistics(clearance, episode.collision_margin)
     for arm in range(n_arms):
         row: dict[str, object] = {"run_id": run_id, "trajectory": episode.trajectory, "arm": arm}
         row.update(tracking_metrics(episode.tips[:, arm], episode.target))
@@ -81,6 +96,8 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
         row.update(action_statistics(episode.actions[:, columns]))
         row["terminated"] = episode.terminated
         row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
+        row.update(torque_statistics(episode.element_torques[:, arm], episode.t))
+        row.update(safety)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -11,7 +11,7 @@ import pandas as pd
 from scipy import stats
 
 from softtrack.evaluation import validation_score
-from softtrack.evaluation.metrics import ACTION_STATISTICS
+from softtrack.evaluation.metrics import ACTION_STATISTICS, SAFETY_STATISTICS, TORQUE_STATISTICS
 from softtrack.report.data import DIRECTIONS, METRIC_COLUMNS, Group, RunData
 from softtrack.store.layout import PolicyDir
 
@@ -27,14 +27,21 @@ __all__ = [
 
 
 # ---- evaluation metrics ---------------------------------------------------------------------
+# Per-arm columns of eval_metrics summarised beside the tracking metrics (each absent from
+# tables written before it was added).
+_EXTRA_COLUMNS = (*ACTION_STATISTICS, *TORQUE_STATISTICS, *SAFETY_STATISTICS)
+
+
 def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
     """Evaluation metrics per group, trajectory and arm: mean and sample std across seeds.
 
     Columns: group, algo, controller, trajectory, arm, n, seeds, terminated (runs whose episode
     ended early), and ``<metric>_mean`` / ``<metric>_std`` / ``<metric>_n`` (runs with a value)
     for every metric column stored: ``rmse_x`` … ``max_error`` and their ``_steady`` forms, in
-    m, and ``action_saturation``, ``action_change``, ``action_rms`` (dimensionless). A metric no
-    run of a group stores has no columns (or NaN where another group has it).
+    m, ``action_saturation``, ``action_change``, ``action_rms`` (dimensionless),
+    ``torque_rate_rms`` (N·m/s), ``peak_moment`` (N·m), ``min_arm_distance`` (m) and
+    ``collision_steps``. A metric no run of a group stores has no columns (or NaN where another
+    group has it).
     """
     rows = []
     for group in groups:
@@ -48,7 +55,7 @@ def metrics_summary(groups: Sequence[Group]) -> pd.DataFrame:
         metric_cols = [
             c
             for c in df.columns
-            if c.removesuffix("_steady") in METRIC_COLUMNS or c in ACTION_STATISTICS
+            if c.removesuffix("_steady") in METRIC_COLUMNS or c in _EXTRA_COLUMNS
         ]
         for (trajectory, arm), part in df.groupby(["trajectory", "arm"], sort=False):
             row: dict[str, object] = {

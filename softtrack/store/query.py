@@ -118,15 +118,19 @@ TABLE_DESCRIPTIONS: dict[str, str] = {
     "count episode and global_step per arm",
     "validation": "validation during training: one row per validation point (global_step, "
     "wall_time: training seconds), episode and arm, with the tracking metrics (rmse_3d, ..., "
-    "*_steady for t >= 1 s); trajectory 'random' for the held-out episodes, and with "
-    "training.validation_trajectories one row per evaluation trajectory and arm",
+    "*_steady for t >= 1 s) and the columns of eval_metrics; trajectory 'random' for the "
+    "held-out episodes, and with training.validation_trajectories one row per evaluation "
+    "trajectory and arm",
     "confirmation": "after training: one row per candidate model (best, last), held-out "
-    "episode and arm, with the tracking metrics",
+    "episode and arm, with the tracking metrics and the columns of eval_metrics",
     "eval_metrics": "`softtrack evaluate`: one row per trajectory (circle, rectangle, figure8) "
     "and arm (0, 1): rmse_3d, rmse_x/y/z, mae_*, max_error, *_steady (t >= 1 s), action "
-    "statistics, terminated, duration",
+    "statistics, terminated, duration, the arm's torque_rate_rms (N*m/s) and peak_moment "
+    "(N*m), the episode's min_arm_distance (m, surface clearance between the arms; NaN with "
+    "one arm) and collision_steps (steps with clearance < reward.collision_margin); these "
+    "four are NULL in tables written before they existed",
     "eval_random": "`softtrack evaluate --random N`: one row per random-target episode and arm, "
-    "with the tracking metrics",
+    "with the tracking metrics and the columns of eval_metrics",
     "eval_trajectories": "`softtrack evaluate`: tip and target position per trajectory, step "
     "and arm",
     "eval_moments": "`softtrack evaluate`: internal moments per trajectory, step, arm and "
