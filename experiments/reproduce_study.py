@@ -125,6 +125,10 @@ JOBS: tuple[Job, ...] = (
     Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
     *(Job(V + "td3-sbx-128-4e6-mirror-val.yaml", s, f"td3-sbx-128-mirror-val-4e6-seed{s}")
       for s in (0, 1, 2)),
+    # time to accuracy (1e6 steps, checkpoints tracking the trajectories):
+    Job(V + "td3-sbx-64-1e6-mirror-fast.yaml", 0, "td3-sbx-64-mirror-fast-1e6-seed0"),
+    *(Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
+      for s in (0, 1, 2)),
     # derived from shipped runs (after all trainings):
     *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
           f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")

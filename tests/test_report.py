@@ -376,9 +376,8 @@ def test_policy_actions_table(report: Path) -> None:
     assert "no data" not in caption.lower() and "stored before" not in caption
 
 
-def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -> None:
-    """Metrics tables written before the action statistics existed: the report builds, the
-    other tables keep their numbers and the actions table says "no data"."""
+def _two_seeds_one_old_table(tmp_path: Path, missing: list[str]) -> RunStore:
+    """Two finished td3 runs; seed 0's eval_metrics was written before ``missing`` existed."""
     store = RunStore(tmp_path / "runs")
     spec = _spec("td3")
     for seed in (0, 1):
@@ -386,9 +385,16 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
         write_table(record.table_path("train_episodes"), _train_rows(record, 100.0))
         _write_eval(record, 0.02)
         store.mark_finished(record.run_id, "completed", global_step=BUDGET)
-        if seed == 0:  # seed 0 has an old table, seed 1 a new one
+        if seed == 0:
             path = record.table_path("eval_metrics")
-            write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
+            write_table(path, read_table(path).drop(columns=missing))
+    return store
+
+
+def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -> None:
+    """Metrics tables written before the action statistics existed: the report builds, the
+    other tables keep their numbers and the actions table says "no data"."""
+    store = _two_seeds_one_old_table(tmp_path, list(ACTION_STATISTICS))
     groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["action_saturation_n"] == 1).all() and (summary["rmse_3d_n"] == 2).all()
@@ -418,16 +424,7 @@ def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
     """Metrics tables written before the smoothness and safety columns existed: the report
     builds, those cells read "–" and the other cells keep their numbers."""
     new_columns = [*TORQUE_STATISTICS, *SAFETY_STATISTICS]
-    store = RunStore(tmp_path / "runs")
-    spec = _spec("td3")
-    for seed in (0, 1):
-        record = store.create_run(spec, seed, ["softtrack", "train", "td3.yaml"])
-        write_table(record.table_path("train_episodes"), _train_rows(record, 100.0))
-        _write_eval(record, 0.02)
-        store.mark_finished(record.run_id, "completed", global_step=BUDGET)
-        if seed == 0:  # seed 0 has an old table, seed 1 a new one
-            path = record.table_path("eval_metrics")
-            write_table(path, read_table(path).drop(columns=new_columns))
+    store = _two_seeds_one_old_table(tmp_path, new_columns)
     groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["torque_rate_rms_n"] == 1).all() and (summary["action_rms_n"] == 2).all()
