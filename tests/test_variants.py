@@ -95,7 +95,8 @@ SHIPPED = REPO / "models"
     ("run", "classes"),
     [
         ("td3-sbx-own-arm-actors-4e6-seed0", ("PerArmTD3Policy", "PerArmActor")),
-        ("td3-sbx-128-mirror-val-4e6-seed0", ("MirrorReplayBuffer",)),
+        # (exported mirror-replay models are inference-only: they name no replay buffer class;
+        # the old MirrorReplayBuffer path is checked on a pickle above)
     ],
 )
 def test_shipped_models_saved_with_the_old_module_paths_load(run: str, classes: tuple[str, ...]
