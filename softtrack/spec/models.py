@@ -149,20 +149,37 @@ class ClusterSpec(SpecModel):
 # ------------------------------------------------------------------------------------------
 
 
-def _check_validation(t: TrainingSpec) -> None:
-    """Raise the spec error of the first setting that leaves ``best_validated`` no model."""
+def check_validated_checkpoints(
+    t: TrainingSpec,
+    needed_by: str,
+    field: str,
+    where: str = "",
+    or_else: str = "",
+    interval_field: str = "training.checkpoint_interval",
+) -> None:
+    """Raise the spec error of the first setting that leaves ``t`` no validated checkpoint.
+
+    Args:
+        t: the training section.
+        needed_by: what needs the validation, e.g. ``"final_policy 'best_validated'"``.
+        field: the field the missing-episodes error names.
+        interval_field: the field the checkpoint-interval error names.
+        where: appended to the problem, e.g. ``" when the trial sets ..."``.
+        or_else: the alternative fix, e.g. ``" or final_policy: last"``.
+    """
     if t.validation_episodes < 1:
         raise custom_error(
-            "final_policy 'best_validated' picks a checkpoint by its validation episodes; set "
-            "training.validation_episodes to at least 1 (e.g. 10) or final_policy: last",
-            "training.final_policy",
+            f"{needed_by} picks or scores checkpoints by their validation episodes, but "
+            f"training.validation_episodes is 0{where}; set training.validation_episodes to at "
+            f"least 1 (e.g. 10){or_else}",
+            field,
         )
     if not 0 < t.checkpoint_interval <= t.total_timesteps:
         raise custom_error(
-            f"final_policy 'best_validated' validates each periodic checkpoint, but "
-            f"checkpoint_interval {t.checkpoint_interval} gives none within total_timesteps "
-            f"{t.total_timesteps}; set checkpoint_interval between 1 and total_timesteps",
-            "training.checkpoint_interval",
+            f"{needed_by} validates each periodic checkpoint, but checkpoint_interval "
+            f"{t.checkpoint_interval} gives none within total_timesteps {t.total_timesteps}"
+            f"{where}; set training.checkpoint_interval between 1 and total_timesteps",
+            interval_field,
         )
 
 
@@ -317,20 +334,18 @@ class ExperimentSpec(SpecModel):
         if a.mirror_replay:
             _check_mirror_replay(self)
         if t.final_policy == "best_validated":
-            _check_validation(t)
+            check_validated_checkpoints(t, "final_policy 'best_validated'",
+                                        "training.final_policy", or_else=" or final_policy: last")
         elif t.confirm_episodes > 0:
             raise custom_error(
                 f"confirm_episodes {t.confirm_episodes} confirms the best-validated model, but "
                 "final_policy is 'last'; set final_policy: best_validated or confirm_episodes: 0",
                 "training.confirm_episodes",
             )
-        if t.validation_trajectories and t.validation_episodes < 1:
-            raise custom_error(
-                "validation_trajectories runs the evaluation trajectories beside the validation "
-                "episodes; set training.validation_episodes to at least 1 (e.g. 10) or "
-                "validation_trajectories: false",
-                "training.validation_trajectories",
-            )
+        if t.validation_trajectories:
+            check_validated_checkpoints(t, "validation_trajectories",
+                                        "training.validation_trajectories",
+                                        or_else=" or validation_trajectories: false")
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

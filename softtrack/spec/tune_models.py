@@ -279,20 +279,10 @@ def trial_data(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
 
 
 def _requirements(spec: ExperimentSpec, where: str) -> None:
-    t = spec.training
-    if t.validation_episodes < 1:
-        raise custom_error(
-            f"metric 'validation' scores each trial by its validation episodes, but "
-            f"training.validation_episodes is 0{where}; set it to at least 1 (e.g. 5)",
-            "tune.metric",
-        )
-    if not 0 < t.checkpoint_interval <= t.total_timesteps:
-        raise custom_error(
-            f"metric 'validation' validates each periodic checkpoint, but checkpoint_interval "
-            f"{t.checkpoint_interval} gives none within total_timesteps {t.total_timesteps}"
-            f"{where}; set training.checkpoint_interval between 1 and total_timesteps",
-            "tune.metric",
-        )
+    from softtrack.spec.models import check_validated_checkpoints
+
+    check_validated_checkpoints(spec.training, "metric 'validation'", "tune.metric", where,
+                                interval_field="tune.metric")
 
 
 def check_tune(spec: ExperimentSpec) -> None:
