@@ -143,6 +143,7 @@ REPORTED = (
     "td3-sbx-128-val", "td3-sbx-128-mirror-val", "td3-sbx-128-mirror-val-confirm",
     "independent-td3-sbx", "independent-td3-sbx-2e6", "independent-td3-sbx-2e6-val",
     "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
+    "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast",
 )
 
 
