@@ -65,6 +65,7 @@ __all__ = [
     "resolved_spec_yaml",
     "resume",
     "resume_runs",
+    "robustness",
     "run_summary",
     "spec_chain",
     "spec_defaults_yaml",
@@ -237,7 +238,7 @@ def evaluate(
     """
     from softtrack.evaluation import EVAL_TRAJECTORIES
     from softtrack.evaluation.runs import evaluate_random_targets, evaluate_run, resolve_run
-    from softtrack.rl.policy import MODEL_CHOICES, model_paths
+    from softtrack.rl.policy import MODEL_CHOICES, model_paths, require_model
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
@@ -259,19 +260,7 @@ def evaluate(
     stores = []
     for record in records:
         spec = record.load_spec()
-        if model == "best" and spec.training.validation_episodes < 1:
-            raise RunStoreError(
-                f"run {record.run_id} was trained without validation "
-                "(training.validation_episodes: 0), so it has no best-validated model; "
-                "evaluate its last model with --model last"
-            )
-        paths = model_paths(record, spec, model)
-        missing = [p for p in paths if not p.is_file()]
-        if missing:
-            raise RunStoreError(
-                f"{missing[0]}: run {record.run_id} has no trained model (status "
-                f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
-            )
+        paths = require_model(record, spec, model)
         stores.append(write and paths == model_paths(record, spec))
     frames = []
     for record, store in zip(records, stores, strict=True):
@@ -531,6 +520,71 @@ def resume_runs(
     return dispatch.execute(store, ids, options, resume_id,
                             cluster=dispatch.cluster_of(store, ids), on_progress=on_progress,
                             label=f"resume {resume_id}")
+
+
+# ---- robustness ---------------------------------------------------------------------------
+def robustness(
+    references: Sequence[str],
+    grid: Sequence[str],
+    *,
+    full_grid: bool = False,
+    trajectories: Sequence[str] | None = None,
+    episodes: int = 1,
+    keep_realism: bool = False,
+    redo: bool = False,
+    runs_dir: str | os.PathLike[str] | None = None,
+    options: Any = None,
+    on_cell: Callable[..., None] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> Any:
+    """Evaluate runs under perturbations and store their ``eval_robustness`` tables.
+
+    Every reference, grid axis and setting is checked before any episode runs.
+
+    Args:
+        references: run ids (or prefixes) or run directories.
+        grid: ``factor=level1,level2`` axes (:mod:`softtrack.evaluation.robustness`).
+        full_grid: every combination of the axes' levels (default: one factor at a time).
+        trajectories: subset of circle, rectangle, figure8 (default all three).
+        episodes: episodes per setting and trajectory (≥ 1; more for noisy settings).
+        keep_realism: keep each run's own ``env.realism`` as the baseline (default: off).
+        redo: evaluate settings again that the tables already hold.
+        options: :class:`~softtrack.executors.dispatch.ExecOptions`; the default (local, one
+            worker) evaluates in this process.
+        on_cell: called with (record, setting, rows) after each cell evaluated in-process.
+        on_progress: called with a progress line while worker processes run.
+
+    Returns:
+        A :class:`~softtrack.evaluation.robustness_runs.RobustnessOutcome`.
+    """
+    from softtrack.evaluation import EVAL_TRAJECTORIES
+    from softtrack.evaluation.robustness import expand_settings
+    from softtrack.evaluation.robustness_runs import run_robustness
+    from softtrack.evaluation.runs import resolve_run
+    from softtrack.executors import dispatch
+    from softtrack.executors.sweep import parse_grid
+
+    options = options or dispatch.ExecOptions(workers=1)
+    if options.executor not in dispatch.EXECUTORS:
+        raise SpecError("--executor", f"unknown executor {options.executor!r}",
+                        "use local or slurm")
+    if options.detach and options.executor == "local":
+        raise SpecError("--detach", "local robustness workers cannot be detached",
+                        "run without --detach (an interrupted evaluation continues where it "
+                        "stopped), or use --executor slurm")
+    chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
+    unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
+    if unknown or not chosen:
+        raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}" if unknown
+                        else "no trajectory", f"choose from {', '.join(EVAL_TRAJECTORIES)}")
+    if episodes < 1:
+        raise SpecError("--episodes", f"{episodes} episodes", "give 1 or more")
+    if not references:
+        raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
+    settings = expand_settings(parse_grid(grid), full_grid)
+    records = [resolve_run(ref, runs_dir) for ref in references]
+    return run_robustness(records, settings, chosen, episodes, keep_realism=keep_realism,
+                          redo=redo, options=options, on_cell=on_cell, on_progress=on_progress)
 
 
 # ---- tuning -------------------------------------------------------------------------------

@@ -700,6 +700,95 @@ def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
     )
 
 
+RobustnessWorkersOption = Annotated[
+    int | None,
+    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
+                 help="Settings evaluated at once (local: worker processes, default 1 = in "
+                 "this process; slurm: array parallelism, default no limit)."),
+]
+
+
+@app.command()
+@functools.partial(_with_exec_options, workers=RobustnessWorkersOption)
+def robustness(
+    references: Annotated[
+        list[str],
+        typer.Argument(metavar="RUN_ID_OR_DIR...", help="Run ids (or prefixes) or run directories.",
+                       show_default=False),
+    ],
+    grid: Annotated[
+        list[str] | None,
+        typer.Option("--grid", "-g", metavar="FACTOR=L1,L2", show_default=False,
+                     help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
+                     "action_delay=0,2 (a field of env.realism, obs_noise, gravity, or a spec "
+                     "path env.*). Repeatable."),
+    ] = None,
+    full_grid: Annotated[
+        bool, typer.Option("--full-grid", help="Every combination of the axes' levels "
+                           "[default: one factor at a time, the others nominal].")
+    ] = False,
+    trajectory: Annotated[
+        TrajectoryChoice,
+        typer.Option("--trajectory", "-t", help="Target trajectory to evaluate on.",
+                     case_sensitive=False),
+    ] = TrajectoryChoice.all,
+    episodes: Annotated[
+        int, typer.Option("--episodes", metavar="K", min=1,
+                          help="Episodes per setting and trajectory (noise seeds "
+                          "4,000,000 + k).")
+    ] = 1,
+    keep_realism: Annotated[
+        bool, typer.Option("--keep-realism", help="Perturb each run's own env.realism "
+                           "[default: the idealised environment, realism off].")
+    ] = False,
+    redo: Annotated[
+        bool, typer.Option("--redo", help="Evaluate again settings the tables already hold.")
+    ] = False,
+    *,
+    options: ExecOptions,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Evaluate controllers under perturbed sensing, actuation and physics.
+
+    Each setting (a level of one factor, or with --full-grid a combination) runs each run's
+    deterministic policy on the circle, rectangle and figure-eight targets and stores the
+    metrics rows in the run's table eval_robustness (perturbation, level, setting,
+    trajectory, arm, the tracking, smoothness and safety metrics). Settings already stored are
+    skipped, so an interrupted evaluation continues where it stopped. Prints the 3-D RMSE of
+    each arm per run, setting and trajectory (m); `softtrack report` plots RMSE against level.
+
+    Example: softtrack robustness models/td3-sbx-128-mirror-val-4e6-seed0 --grid
+    obs_noise=0,0.002,0.005,0.01 --grid action_delay=0,1,2,4 --grid
+    youngs_modulus_scale=0.7,1,1.3
+    """
+    if trajectory is TrajectoryChoice.none:
+        _fail("robustness: --trajectory none leaves nothing to evaluate; name a trajectory or all")
+    chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
+
+    def cell(record: RunRecord, setting: Any, rows: pd.DataFrame) -> None:
+        for name, part in rows.groupby("trajectory", sort=False):
+            rmse = " / ".join(f"{v:.4f}" for v in part.groupby("arm")["rmse_3d"].mean())
+            note = "  (diverged)" if bool(part["terminated"].any()) else ""
+            typer.echo(f"{record.run_id}  {setting.key:28s} {name:9s}  3-D RMSE arm 1 / arm 2: "
+                       f"{rmse} m{note}")
+
+    with _user_errors():
+        outcome = api.robustness(references, grid or [], full_grid=full_grid,
+                                 trajectories=chosen, episodes=episodes,
+                                 keep_realism=keep_realism, redo=redo, runs_dir=runs_dir,
+                                 options=options, on_cell=cell, on_progress=_progress)
+    if outcome.skipped:
+        typer.echo(f"robustness: {len(outcome.skipped)} settings already stored (--redo "
+                   "evaluates them again)", err=True)
+    if outcome.detached:
+        typer.echo("robustness: workers submitted; run the same command again once they "
+                   "ended to merge their results", err=True)
+    for run_id, key in outcome.failed:
+        typer.echo(f"  failed: {run_id} {key} (see the run's robustness.log)", err=True)
+    if outcome.exit_code:
+        raise typer.Exit(outcome.exit_code)
+
+
 @app.command()
 def export(
     run: Annotated[str, typer.Argument(metavar="RUN", help="Run id, unique id prefix or run "

@@ -52,6 +52,9 @@ _MOMENT_COLUMNS = (
 _PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
+_ROBUSTNESS_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "trajectory",
+                       "arm", "rmse_3d", "terminated", "peak_moment", "action_saturation",
+                       "min_arm_distance", "collision_steps")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3, "tqc": 4, "crossq": 5}
 _ALGO_LABELS = {"crossq": "CrossQ"}  # display names that are not the upper-cased algo name
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
@@ -77,6 +80,8 @@ class RunData:
             of an older ``eval_moments``' ``max_abs_moment`` (see :func:`episode_peaks`).
         random: ``eval_random`` (one row per random-target episode and arm, m).
         validation: ``validation`` (one row per validated checkpoint, episode and arm, m).
+        robustness: ``eval_robustness`` (one row per perturbation setting, trajectory,
+            episode and arm; :mod:`softtrack.evaluation.robustness`).
         problems: one line per unreadable table.
     """
 
@@ -89,6 +94,7 @@ class RunData:
     random: pd.DataFrame | None = None
     validation: pd.DataFrame | None = None
     peaks: pd.DataFrame | None = None
+    robustness: pd.DataFrame | None = None
     problems: tuple[str, ...] = ()
 
     @property
@@ -194,6 +200,7 @@ def load_run(record: RunRecord) -> RunData:
         random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
         validation=_read(record, "validation", problems, _VALIDATION_COLUMNS),
         peaks=episode_peaks(moments, element_peaks),
+        robustness=_read(record, "eval_robustness", problems, _ROBUSTNESS_COLUMNS),
         problems=tuple(problems),
     )
 

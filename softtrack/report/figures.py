@@ -40,6 +40,7 @@ __all__ = [
     "moments_figure",
     "no_data_figure",
     "rmse_comparison_figure",
+    "robustness_figure",
     "tracking_errors_figure",
     "training_curves_figure",
     "trajectory_3d_figure",
@@ -594,4 +595,43 @@ def validation_figure(
     ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=9)
+    return _save(fig, path, footer)
+
+
+def robustness_figure(
+    summary: pd.DataFrame, path: str | os.PathLike[str], footer: str | None = None
+) -> Path:
+    """3-D RMSE against level, one panel per one-factor perturbation with at least two
+    levels; one line per group (seed mean) with its min–max band across seeds.
+
+    Args:
+        summary: rows of :func:`softtrack.report.robustness.robustness_summary` with a
+            numeric ``level``.
+    """
+    counts = summary.groupby("perturbation")["level"].nunique()
+    factors = [f for f in dict.fromkeys(summary["perturbation"]) if counts[f] >= 2]
+    if not factors:
+        return no_data_figure(path, "Robustness", "no perturbation with two levels", footer)
+    cols = min(3, len(factors))
+    n_rows = -(-len(factors) // cols)
+    fig = _new(max(6.0, 4.2 * cols), 3.4 * n_rows + 0.8)
+    groups = list(dict.fromkeys(summary["group"]))
+    colors = _palette(len(groups))
+    for i, factor in enumerate(factors):
+        ax = fig.add_subplot(n_rows, cols, i + 1)
+        for j, group in enumerate(groups):
+            part = summary[(summary["perturbation"] == factor) & (summary["group"] == group)]
+            part = part.sort_values("level")
+            if part.empty:
+                continue
+            color = colors[j % len(colors)]
+            ax.plot(part["level"], part["rmse_3d_mean"], "-o", ms=4, color=color, label=group)
+            ax.fill_between(part["level"], part["rmse_3d_min"], part["rmse_3d_max"],
+                            color=color, alpha=0.15, lw=0)
+        ax.set_xlabel(factor)
+        ax.set_ylabel("3-D RMSE (m)")
+        ax.grid(alpha=0.3)
+    fig.axes[0].legend(loc="upper left", fontsize=8)
+    _suptitle(fig, "Tracking error under perturbations", 12,
+              "mean over trajectories and arms; line: seed mean; band: min–max of seeds")
     return _save(fig, path, footer)

@@ -24,7 +24,7 @@ from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
 __all__ = ["MODEL_CHOICES", "ModelChoice", "candidate_path", "deterministic_policy", "load_policy",
-           "load_policy_file", "model_paths", "policy_choice"]
+           "load_policy_file", "model_paths", "policy_choice", "require_model"]
 
 ModelChoice = Literal["policy", "last", "best"]
 """Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
@@ -46,6 +46,30 @@ def model_paths(
         return [candidate_path(policy, model) for policy in policies]
     return [policy.policy_path or candidate_path(policy, policy_choice(policy, spec))
             for policy in policies]
+
+
+def require_model(record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
+                  ) -> list[Path]:
+    """:func:`model_paths`, checked to exist.
+
+    Raises:
+        RunStoreError: a model file is missing (the run is unfinished, or ``best`` of a run
+            trained without validation), with the command that fixes it.
+    """
+    if model == "best" and spec.training.validation_episodes < 1:
+        raise RunStoreError(
+            f"run {record.run_id} was trained without validation "
+            "(training.validation_episodes: 0), so it has no best-validated model; "
+            "evaluate its last model with --model last"
+        )
+    paths = model_paths(record, spec, model)
+    missing = [p for p in paths if not p.is_file()]
+    if missing:
+        raise RunStoreError(
+            f"{missing[0]}: run {record.run_id} has no trained model (status "
+            f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
+        )
+    return paths
 
 
 def policy_choice(policy: PolicyDir, spec: ExperimentSpec) -> Literal["best", "last"]:

@@ -138,6 +138,8 @@ TABLE_DESCRIPTIONS: dict[str, str] = {
     "max_abs_moment and element_torques, NULL for newer runs)",
     "eval_moment_peaks": "`softtrack evaluate`: largest absolute moment of each element over "
     "the episode, per trajectory, arm and direction",
+    "eval_robustness": "`softtrack robustness`: one row per perturbation setting (perturbation, "
+    "level, setting, baseline), trajectory, episode and arm, with the columns of eval_metrics",
 }
 
 _RESERVED = ("runs", "experiments")

@@ -1,0 +1,220 @@
+"""Run robustness evaluations of stored runs, in this process or on the local and SLURM executors.
+
+:func:`run_robustness` evaluates every (run, setting) cell not yet in the runs' tables
+(:func:`~softtrack.evaluation.robustness.done_settings`; ``redo`` evaluates them again):
+
+* ``executor="local"`` with one worker: in this process, each run's policy loaded once; the
+  rows of every setting are stored as soon as it is done, so an interrupted evaluation loses at
+  most one setting and continues where it stopped when started again;
+* ``executor="local"`` with N workers, or ``executor="slurm"``: one worker process (or array
+  task) per cell, ``python -m softtrack.evaluation.robustness_runs RUN_DIR --level f=v ...``,
+  each writing its rows to a part file of the run; this process merges them into the tables
+  once the workers ended (and any later ``softtrack robustness`` merges parts left behind,
+  e.g. after ``--detach``). Worker output is appended to ``<run>/robustness.log``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from softtrack.evaluation.robustness import (
+    Setting,
+    done_settings,
+    evaluate_setting,
+    merge_parts,
+    part_path,
+    perturbed_spec,
+    store_rows,
+)
+from softtrack.executors.dispatch import ExecOptions, slurm_options
+from softtrack.rl.policy import load_policy, require_model
+from softtrack.spec import ClusterSpec
+from softtrack.store.runs import RunRecord, RunStore
+from softtrack.store.tables import write_table
+
+__all__ = ["RobustnessJob", "RobustnessOutcome", "run_robustness"]
+
+
+@dataclass(frozen=True)
+class RobustnessJob:
+    """One (run, setting) cell as a worker process (:class:`~softtrack.executors.base.PoolJob`)."""
+
+    run_dir: str
+    setting: Setting
+    trajectories: tuple[str, ...]
+    episodes: int
+    keep_realism: bool
+
+    @property
+    def key(self) -> str:
+        return f"{Path(self.run_dir).name} {self.setting.key}"
+
+    @property
+    def command(self) -> list[str]:
+        cmd = [sys.executable, "-m", "softtrack.evaluation.robustness_runs", self.run_dir,
+               "--trajectories", ",".join(self.trajectories), "--episodes", str(self.episodes)]
+        for factor, value in self.setting.levels:
+            cmd += ["--level", f"{factor}={value}"]
+        return cmd + (["--keep-realism"] if self.keep_realism else [])
+
+    def log_path(self) -> Path:
+        """``<run>/robustness.log`` (appended)."""
+        return Path(self.run_dir) / "robustness.log"
+
+    def after_exit(self, returncode: int) -> None:
+        """Nothing: the parent merges the part files of the workers that finished."""
+
+
+@dataclass
+class RobustnessOutcome:
+    """What a robustness evaluation did.
+
+    Attributes:
+        rows: the rows evaluated in this process (empty when workers did the work).
+        cells: (run id, setting key) of every cell evaluated now.
+        skipped: cells already in the tables.
+        failed: cells whose worker failed (see ``<run>/robustness.log``).
+        detached: the workers were left running (their parts merge on the next call).
+    """
+
+    rows: pd.DataFrame = field(default_factory=pd.DataFrame)
+    cells: list[tuple[str, str]] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    failed: list[tuple[str, str]] = field(default_factory=list)
+    detached: bool = False
+
+    @property
+    def exit_code(self) -> int:
+        return 1 if self.failed else 0
+
+
+def run_robustness(
+    records: Sequence[RunRecord],
+    settings: Sequence[Setting],
+    trajectories: Sequence[str],
+    episodes: int = 1,
+    *,
+    keep_realism: bool = False,
+    redo: bool = False,
+    options: ExecOptions | None = None,
+    on_cell: Callable[[RunRecord, Setting, pd.DataFrame], None] | None = None,
+    on_progress: Callable[[str], None] | None = None,
+) -> RobustnessOutcome:
+    """Evaluate ``settings`` for every run (module docstring); every setting is validated
+    against every run's spec before any episode runs (a SpecError names the bad one).
+
+    Args:
+        on_cell: called with (run, setting, its rows) after each cell evaluated in-process.
+        on_progress: called with a progress line while workers run.
+    """
+    options = options or ExecOptions()
+    specs = {}
+    for record in records:
+        merge_parts(record)
+        specs[record.run_id] = spec = record.load_spec()
+        require_model(record, spec)
+        for setting in settings:
+            perturbed_spec(spec, setting, keep_realism)
+    outcome = RobustnessOutcome()
+    todo: list[tuple[RunRecord, Setting]] = []
+    for record in records:
+        done = set() if redo else done_settings(record, trajectories, episodes, keep_realism)
+        for setting in settings:
+            cell = (record.run_id, setting.key)
+            (outcome.skipped.append(cell) if setting.key in done else todo.append((record, setting)))
+    in_process = options.executor == "local" and (options.workers or 1) == 1 and not options.detach
+    if in_process:
+        frames = []
+        policies = {}
+        for record, setting in todo:
+            if record.run_id not in policies:
+                policies[record.run_id] = load_policy(record, specs[record.run_id])
+            rows = evaluate_setting(record.run_id, policies[record.run_id], specs[record.run_id],
+                                    setting, trajectories, episodes, keep_realism=keep_realism)
+            store_rows(record, rows)
+            frames.append(rows)
+            outcome.cells.append((record.run_id, setting.key))
+            if on_cell is not None:
+                on_cell(record, setting, rows)
+        outcome.rows = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+        return outcome
+    jobs = [RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
+            for record, setting in todo]
+    _run_jobs(jobs, records, options, outcome, on_progress)
+    if outcome.detached:
+        return outcome
+    for record, setting in todo:
+        cell = (record.run_id, setting.key)
+        merged = part_path(record, setting, trajectories, episodes, keep_realism).is_file()
+        (outcome.cells if merged else outcome.failed).append(cell)
+    for record in records:
+        merge_parts(record)
+    return outcome
+
+
+def _run_jobs(jobs: Sequence[RobustnessJob], records: Sequence[RunRecord],
+              options: ExecOptions, outcome: RobustnessOutcome,
+              on_progress: Callable[[str], None] | None) -> None:
+    """Run the workers on ``options.executor`` (until they end unless detached)."""
+    if not jobs:
+        return
+
+    def tick() -> None:
+        if on_progress is not None:
+            left = sum(not part_path(r, j.setting, j.trajectories, j.episodes, j.keep_realism)
+                       .is_file() for j in jobs for r in records if str(r.path) == j.run_dir)
+            on_progress(f"robustness: {len(jobs) - left} of {len(jobs)} cells done")
+
+    if options.executor == "local":
+        from softtrack.executors.local import LocalPool
+
+        LocalPool(options.workers).run(jobs, on_tick=tick, tick_s=10.0)
+        return
+    from softtrack.executors.slurm import submit_commands
+
+    store = RunStore(Path(records[0].path).parent)
+    slurm = slurm_options(options, ClusterSpec(), store)
+    submitted = submit_commands([(j.command, str(j.log_path())) for j in jobs], slurm,
+                                name="softtrack-robustness")
+    if options.detach:
+        outcome.detached = True
+        return
+    while not all(j.done() for j in submitted):
+        tick()
+        time.sleep(10.0)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Worker: evaluate one setting of one run and write its rows to the run's part file."""
+    from softtrack.evaluation.runs import resolve_run
+
+    parser = argparse.ArgumentParser(prog="python -m softtrack.evaluation.robustness_runs")
+    parser.add_argument("run", help="run directory")
+    parser.add_argument("--level", action="append", default=[], metavar="FACTOR=LEVEL")
+    parser.add_argument("--trajectories", default="circle,rectangle,figure8")
+    parser.add_argument("--episodes", type=int, default=1)
+    parser.add_argument("--keep-realism", action="store_true")
+    args = parser.parse_args(argv)
+    record = resolve_run(args.run)
+    spec = record.load_spec()
+    setting = Setting(tuple((f, v) for f, _, v in (item.partition("=") for item in args.level)))
+    trajectories = args.trajectories.split(",")
+    started = time.monotonic()
+    rows = evaluate_setting(record.run_id, load_policy(record, spec), spec, setting, trajectories,
+                            args.episodes, keep_realism=args.keep_realism)
+    path = part_path(record, setting, trajectories, args.episodes, args.keep_realism)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_table(path, rows)
+    print(f"{record.run_id} {setting.key}: {len(rows)} rows in {time.monotonic() - started:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
