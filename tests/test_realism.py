@@ -247,6 +247,27 @@ def test_action_delay_equals_the_same_actions_k_steps_later(k: int) -> None:
     _same(delayed, _trace(DualArmTrackingEnv(), shifted))
 
 
+def test_a_random_action_delay_is_drawn_per_episode_and_applied() -> None:
+    core = _core({"action_delay": 1, "action_delay_max": 3}, n_envs=16)
+    delays = core.realism.action_delays.copy()
+    assert set(delays.tolist()) <= {1, 2, 3} and len(set(delays.tolist())) > 1
+    again = _core({"action_delay": 1, "action_delay_max": 3}, n_envs=16)
+    np.testing.assert_array_equal(again.realism.action_delays, delays)  # from the seeds
+    actions = _actions(6, 24)
+    applied = [core.realism.filter_actions(np.tile(a, (16, 1))) for a in actions]
+    for env, d in enumerate(delays.tolist()):
+        for step in range(6):
+            want = actions[step - d] if step >= d else np.zeros(24)
+            np.testing.assert_array_equal(applied[step][env], want)
+    fixed = _core({"action_delay": 2, "action_delay_max": 2}, n_envs=2)
+    assert fixed.realism.action_delays.tolist() == [2, 2]
+
+
+def test_action_delay_max_below_the_delay_is_an_error() -> None:
+    with pytest.raises(ValueError, match="action_delay_max"):
+        RealismConfig(action_delay=2, action_delay_max=1).validate()
+
+
 # ---- actuation ---------------------------------------------------------------------------------
 
 

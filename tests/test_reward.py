@@ -7,6 +7,7 @@ import pytest
 
 from softtrack.env.reward import (
     RewardConfig,
+    action_penalty,
     collision_penalty,
     reward_shares,
     tip_distances,
@@ -113,6 +114,8 @@ def test_tip_distances() -> None:
         ({"collision_penalty": -1.0}, "collision_penalty"),
         ({"collision_margin": -0.1}, "collision_margin"),
         ({"arm_radius": 0.0}, "arm_radius"),
+        ({"action_rate_penalty": -0.1}, "action_rate_penalty"),
+        ({"action_penalty": float("nan")}, "action_penalty"),
     ],
 )
 def test_validate_names_the_field(overrides: dict, field: str) -> None:
@@ -184,3 +187,44 @@ def test_reward_shares_split_penalties_and_nonfinite_rewards_equally() -> None:
     np.testing.assert_allclose(shares[0], [-2 * 0.0036 + 1.5 - 2.5, -0.5 * 0.04 - 2.5])
     np.testing.assert_allclose(shares[1], [-500.0, -500.0])  # the non-finite reward, halved
     assert np.isfinite(shares).all()
+
+
+# ---- action penalties (smooth actuation) ---------------------------------------------------
+
+
+def test_action_penalty_is_the_weighted_mean_squares() -> None:
+    actions = np.array([[1.0, -1.0, 0.5, 0.0], [0.0, 0.0, 0.0, 0.0]])
+    previous = np.array([[0.0, -1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 1.0]])
+    config = RewardConfig(action_rate_penalty=2.0, action_penalty=0.5)
+    expected_rate = np.array([(1 + 0 + 0.25 + 0) / 4, 1.0])
+    expected_size = np.array([(1 + 1 + 0.25 + 0) / 4, 0.0])
+    np.testing.assert_allclose(action_penalty(actions, previous, config),
+                               -2.0 * expected_rate - 0.5 * expected_size)
+    assert not RewardConfig().penalises_actions
+    np.testing.assert_array_equal(action_penalty(actions, previous, RewardConfig()), 0.0)
+
+
+def test_the_env_subtracts_the_action_penalties_from_the_step_after_reset() -> None:
+    from softtrack.env.config import make_config
+    from softtrack.env.core import TrackingCore
+
+    plain = TrackingCore(1, make_config(target="circle"))
+    smooth = TrackingCore(1, make_config(target="circle", action_rate_penalty=1.0,
+                                         action_penalty=0.25))
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.5, 1.5, (4, 1, 24))
+    for core in (plain, smooth):
+        core.reset([0], [np.random.default_rng(1)])
+    previous = np.zeros((1, 24))
+    for action in actions:
+        clipped = np.clip(action, -1, 1)
+        want = (plain.step(action).reward
+                - np.mean((clipped - previous) ** 2) - 0.25 * np.mean(clipped ** 2))
+        np.testing.assert_allclose(smooth.step(action).reward, want, rtol=1e-12)
+        previous = clipped
+    smooth.reset([0], [np.random.default_rng(1)])
+    plain.reset([0], [np.random.default_rng(1)])
+    clipped = np.clip(actions[0], -1, 1)
+    np.testing.assert_allclose(smooth.step(actions[0]).reward,
+                               plain.step(actions[0]).reward - 1.25 * np.mean(clipped ** 2),
+                               rtol=1e-12)

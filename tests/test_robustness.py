@@ -49,11 +49,12 @@ def _table(run: Path) -> object:
 def test_one_factor_at_a_time_and_full_grid() -> None:
     grid = [("obs_noise", ["0", "0.005"]), ("action_delay", ["0", "2"])]
     one = expand_settings(grid)
-    assert [s.key for s in one] == ["obs_noise=0", "obs_noise=0.005", "action_delay=0",
-                                    "action_delay=2"]
-    assert [s.level for s in one] == [0.0, 0.005, 0.0, 2.0]
+    assert [s.key for s in one] == ["nominal", "obs_noise=0", "obs_noise=0.005",
+                                    "action_delay=0", "action_delay=2"]
+    assert [s.level for s in one[1:]] == [0.0, 0.005, 0.0, 2.0]
+    assert math.isnan(one[0].level) and one[0].overrides() == []
     full = expand_settings(grid, full=True)
-    assert len(full) == 4
+    assert len(full) == 1 + 4
     assert full[-1].key == "obs_noise=0.005 action_delay=2"
     assert full[-1].perturbation == "obs_noise+action_delay"
     assert math.isnan(full[-1].level)
@@ -99,19 +100,21 @@ def test_robustness_table_nominal_rows_equal_evaluate(trained: tuple[Path, str],
     result = runner.invoke(app, ["robustness", str(run), "--grid", "action_delay=0,2",
                                  "--grid", "obs_noise=0.02", "-t", "circle"])
     assert result.exit_code == 0, result.output
-    assert result.output.count("3-D RMSE arm 1 / arm 2") == 3
+    assert result.output.count("3-D RMSE arm 1 / arm 2") == 4
     table = _table(run)
-    assert len(table) == 3 * 2  # settings × arms
+    assert len(table) == 4 * 2  # settings (nominal first) × arms
     assert list(table.columns[:8]) == ["run_id", "perturbation", "level", "setting", "baseline",
                                        "episode", "seed", "trajectory"]
-    assert set(table["setting"]) == {"action_delay=0", "action_delay=2", "obs_noise=0.02"}
+    assert set(table["setting"]) == {"nominal", "action_delay=0", "action_delay=2",
+                                     "obs_noise=0.02"}
     assert {"action_saturation", "torque_rate_rms", "peak_moment", "min_arm_distance",
             "collision_steps", "cpu"} <= set(table.columns)
     result = runner.invoke(app, ["evaluate", str(run), "-t", "circle"])
     assert result.exit_code == 0, result.output
     nominal = read_table(run / "tables" / "eval_metrics.parquet").sort_values("arm")
-    rows = table[table["setting"] == "action_delay=0"].sort_values("arm")
-    np.testing.assert_array_equal(rows["rmse_3d"].to_numpy(), nominal["rmse_3d"].to_numpy())
+    for key in ("nominal", "action_delay=0"):
+        rows = table[table["setting"] == key].sort_values("arm")
+        np.testing.assert_array_equal(rows["rmse_3d"].to_numpy(), nominal["rmse_3d"].to_numpy())
     delayed = table[table["setting"] == "action_delay=2"].sort_values("arm")
     noisy = table[table["setting"] == "obs_noise=0.02"].sort_values("arm")
     assert not np.array_equal(delayed["rmse_3d"].to_numpy(), nominal["rmse_3d"].to_numpy())
@@ -121,12 +124,12 @@ def test_robustness_table_nominal_rows_equal_evaluate(trained: tuple[Path, str],
                                 "-t", "circle"])
     assert again.exit_code == 0, again.output
     assert "3-D RMSE" not in again.output
-    assert "2 settings already stored" in again.output
+    assert "3 settings already stored" in again.output
     redo = runner.invoke(app, ["robustness", str(run), "--grid", "action_delay=2",
                                "-t", "circle", "--redo", "--episodes", "2"])
     assert redo.exit_code == 0, redo.output
     table = _table(run)
-    assert len(table) == 4 * 2  # action_delay=2 now has two episodes
+    assert len(table) == 6 * 2  # nominal and action_delay=2 now have two episodes each
     assert sorted(table.loc[table["setting"] == "action_delay=2", "seed"].unique()) == [
         4_000_000, 4_000_001]
 
@@ -137,7 +140,7 @@ def test_robustness_table_nominal_rows_equal_evaluate(trained: tuple[Path, str],
     index = (out / "index.md").read_text(encoding="utf-8")
     section = index.split("### Robustness to perturbations")[1].split("###")[0]
     assert "`action_delay=2`" in section and "`obs_noise=0.02`" in section
-    assert "(1.00×)" in section  # action_delay=0 is the nominal evaluation
+    assert "(1.00×)" in section  # nominal and action_delay=0 are the baseline
     assert (out / "figures" / "robustness.png").is_file()
 
 
@@ -154,9 +157,9 @@ def test_full_grid_and_worker_parts_merge(trained: tuple[Path, str], tmp_path: P
     assert result.exit_code == 0, result.output
     assert "1 settings already stored" in result.output
     table = _table(run)
-    assert set(table["setting"]) == {"obs_noise=0.01 action_delay=1",
+    assert set(table["setting"]) == {"nominal", "obs_noise=0.01 action_delay=1",
                                      "obs_noise=0.01 action_delay=2"}
-    assert set(table["perturbation"]) == {"obs_noise+action_delay"}
+    assert set(table["perturbation"]) == {"nominal", "obs_noise+action_delay"}
     assert table["level"].isna().all()
     assert merge_parts(record) == 0
     assert not (run / "tables" / "eval_robustness-parts").exists()
@@ -168,7 +171,8 @@ def test_robustness_in_worker_processes(trained: tuple[Path, str], tmp_path: Pat
                                  "-t", "rectangle", "--workers", "2"])
     assert result.exit_code == 0, result.output
     table = _table(run)
-    assert sorted(table["setting"].unique()) == ["damping_scale=0.9", "damping_scale=1.1"]
+    assert sorted(table["setting"].unique()) == ["damping_scale=0.9", "damping_scale=1.1",
+                                                 "nominal"]
     assert (run / "robustness.log").is_file()
 
 

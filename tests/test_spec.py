@@ -136,6 +136,8 @@ def test_env_kwargs_are_plain_dicts_with_exact_names() -> None:
         "nonfinite_reward",
         "collision_penalty",
         "collision_margin",
+        "action_rate_penalty",
+        "action_penalty",
     ]
     assert env.target_kwargs()["box_low"] == (-0.6, 0.3, -0.6)
     assert type(env.sim_kwargs()) is dict

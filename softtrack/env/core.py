@@ -17,7 +17,7 @@ import numpy as np
 from softtrack.env.config import TrackingConfig
 from softtrack.env.observation import build_observation, observation_size
 from softtrack.env.realism import RealismModel
-from softtrack.env.reward import collision_penalty, tracking_reward
+from softtrack.env.reward import action_penalty, collision_penalty, tracking_reward
 from softtrack.env.targets import BatchedTargets
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
@@ -71,6 +71,8 @@ class TrackingCore:
         self.obs_dim = observation_size(self.n_arms, config.sim.n_nodes)
         self._obs = np.zeros((self.n_envs, self.obs_dim), dtype=np.float32)
         self._control_dt = config.sim.control_dt
+        # the previous clipped action of each environment, for reward.action_rate_penalty
+        self._previous_action = np.zeros((self.n_envs, self.action_dim))
         # Sensing/actuation imperfections (softtrack.env.realism); None when all are off, so a
         # default environment takes exactly the path (and the random draws) it always took.
         self.realism: RealismModel | None = (
@@ -126,6 +128,7 @@ class TrackingCore:
         self.engine.reset(idx)
         self.targets.reset(idx, list(rngs))
         self.step_count[idx] = 0
+        self._previous_action[idx] = 0.0
         obs = self.observe(idx)
         if self.realism is not None:
             obs = self.realism.reset(idx, list(rngs), obs)
@@ -153,10 +156,8 @@ class TrackingCore:
             row = int(np.argwhere(~np.isfinite(actions))[0, 0])
             raise NonFiniteActionError(f"action of environment {row} contains NaN or inf")
         realism = self.realism
-        if realism is None:
-            clipped = np.clip(actions, -1.0, 1.0)
-        else:
-            clipped = realism.filter_actions(np.clip(actions, -1.0, 1.0))
+        policy_actions = np.clip(actions, -1.0, 1.0)
+        clipped = policy_actions if realism is None else realism.filter_actions(policy_actions)
         engine = self.engine
         engine.set_actions(clipped.reshape(self.n_envs, self.n_arms, 2, N_CONTROL_POINTS))
         if realism is not None:
@@ -171,6 +172,10 @@ class TrackingCore:
         reward = tracking_reward(distances, self.config.reward)
         if self.config.reward.collision_penalty:
             reward = reward + collision_penalty(engine.position, self.config.reward)
+        if self.config.reward.penalises_actions:
+            reward = reward + action_penalty(policy_actions, self._previous_action,
+                                             self.config.reward)
+        self._previous_action[...] = policy_actions
         terminated = ~finite
         if terminated.any():
             reward[terminated] = self.config.reward.nonfinite_reward

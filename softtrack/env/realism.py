@@ -20,7 +20,8 @@ Observation path, per control step (each stage only when switched on):
 4. dropped values: each value reads 0 with ``obs_drop_probability`` for that step.
 
 Action path: clip to [−1, 1] (TrackingCore) → delay of ``action_delay`` control steps (zeros
-until the first real action comes out) → first-order lag y ← y + α (u − y),
+until the first real action comes out; with ``action_delay_max`` a whole number of steps drawn
+per episode from ``action_delay`` … ``action_delay_max``) → first-order lag y ← y + α (u − y),
 α = 1 − exp(−control_dt / τ), y = 0 at reset → rate limit
 |Δ| ≤ ``action_rate_limit``·control_dt per step relative to the value applied on the previous
 step (0 at reset) → spline torques (engine) → clip of each element torque to ±``torque_limit``.
@@ -87,6 +88,9 @@ class RealismConfig:
         obs_stuck_steps: control steps a stuck value repeats its last reading, ≥ 1.
         obs_delay: the policy sees the observation of this many control steps ago, ≥ 0.
         action_delay: the engine applies the action of this many control steps ago, ≥ 0.
+        action_delay_max: ``None``, or the largest delay, ≥ ``action_delay``: each episode's
+            delay is then drawn uniformly from the whole numbers ``action_delay`` …
+            ``action_delay_max`` (domain randomisation).
         actuator_time_constant: τ of the first-order lag on the control values, s (> 0);
             ``None`` = no lag.
         action_rate_limit: largest |change| of an applied control value per second, 1/s (> 0);
@@ -107,6 +111,7 @@ class RealismConfig:
     obs_stuck_steps: int = 1
     obs_delay: int = 0
     action_delay: int = 0
+    action_delay_max: int | None = None
     actuator_time_constant: float | None = None
     action_rate_limit: float | None = None
     torque_limit: float | None = None
@@ -188,6 +193,11 @@ class RealismConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ValueError(f"{name}={value!r} must be a whole number ≥ {low}")
+        high = self.action_delay_max
+        if high is not None and (isinstance(high, bool) or not isinstance(high, (int, np.integer))
+                                 or high < self.action_delay):
+            raise ValueError(f"action_delay_max={high!r} must be a whole number ≥ action_delay "
+                             f"({self.action_delay}), or None (a fixed delay)")
         for name in ("actuator_time_constant", "action_rate_limit", "torque_limit"):
             value = getattr(self, name)
             if value is not None and not (
@@ -268,7 +278,10 @@ class RealismModel:
         self._obs_queue = np.zeros((n, c.obs_delay, d), dtype=np.float32)
         self._stuck_left = np.zeros((n, d), dtype=np.int64)  # steps a value stays stuck
         self._last_reading = np.zeros((n, d), dtype=np.float32)  # before dropping
-        self._action_queue = np.zeros((n, c.action_delay, a))
+        # the last max_delay + 1 clipped actions (newest last) and each env's episode delay
+        self.max_delay = max(c.action_delay, c.action_delay_max or 0)
+        self._action_history = np.zeros((n, self.max_delay + 1, a))
+        self.action_delays = np.full(n, c.action_delay, dtype=np.intp)
         tau = c.actuator_time_constant
         self.lag_alpha = None if tau is None else -math.expm1(-self.control_dt / tau)
         self._lagged = np.zeros((n, a))
@@ -297,7 +310,11 @@ class RealismModel:
         obs = np.array(observations, dtype=np.float32)
         self._obs_queue[idx] = obs[:, None, :]
         self._stuck_left[idx] = 0
-        self._action_queue[idx] = 0.0
+        self._action_history[idx] = 0.0
+        if self.config.action_delay_max is not None:
+            low, high = self.config.action_delay, self.config.action_delay_max
+            for i in idx.tolist():
+                self.action_delays[i] = _spawn(self._rng(i)).integers(low, high + 1)
         self._lagged[idx] = 0.0
         self._applied[idx] = 0.0
         reading = self._noisy(obs, idx)
@@ -371,12 +388,11 @@ class RealismModel:
         """(n, 12·A) clipped control values → (n, 12·A) float64 values the actuators apply
         (delay, first-order lag, rate limit; the module docstring)."""
         u = np.array(actions, dtype=np.float64)
-        if self.config.action_delay:
-            queue = self._action_queue
-            delayed = queue[:, 0].copy()
-            queue[:, :-1] = queue[:, 1:]
-            queue[:, -1] = u
-            u = delayed
+        if self.max_delay:
+            history = self._action_history
+            history[:, :-1] = history[:, 1:]
+            history[:, -1] = u
+            u = history[np.arange(self.n_envs), self.max_delay - self.action_delays]
         if self.lag_alpha is not None:
             self._lagged += self.lag_alpha * (u - self._lagged)
             u = self._lagged.copy()

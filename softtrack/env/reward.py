@@ -5,7 +5,9 @@ With dᵢ the distance of arm i's tip to the target centre (m):
     r = −Σᵢ wᵢ·dᵢ² + Σᵢ Σ_k b_k·1(dᵢ ≤ θ_k) + b_coop·1(all dᵢ ≤ θ_coop)
 
 (the cooperative term only with two or more arms). Optionally, −c_col when the closest pair
-of nodes of the two arms is nearer than 2·arm_radius + margin.
+of nodes of the two arms is nearer than 2·arm_radius + margin, and action penalties for smooth
+actuation (:func:`action_penalty`): −c_rate·mean((aₜ − aₜ₋₁)²) − c_act·mean(aₜ²) over the
+clipped action's values.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from numba import njit
 
 __all__ = [
     "RewardConfig",
+    "action_penalty",
     "collision_penalty",
     "reward_shares",
     "tip_distances",
@@ -47,6 +50,10 @@ class RewardConfig:
         collision_penalty: c_col ≥ 0 subtracted when the arms come too close (0 disables).
         collision_margin: extra clearance added to 2·arm_radius, m.
         arm_radius: radius of each arm for the collision test, m.
+        action_rate_penalty: c_rate ≥ 0, weight of the mean squared change of the clipped
+            action values since the previous control step (0 at a reset); 0 disables it.
+        action_penalty: c_act ≥ 0, weight of the mean squared clipped action value (drives
+            actions away from saturation); 0 disables it.
     """
 
     arm_weights: tuple[float, ...] = (1.0, 1.0)
@@ -58,6 +65,8 @@ class RewardConfig:
     collision_penalty: float = 0.0
     collision_margin: float = 0.0
     arm_radius: float = 0.05
+    action_rate_penalty: float = 0.0
+    action_penalty: float = 0.0
 
     @classmethod
     def single_arm(cls) -> RewardConfig:
@@ -97,6 +106,8 @@ class RewardConfig:
             "collision_penalty",
             "collision_margin",
             "arm_radius",
+            "action_rate_penalty",
+            "action_penalty",
         ):
             if not _finite(getattr(self, name)):
                 raise ValueError(f"reward {name}={getattr(self, name)!r} must be a finite number")
@@ -113,6 +124,15 @@ class RewardConfig:
             raise ValueError(f"reward collision_margin={self.collision_margin!r} must be ≥ 0 m")
         if self.arm_radius <= 0:
             raise ValueError(f"reward arm_radius={self.arm_radius!r} must be > 0 m")
+        for name in ("action_rate_penalty", "action_penalty"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"reward {name}={getattr(self, name)!r} must be ≥ 0 (it is "
+                                 "subtracted; 0 disables it)")
+
+    @property
+    def penalises_actions(self) -> bool:
+        """True when an action penalty is on."""
+        return bool(self.action_rate_penalty or self.action_penalty)
 
 
 def tip_distances(tips: np.ndarray, target_position: np.ndarray) -> np.ndarray:
@@ -167,6 +187,28 @@ def _tracking_reward(d, weights, thresholds, values, coop_threshold, coop_bonus,
             r += coop_bonus
         reward[i] = r if math.isfinite(r) else nonfinite
     return reward
+
+
+def action_penalty(actions: np.ndarray, previous: np.ndarray, config: RewardConfig
+                   ) -> np.ndarray:
+    """The action penalties of a batch of control steps, to add to the reward (≤ 0).
+
+    Args:
+        actions: (n, D) clipped control values of this step, in [−1, 1].
+        previous: (n, D) those of the previous step (zeros after a reset).
+        config: ``action_rate_penalty`` c_rate and ``action_penalty`` c_act.
+
+    Returns:
+        (n,) −c_rate·mean_d((aₜ − aₜ₋₁)²) − c_act·mean_d(aₜ²).
+    """
+    a = np.asarray(actions, dtype=float)
+    penalty = np.zeros(a.shape[0])
+    if config.action_rate_penalty:
+        change = a - np.asarray(previous, dtype=float)
+        penalty -= config.action_rate_penalty * np.mean(change * change, axis=1)
+    if config.action_penalty:
+        penalty -= config.action_penalty * np.mean(a * a, axis=1)
+    return penalty
 
 
 def reward_shares(distances: np.ndarray, rewards: np.ndarray, config: RewardConfig) -> np.ndarray:

@@ -137,6 +137,10 @@ def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = Fals
         full: the Cartesian product of all axes; otherwise one factor at a time, in the order
             given (duplicates removed).
 
+    Returns:
+        The ``nominal`` setting (no factor: the baseline every ratio refers to), then the
+        grid's settings.
+
     Raises:
         SpecError: an unknown factor, or no axis.
     """
@@ -151,7 +155,7 @@ def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = Fals
         settings = [Setting(tuple(zip(names, combo, strict=True))) for combo in combos]
     else:
         settings = [Setting(((f, v),)) for f, levels in grid for v in levels]
-    return list(dict.fromkeys(settings))
+    return list(dict.fromkeys([Setting(()), *settings]))
 
 
 def perturbed_spec(spec: ExperimentSpec, setting: Setting, keep_realism: bool = False

@@ -13,17 +13,16 @@ import pandas as pd
 
 from softtrack.evaluation.robustness import ROBUSTNESS_SEED
 from softtrack.report import figures as fg
-from softtrack.report.data import Group, RunData
+from softtrack.report.data import Group
 from softtrack.report.document import Context, Doc
 
 __all__ = ["robustness_section", "robustness_summary"]
 
 
-def _nominal(run: RunData, trajectories: list[str]) -> float:
-    """The run's mean 3-D RMSE over ``trajectories`` and arms in its nominal evaluation (m)."""
-    if run.metrics is None or "rmse_3d" not in run.metrics:
-        return float("nan")
-    rows = run.metrics[run.metrics["trajectory"].isin(trajectories)]
+def _nominal(table: pd.DataFrame, trajectories: list[str]) -> float:
+    """A run's mean 3-D RMSE over ``trajectories`` and arms in its ``nominal`` setting (m);
+    NaN when that setting lacks one of them."""
+    rows = table[(table["setting"] == "nominal") & table["trajectory"].isin(trajectories)]
     if set(rows["trajectory"]) != set(trajectories):
         return float("nan")
     return float(pd.to_numeric(rows["rmse_3d"], errors="coerce").mean())
@@ -33,7 +32,8 @@ def robustness_summary(groups: list[Group]) -> pd.DataFrame:
     """One row per group and setting of the idealised baseline (``eval_robustness``).
 
     A seed's value is its mean 3-D RMSE over the setting's trajectories, arms and episodes;
-    its ratio is that value over its nominal evaluation's mean over the same trajectories.
+    its ratio is that value over the seed's ``nominal`` setting (the unperturbed baseline) on
+    the same trajectories.
     Columns: group, perturbation, level, setting, n (seeds), rmse_3d_mean, rmse_3d_std
     (sample std across seeds; NaN for one seed), rmse_3d_min, rmse_3d_max (m), ratio_mean,
     diverged (episodes that ended early, all seeds), peak_moment (largest element torque,
@@ -50,7 +50,7 @@ def robustness_summary(groups: list[Group]) -> pd.DataFrame:
             table = table[table["baseline"] == "idealised"]
             for setting, part in table.groupby("setting", sort=False):
                 value = float(pd.to_numeric(part["rmse_3d"], errors="coerce").mean())
-                nominal = _nominal(run, sorted(set(part["trajectory"])))
+                nominal = _nominal(table, sorted(set(part["trajectory"])))
                 episodes = part.drop_duplicates(["trajectory", "episode"])
                 per_setting.setdefault(str(setting), []).append({
                     "value": value,
@@ -102,8 +102,9 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
         return
     doc.h(3, "Robustness to perturbations")
     labels = list(dict.fromkeys(summary["group"]))
-    order = summary.drop_duplicates("setting").sort_values(
-        ["perturbation", "level", "setting"], kind="stable")
+    order = summary.drop_duplicates("setting").assign(
+        first=lambda df: df["setting"] != "nominal").sort_values(
+        ["first", "perturbation", "level", "setting"], kind="stable")
     rows = []
     for _, setting in order.iterrows():
         row = [str(setting["perturbation"]), f"`{setting['setting']}`"]
@@ -120,7 +121,8 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
         "trajectories, from the idealised environment (the run's own realism settings off). "
         "A seed's value is its mean 3-D RMSE over trajectories, arms and episodes (noise from "
         f"seed {ROBUSTNESS_SEED:,} + k); mean ± sample std across seeds ({seeds} seeds), and "
-        "in brackets the mean ratio to the seed's nominal evaluation on the same trajectories."
+        "in brackets the mean ratio to the seed's `nominal` row (the unperturbed baseline) on "
+        "the same trajectories."
     )
     one_factor = summary[np.isfinite(summary["level"].astype(float))]
     if one_factor.groupby("perturbation")["level"].nunique().max() >= 2:

@@ -206,8 +206,11 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "policy_kwargs", "batch_norm_actor"): True,
     ("algo", "policy_kwargs", "batch_norm_momentum"): 0.99,
     ("algo", "policy_kwargs", "renorm_warmup_steps"): 100_000,
+    ("env", "reward", "action_rate_penalty"): 0.0,
+    ("env", "reward", "action_penalty"): 0.0,
     # env.realism: every field at its "off" value, then the section itself once emptied (so a
     # field added to it later only needs its own line here)
+    ("env", "realism", "action_delay_max"): None,
     ("env", "realism", "obs_noise_node_position"): 0.0,
     ("env", "realism", "obs_noise_target_position"): 0.0,
     ("env", "realism", "obs_noise_speed"): 0.0,

@@ -46,6 +46,8 @@ def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
         bonus_values=single.bonus_values,
         cooperative_bonus=single.cooperative_bonus,
         nonfinite_reward=env.reward.nonfinite_reward,
+        action_rate_penalty=env.reward.action_rate_penalty,
+        action_penalty=env.reward.action_penalty,
     )
     return {"arm": arm, "reward": reward, **common, **sim}
 

@@ -220,6 +220,20 @@ class RewardSpec(SpecModel):
     collision_margin: Float = unit_field(
         0.0, "extra clearance added to the sum of the radii in the collision test", "m", ge=0
     )
+    action_rate_penalty: Float = unit_field(
+        0.0,
+        "c_rate: subtract c_rate times the mean squared change of the clipped action values "
+        "since the previous control step (smooth actuation); 0 = off",
+        "reward units",
+        ge=0,
+    )
+    action_penalty: Float = unit_field(
+        0.0,
+        "c_act: subtract c_act times the mean squared clipped action value (away from "
+        "saturation); 0 = off",
+        "reward units",
+        ge=0,
+    )
 
     @model_validator(mode="after")
     def _check_bonuses(self) -> RewardSpec:
@@ -288,6 +302,13 @@ class RealismSpec(SpecModel):
         "control steps",
         ge=0,
     )
+    action_delay_max: Int | None = unit_field(
+        None,
+        "null, or the largest action delay: each episode's delay is then drawn uniformly from "
+        "the whole numbers action_delay ... action_delay_max (domain randomisation)",
+        "control steps",
+        ge=0,
+    )
     actuator_time_constant: Float | None = unit_field(
         None,
         "time constant tau of a first-order lag on every control value (0 at reset, exact "
@@ -336,6 +357,16 @@ class RealismSpec(SpecModel):
         "range drawn per episode; 1 = off",
         "-",
     )
+
+    @model_validator(mode="after")
+    def _check_delay_range(self) -> RealismSpec:
+        if self.action_delay_max is not None and self.action_delay_max < self.action_delay:
+            raise custom_error(
+                f"{self.action_delay_max} is below action_delay ({self.action_delay}); give "
+                "the largest delay of the per-episode range, or null for a fixed delay",
+                "action_delay_max",
+            )
+        return self
 
     def realism_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :class:`softtrack.env.realism.RealismConfig`."""
