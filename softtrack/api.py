@@ -104,10 +104,14 @@ def validation_summary(spec: ExperimentSpec, chain: Sequence[str] = ()) -> str:
     seeds = ", ".join(str(s) for s in spec.seeds)
     runs = f"{spec.n_runs} run{'s' if spec.n_runs != 1 else ''}"
     seed_word = "seeds" if spec.n_runs != 1 else "seed"
-    text = (
-        f"ok: {spec.name}, {runs} ({seed_word} {seeds}): {spec.algo.name}/{spec.controller}, "
-        f"{spec.training.total_timesteps:,} env steps each"
-    )
+    if spec.controller == "mpc":
+        m = spec.mpc
+        what = (f"{m.method}/mpc, {m.samples} samples × {m.horizon} steps, replanning every "
+                f"{m.replan_interval} steps (nothing to train: `softtrack evaluate SPEC`)")
+    else:
+        what = (f"{spec.algo.name}/{spec.controller}, {spec.training.total_timesteps:,} env "
+                "steps each")
+    text = f"ok: {spec.name}, {runs} ({seed_word} {seeds}): {what}"
     if len(chain) > 1:
         text += "\n   base: " + " → ".join(chain[1:])
     if spec.tune is not None:
@@ -165,6 +169,11 @@ def train(
 
     spec = load_spec(path, overrides)
     chain = spec_chain(path)
+    if spec.controller == "mpc":
+        raise SpecError(str(path),
+                        "mpc has nothing to train (a planner plans at every control step)",
+                        f"evaluate it: `softtrack evaluate {path}` creates one run per seed "
+                        "and evaluates it", field="controller")
     check_supported(spec, str(path))
     seeds = list(spec.seeds) if seed is None else [int(seed)]
     if seed is not None and not 0 <= seed < 2**32:
@@ -211,9 +220,13 @@ def evaluate(
     on_random: Callable[..., None] | None = None,
     model: ModelChoice = "policy",
     full_moments: bool = False,
+    on_created: Callable[[RunRecord], None] | None = None,
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
+
+    A reference that is a spec file of ``controller: mpc`` (nothing to train) first creates
+    one completed run per seed of the spec in the runs directory, which is then evaluated.
 
     Every run is resolved and its spec checked before any episode runs, so a bad reference
     fails without writing anything.
@@ -232,6 +245,7 @@ def evaluate(
         full_moments: also store every element torque at every step (table
             ``eval_element_moments``, about 2 MB per trajectory); by default only the docs/environment.md
             summaries (``eval_moments``, ``eval_moment_peaks``) are stored.
+        on_created: called with each run created for an MPC spec.
 
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
@@ -256,7 +270,16 @@ def evaluate(
                         "name a trajectory, or add --random N to --trajectory none")
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
-    records = [resolve_run(ref, runs_dir) for ref in references]
+    mpc_specs = {ref: _mpc_spec(ref) for ref in references if _is_spec_file(ref)}
+    records = [resolve_run(ref, runs_dir) for ref in references if ref not in mpc_specs]
+    store_for_new = RunStore(resolve_runs_dir(runs_dir))
+    for ref, spec in mpc_specs.items():
+        for seed in spec.seeds:
+            record = store_for_new.create_run(spec, seed, spec_files=spec_chain(ref))
+            record = store_for_new.mark_finished(record.run_id, "completed")
+            records.append(record)
+            if on_created is not None:
+                on_created(record)
     stores = []
     for record in records:
         spec = record.load_spec()
@@ -272,6 +295,24 @@ def evaluate(
             if on_random is not None:
                 on_random(record, rows)
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _is_spec_file(reference: str) -> bool:
+    return Path(reference).suffix in (".yaml", ".yml") and Path(reference).is_file()
+
+
+def _mpc_spec(path: str) -> ExperimentSpec:
+    """The spec of an MPC controller at ``path``, to evaluate without training.
+
+    Raises:
+        SpecError: the spec is invalid, or its controller needs training.
+    """
+    spec = load_spec(path)
+    if spec.controller != "mpc":
+        raise SpecError(path, f"controller: {spec.controller} needs training before it can be "
+                        "evaluated", f"train it (`softtrack train {path}`) and evaluate its runs",
+                        field="controller")
+    return spec
 
 
 def export(

@@ -661,6 +661,10 @@ def evaluate(
     --model last (or best) evaluates another of the run's models, e.g. the last model of a
     run that keeps its best-validated one, and only prints its results: the tables keep the
     evaluation of the run's policy.
+
+    A spec file of controller: mpc (a sampling planner, nothing to train) in place of a run
+    creates one run per seed of the spec and evaluates it (docs/mpc.md); its metrics add the
+    planning time per control step.
     """
     if trajectory is TrajectoryChoice.all:
         chosen: list[str] | None = None
@@ -670,7 +674,12 @@ def evaluate(
     with _user_errors():
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
                      random_episodes=random, on_random=_print_random, model=model.value,
-                     full_moments=full_moments)
+                     full_moments=full_moments, on_created=_print_created)
+
+
+def _print_created(record: RunRecord) -> None:
+    typer.echo(f"{record.run_id}  created: {record.info.name} seed {record.info.seed} "
+               f"(controller mpc, {record.info.algo})", err=True)
 
 
 def _print_episode(record: RunRecord, episode: Episode, metrics: pd.DataFrame) -> None:

@@ -849,7 +849,11 @@ def _budget(steps: int) -> str:
 
 def expected_file_stem(spec: ExperimentSpec) -> str:
     """The naming scheme of experiments/README.md: [independent-]algorithm[-backend]-network-
-    budget, then the tags of the experiment's name that these do not already say."""
+    budget, then the tags of the experiment's name that these do not already say; an MPC
+    planner: mpc-method-samples x horizon."""
+    if spec.controller == "mpc":
+        head = ["mpc", spec.mpc.method, f"{spec.mpc.samples}x{spec.mpc.horizon}"]
+        return "-".join(head + [t for t in spec.name.split("-") if t not in head])
     net = spec.algo.policy_kwargs.net_arch
     assert len(set(net)) == 1, net  # one width for every hidden layer
     head = [

@@ -11,6 +11,7 @@ episode are in :mod:`softtrack.evaluation.tables`.
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -65,6 +66,9 @@ class Episode:
             and at a non-finite state; ``None`` when not recorded (then treated as all NaN).
         collision_margin: the run's ``reward.collision_margin``, m: steps with a clearance
             below it count as ``collision_steps``.
+        planning_time: (N,) wall time of the controller's call at each control step, s, for
+            a controller that plans on the episode's state (``start_episode``, e.g. MPC);
+            ``None`` for a policy.
     """
 
     trajectory: str
@@ -76,6 +80,7 @@ class Episode:
     terminated: bool
     clearance: np.ndarray | None = None
     collision_margin: float = 0.0
+    planning_time: np.ndarray | None = None
 
 
 def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
@@ -98,6 +103,10 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
 def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
                 duration: float = 10.0, seed: int = 0) -> Episode:
     """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
+
+    A controller with a ``start_episode(core)`` method (an MPC planner) is given the
+    episode's :class:`~softtrack.env.core.TrackingCore` after the reset, and the wall time of
+    each of its calls is recorded (``Episode.planning_time``).
 
     Args:
         policy: observation (obs_dim,) → action (act_dim,), deterministic.
@@ -123,10 +132,18 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     two_arms = core.n_arms >= 2
     # the rods' radius in this episode: the nominal one, times its model-error factor if any
     radius = float(eval_config.sim.radius) * core.parameters(0)["radius_scale"]
+    start_episode = getattr(policy, "start_episode", None)
+    planning = None
+    if start_episode is not None:
+        start_episode(core)
+        planning = np.full(n_steps, np.nan)
     terminated = False
     done_steps = n_steps
     for k in range(n_steps):
+        started = time.perf_counter()
         action = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
+        if planning is not None:
+            planning[k] = time.perf_counter() - started
         result = core.step(action[None])
         actions[k] = action
         tips[k] = core.engine.tip_position[0]
@@ -141,4 +158,5 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
     return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
                    actions[:done_steps], terminated, clearance[:done_steps],
-                   float(eval_config.reward.collision_margin))
+                   float(eval_config.reward.collision_margin),
+                   None if planning is None else planning[:done_steps])

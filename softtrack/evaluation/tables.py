@@ -71,7 +71,9 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     N·m/s, ``peak_moment`` N·m: :func:`~softtrack.evaluation.metrics.torque_statistics`) and
     the episode's inter-arm safety, the same in both arms' rows (``min_arm_distance`` m,
     ``collision_steps``: :func:`~softtrack.evaluation.metrics.safety_statistics`; NaN and 0
-    in a single-arm scene)."""
+    in a single-arm scene); for a planning controller (``episode.planning_time``), the mean
+    and largest wall time of its call per control step (``planning_time``,
+    ``planning_time_max``, s)."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
     n_arms = episode.tips.shape[1]
@@ -98,6 +100,9 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
         row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
         row.update(torque_statistics(episode.element_torques[:, arm], episode.t))
         row.update(safety)
+        if episode.planning_time is not None and len(episode.planning_time):
+            row["planning_time"] = float(np.mean(episode.planning_time))
+            row["planning_time_max"] = float(np.max(episode.planning_time))
         rows.append(row)
     return pd.DataFrame(rows)
 

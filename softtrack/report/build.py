@@ -49,6 +49,7 @@ from softtrack.report.evaluation_sections import (
 from softtrack.report.featured import featured_groups
 from softtrack.report.select import EmptySelectionError, select_report_runs
 from softtrack.report.summaries import metrics_summary
+from softtrack.report.planning import planning_section
 from softtrack.report.robustness import robustness_section
 from softtrack.report.training_sections import (
     final_section,
@@ -140,6 +141,7 @@ def build_report(
     errors_section(doc, ctx, summary, trajectories)
     random_targets_section(doc, ctx)
     robustness_section(doc, ctx)
+    planning_section(doc, ctx)
     actions_section(doc, ctx, summary, trajectories)
     trajectories_section(doc, ctx, trajectories, featured)
     moments_section(doc, ctx, trajectories, featured)

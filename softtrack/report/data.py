@@ -57,7 +57,7 @@ _ROBUSTNESS_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode"
                        "min_arm_distance", "collision_steps")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3, "tqc": 4, "crossq": 5}
 _ALGO_LABELS = {"crossq": "CrossQ"}  # display names that are not the upper-cased algo name
-_CONTROLLER_ORDER = {"centralized": 0, "independent": 1}
+_CONTROLLER_ORDER = {"centralized": 0, "independent": 1, "mpc": 2}
 
 
 # ---- runs -----------------------------------------------------------------------------------
@@ -126,7 +126,10 @@ class RunData:
         return int(step)
 
     def budget_text(self) -> str:
-        """``2,000 env steps per run``, or for an independent run ``2,000 env steps per arm``."""
+        """``2,000 env steps per run``, for an independent run ``2,000 env steps per arm``, for
+        an MPC run ``no training (planner)``."""
+        if self.record.info.controller == "mpc":
+            return "no training (planner)"
         if self.record.info.controller == "independent":
             return f"{self.arm_budget:,} env steps per arm"
         return f"{self.total_timesteps:,} env steps per run"
@@ -259,6 +262,8 @@ def group_runs(runs: Sequence[RunData]) -> list[Group]:
 
     def base(key: tuple[str, str, str, str]) -> str:
         algo, controller = _ALGO_LABELS.get(key[0], key[0].upper()), key[1]
+        if controller == "mpc":
+            return f"MPC ({algo})"
         return algo if controller == "centralized" else f"{algo} ({controller})"
 
     labels = {k: base(k) for k in keys}

@@ -184,13 +184,16 @@ def group_provenance(group: Group) -> str:
     commands = sorted(
         {shlex.join(r.record.info.command) for r in group.runs if r.record.info.command}
     )
+    planner = group.controller == "mpc"
     text = (
         f"**{group.label}**: experiment `{group.name}`, spec `{hashes}`, seeds "
-        f"{seeds_text(group.seeds)}, budget {budgets} (reached {reached}), "
-        f"commit `{commits}`"
+        f"{seeds_text(group.seeds)}, "
+        + (budgets if planner else f"budget {budgets} (reached {reached})")
+        + f", commit `{commits}`"
     )
     if commands:
-        text += "; trained by " + ", ".join(f"`{c}`" for c in commands)
+        text += ("; created by " if planner else "; trained by ") + ", ".join(
+            f"`{c}`" for c in commands)
     bases = sorted({str(base.get("name")) for r in group.runs
                     if isinstance(base := r.record.info.notes.get("derived_from"), dict)})
     if bases:

@@ -50,7 +50,8 @@ def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
                     info.controller,
                     str(info.seed),
                     info.status,
-                    f"{r.last_step:,} / {info.total_timesteps:,}",
+                    "— (planner)" if info.controller == "mpc"
+                    else f"{r.last_step:,} / {info.total_timesteps:,}",
                     *_training_speed(r),
                     info.cpu or "—",
                     info.spec_hash[:12],
@@ -112,7 +113,7 @@ def training_section(doc: Doc, ctx: Context) -> None:
 def final_section(doc: Doc, ctx: Context) -> None:
     """Final-stage return per group and policy, per seed and against the study (Table 3)."""
     doc.h(2, "Final-stage return (study Table 3)")
-    table = final_stage_table(ctx.groups)
+    table = final_stage_table([g for g in ctx.groups if g.controller != "mpc"])
     rows = []
     for row in table.itertuples():
         group = next(g for g in ctx.groups if g.label == row.group)

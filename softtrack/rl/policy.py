@@ -24,7 +24,7 @@ from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
 __all__ = ["MODEL_CHOICES", "ModelChoice", "candidate_path", "deterministic_policy", "load_policy",
-           "load_policy_file", "model_paths", "policy_choice", "require_model"]
+           "load_policy_file", "model_paths", "mpc_controller", "policy_choice", "require_model"]
 
 ModelChoice = Literal["policy", "last", "best"]
 """Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
@@ -41,6 +41,8 @@ def model_paths(
     arm otherwise. The files need not exist (an unfinished run, a run without validation)."""
     if model not in MODEL_CHOICES:
         raise ValueError(f"model={model!r}; choose from {', '.join(MODEL_CHOICES)}")
+    if spec.controller == "mpc":
+        return []  # a planner: nothing stored
     policies = PolicyDir.all_of_run(record.path, spec.controller == "independent")
     if model != "policy":
         return [candidate_path(policy, model) for policy in policies]
@@ -56,6 +58,9 @@ def require_model(record: RunRecord, spec: ExperimentSpec, model: ModelChoice = 
         RunStoreError: a model file is missing (the run is unfinished, or ``best`` of a run
             trained without validation), with the command that fixes it.
     """
+    if model != "policy" and spec.controller == "mpc":
+        raise RunStoreError(f"run {record.run_id} is an MPC controller: it has no last or "
+                            "best model; evaluate it without --model")
     if model == "best" and spec.training.validation_episodes < 1:
         raise RunStoreError(
             f"run {record.run_id} was trained without validation "
@@ -132,15 +137,30 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
     return deterministic_policy(model, normalizer)
 
 
+def mpc_controller(spec: ExperimentSpec, seed: int) -> Policy:
+    """The sampling MPC of ``spec``'s ``mpc:`` section (arm weights from ``env.reward``)."""
+    from softtrack.mpc.config import PlannerConfig
+    from softtrack.mpc.controller import MpcController
+
+    config = PlannerConfig(**spec.mpc.planner_kwargs(),
+                           arm_weights=tuple(spec.env.reward.arm_weights))
+    return MpcController(config, seed, spec.mpc.model, spec.mpc.model_scales)
+
+
 def load_policy(
     record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
 ) -> Policy:
     """The run's deterministic dual-arm policy: observation (81,) → action (24,), from the
     model(s) ``model`` picks (:func:`model_paths`).
 
+    An MPC run (``controller: mpc``) gives its planner
+    (:class:`~softtrack.mpc.controller.MpcController`, seeded with the run's seed).
+
     Raises:
         RunStoreError: a model file is missing or unreadable.
     """
+    if spec.controller == "mpc":
+        return mpc_controller(spec, record.info.seed)
     import torch
 
     torch.set_num_threads(1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -17,9 +18,35 @@ from softtrack.sim.params import (
     scaled_params,
 )
 
-__all__ = ["RodBatch"]
+__all__ = ["RodBatch", "RodState"]
 
 _TORQUE_COLUMN = list(MODEL_PARAMETERS).index("torque_scale_factor")
+
+
+@dataclass(frozen=True)
+class RodState:
+    """The dynamic state of k environments of a :class:`RodBatch` (copies, float64).
+
+    Attributes:
+        position, velocity: (k, A, 3, N+1) m, m/s.
+        directors: (k, A, 3, 3, N).
+        omega: (k, A, 3, N) rad/s, local frame.
+        torques: (k, A, 2, N) N·m, the applied element couples.
+        time: (k,) s since the last reset.
+        finite: (k,) bool, the state was finite after the last advance.
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    directors: np.ndarray
+    omega: np.ndarray
+    torques: np.ndarray
+    time: np.ndarray
+    finite: np.ndarray
+
+    @property
+    def n_envs(self) -> int:
+        return int(self.position.shape[0])
 
 
 class RodBatch:
@@ -97,6 +124,37 @@ class RodBatch:
         self.torques[idx] = 0.0
         self.time[idx] = 0.0
         self._finite[idx] = True
+
+    def get_state(self, env_indices: Sequence[int] | np.ndarray | None = None) -> RodState:
+        """A copy of the listed environments' state (default: all)."""
+        idx = slice(None) if env_indices is None else np.asarray(env_indices, dtype=np.intp)
+        return RodState(self.position[idx].copy(), self.velocity[idx].copy(),
+                        self.directors[idx].copy(), self.omega[idx].copy(),
+                        self.torques[idx].copy(), self.time[idx].copy(),
+                        self._finite[idx].copy())
+
+    def set_state(self, state: RodState,
+                  env_indices: Sequence[int] | np.ndarray | None = None) -> None:
+        """Put ``state`` into the listed environments (default: all), bit for bit; a state of
+        one environment is copied into every listed one (branching a plan from one state).
+
+        Raises:
+            ValueError: the state's arrays do not fit these environments.
+        """
+        idx = slice(None) if env_indices is None else np.asarray(env_indices, dtype=np.intp)
+        k = len(self.time[idx])
+        if state.n_envs not in (1, k) or state.position.shape[1:] != self.position.shape[1:]:
+            raise ValueError(
+                f"a state of {state.n_envs} environments with nodes {state.position.shape[1:]} "
+                f"does not fit {k} environments with nodes {self.position.shape[1:]}"
+            )
+        self.position[idx] = state.position
+        self.velocity[idx] = state.velocity
+        self.directors[idx] = state.directors
+        self.omega[idx] = state.omega
+        self.torques[idx] = state.torques
+        self.time[idx] = state.time
+        self._finite[idx] = state.finite
 
     def set_parameters(
         self,

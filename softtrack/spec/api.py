@@ -229,6 +229,22 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "realism", "damping_scale"): 1.0,
     ("env", "realism", "torque_scale_factor"): 1.0,
     ("env", "realism"): {},
+    # mpc: every field at its default, then the section itself once emptied
+    ("mpc", "method"): "mppi",
+    ("mpc", "samples"): 64,
+    ("mpc", "horizon"): 50,
+    ("mpc", "knots"): 5,
+    ("mpc", "iterations"): 1,
+    ("mpc", "noise_std"): 0.3,
+    ("mpc", "temperature"): 0.05,
+    ("mpc", "elite_fraction"): 0.1,
+    ("mpc", "replan_interval"): 5,
+    ("mpc", "warm_start"): True,
+    ("mpc", "action_rate_weight"): 0.0,
+    ("mpc", "action_weight"): 0.0,
+    ("mpc", "model"): "true",
+    ("mpc", "model_scales"): {},
+    ("mpc",): {},
 }
 
 

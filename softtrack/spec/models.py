@@ -21,6 +21,7 @@ from softtrack.spec.fields import (
     section_field,
     unit_field,
 )
+from softtrack.spec.mpc_models import MpcSpec
 from softtrack.spec.tune_models import TuneSpec, check_tune
 
 __all__ = ["ClusterSpec", "ExperimentSpec", "TrainingSpec"]
@@ -265,13 +266,17 @@ class ExperimentSpec(SpecModel):
         description="random seeds, one training run per seed; an int or a list [-]",
         min_length=1,
     )
-    controller: Literal["centralized", "independent"] = unit_field(
+    controller: Literal["centralized", "independent", "mpc"] = unit_field(
         "centralized",
         "centralized: one policy drives both arms; independent: one single-arm policy per arm "
         "(docs/environment.md), trained one after the other (arm 0, then arm 1) in the single-arm "
         "environment of its arm, each with the algo settings and training.total_timesteps env "
-        "steps, so an independent run takes twice the env steps of a centralized one",
+        "steps, so an independent run takes twice the env steps of a centralized one; mpc: "
+        "the sampling planner of the mpc section (docs/mpc.md), nothing to train",
         "-",
+    )
+    mpc: MpcSpec = section_field(
+        MpcSpec, "the sampling planner of controller: mpc (docs/mpc.md); unused otherwise"
     )
     tune: TuneSpec | None = Field(
         None,

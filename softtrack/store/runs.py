@@ -310,7 +310,7 @@ class RunStore:
             info = RunInfo(
                 run_id=run_id,
                 name=spec.name,
-                algo=spec.algo.name,
+                algo=spec.mpc.method if spec.controller == "mpc" else spec.algo.name,
                 controller=spec.controller,
                 seed=int(seed),
                 status=status,

@@ -1,0 +1,76 @@
+"""The settings of a sampling planner (:class:`PlannerConfig`), without the engine, so that the
+spec validates them without importing numba."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+__all__ = ["PlannerConfig"]
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Settings of a :class:`SamplingPlanner` (the spec's ``mpc:`` section).
+
+    Attributes:
+        method: ``mppi`` or ``cem``.
+        samples: K plans rolled out per iteration (≥ 2).
+        horizon: H control steps planned ahead (≥ 1).
+        knots: values per control value along the horizon (2 ≤ knots ≤ H, or H = 1 and 1);
+            ``None`` = H.
+        iterations: sampling iterations per plan (≥ 1).
+        noise_std: std of the Gaussian perturbation of each knot value (control units, > 0).
+        temperature: MPPI's λ on costs normalised to [0, 1] (> 0; smaller = greedier).
+        elite_fraction: CEM's share of samples refitted (0 < f ≤ 1).
+        replan_interval: control steps executed from one plan before the next (1 ≤ r ≤ H).
+        warm_start: start each plan from the previous one shifted in time (else from zeros).
+        arm_weights: wᵢ of the squared tip distances (1/m²).
+        action_rate_weight: c_rate on the mean squared change of the control values per step.
+        action_weight: c_act on the mean squared control value.
+    """
+
+    method: Literal["mppi", "cem"] = "mppi"
+    samples: int = 64
+    horizon: int = 10
+    knots: int | None = None
+    iterations: int = 1
+    noise_std: float = 0.3
+    temperature: float = 0.05
+    elite_fraction: float = 0.1
+    replan_interval: int = 1
+    warm_start: bool = True
+    arm_weights: tuple[float, ...] = (1.0, 1.0)
+    action_rate_weight: float = 0.0
+    action_weight: float = 0.0
+
+    @property
+    def n_knots(self) -> int:
+        return self.horizon if self.knots is None else int(self.knots)
+
+    @property
+    def rollout_steps(self) -> int:
+        """Env control steps simulated per plan: samples × horizon × iterations."""
+        return self.samples * self.horizon * self.iterations
+
+    def validate(self) -> None:
+        """Raise ``ValueError`` naming the first invalid setting and its valid range."""
+        if self.method not in ("mppi", "cem"):
+            raise ValueError(f"method={self.method!r}: use mppi or cem")
+        for name, low in (("samples", 2), ("horizon", 1), ("iterations", 1),
+                          ("replan_interval", 1)):
+            if int(getattr(self, name)) < low:
+                raise ValueError(f"{name}={getattr(self, name)!r} must be ≥ {low}")
+        if not 1 <= self.n_knots <= self.horizon or (self.n_knots == 1 and self.horizon > 1):
+            raise ValueError(f"knots={self.knots!r} must be in 2 … horizon ({self.horizon}), "
+                             "or null for one per control step")
+        if self.replan_interval > self.horizon:
+            raise ValueError(f"replan_interval={self.replan_interval} must be ≤ horizon "
+                             f"({self.horizon})")
+        for name in ("noise_std", "temperature"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}={getattr(self, name)!r} must be > 0")
+        if not 0 < self.elite_fraction <= 1:
+            raise ValueError(f"elite_fraction={self.elite_fraction!r} must be in (0, 1]")
+        if self.action_rate_weight < 0 or self.action_weight < 0:
+            raise ValueError("action_rate_weight and action_weight must be ≥ 0")

@@ -1,0 +1,151 @@
+"""Sampling MPC (``controller: mpc``): engine state round trip, the planner against a zero-action
+baseline, determinism, the spec section, `softtrack train` refusing and `softtrack evaluate`
+creating and evaluating its run, the report's planning table."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.env.config import make_config
+from softtrack.evaluation.episodes import run_episode
+from softtrack.evaluation.tables import metrics_table
+from softtrack.mpc.config import PlannerConfig
+from softtrack.mpc.controller import MpcController
+from softtrack.mpc.planner import interpolation_matrix
+from softtrack.sim.engine import RodBatch
+from softtrack.sim.params import SimParams
+from softtrack.spec import ExperimentSpec, SpecError, load_spec
+from softtrack.store.tables import read_table
+
+runner = CliRunner()
+FIXED = (0.25, 0.75, 0.1)  # m: a target off the arms' straight line
+SMALL = PlannerConfig(samples=8, horizon=25, knots=3, replan_interval=5)
+
+
+def test_state_get_set_round_trip_is_bit_exact() -> None:
+    batch = RodBatch(3, SimParams())
+    rng = np.random.default_rng(0)
+    batch.set_actions(rng.uniform(-1, 1, (3, 2, 2, 6)))
+    batch.advance(40)
+    saved = batch.get_state([1])
+    batch.advance(10)
+    after = batch.get_state([1])
+    copy = RodBatch(5, SimParams())
+    copy.set_state(saved)  # one state branched into five environments
+    copy.set_element_torques(np.broadcast_to(batch.torques[1], copy.torques.shape))
+    copy.advance(10)
+    for name in ("position", "velocity", "directors", "omega", "time"):
+        got, want = getattr(copy.get_state(), name), getattr(after, name)
+        np.testing.assert_array_equal(got, np.broadcast_to(want, got.shape), err_msg=name)
+    batch.set_state(saved, [2])
+    np.testing.assert_array_equal(batch.get_state([2]).position, saved.position)
+    with pytest.raises(ValueError, match="does not fit"):
+        batch.set_state(copy.get_state())
+
+
+def test_interpolation_matrix() -> None:
+    np.testing.assert_array_equal(interpolation_matrix(4, 4), np.eye(4))
+    weights = interpolation_matrix(5, 3)  # knots at steps 0, 2, 4
+    np.testing.assert_allclose(weights @ np.array([0.0, 1.0, 0.0]), [0, 0.5, 1, 0.5, 0])
+    np.testing.assert_allclose(weights.sum(axis=1), 1.0)
+
+
+def _fixed_config() -> object:
+    return make_config(target="fixed", fixed_position=FIXED, episode_duration=0.3)
+
+
+def test_short_horizon_mpc_beats_zero_actions_on_a_fixed_target() -> None:
+    config = _fixed_config()
+    zero = metrics_table("z", run_episode(lambda obs: np.zeros(24), config, "fixed", 0.3))
+    planned = run_episode(MpcController(SMALL, seed=0), config, "fixed", 0.3)
+    mpc = metrics_table("m", planned)
+    # measured: 0.44 / 0.31 m without actions, 0.20 / 0.21 m with this 50-ms MPC
+    assert (mpc["rmse_3d"].to_numpy() < zero["rmse_3d"].to_numpy() - 0.05).all()
+    assert planned.planning_time is not None and (planned.planning_time > 0).all()
+    assert {"planning_time", "planning_time_max"} <= set(mpc.columns)
+
+
+def test_mpc_is_deterministic_with_a_seed() -> None:
+    config = _fixed_config()
+    first = run_episode(MpcController(SMALL, seed=3), config, "fixed", 0.1)
+    again = run_episode(MpcController(SMALL, seed=3), config, "fixed", 0.1)
+    other = run_episode(MpcController(SMALL, seed=4), config, "fixed", 0.1)
+    np.testing.assert_array_equal(first.actions, again.actions)
+    assert not np.array_equal(first.actions, other.actions)
+
+
+def test_cem_and_a_wrong_model_run() -> None:
+    config = _fixed_config()
+    cem = PlannerConfig(method="cem", samples=8, horizon=10, knots=3, replan_interval=5,
+                        iterations=2, elite_fraction=0.25)
+    episode = run_episode(MpcController(cem, seed=0, model_scales={"youngs_modulus_scale": 0.7}),
+                          config, "fixed", 0.1)
+    assert np.isfinite(episode.tips).all()
+
+
+@pytest.mark.parametrize(("mpc", "message"), [
+    ({"knots": 20, "horizon": 10}, "knots"),
+    ({"replan_interval": 20, "horizon": 10}, "replan_interval"),
+    ({"model_scales": {"stiffness": 2.0}}, "unknown factor 'stiffness'"),
+    ({"samples": 1}, "samples"),
+])
+def test_mpc_section_errors_name_the_field(mpc: dict, message: str) -> None:
+    with pytest.raises(SpecError, match=message):
+        from softtrack.spec.api import parse_spec
+
+        parse_spec({"controller": "mpc", "mpc": mpc})
+
+
+def test_a_default_mpc_section_keeps_every_spec_hash() -> None:
+    from softtrack.spec import spec_hash
+
+    spec = ExperimentSpec()
+    with_section = ExperimentSpec.model_validate({"mpc": {"samples": 64}})
+    assert spec_hash(spec) == spec_hash(with_section)
+    assert spec_hash(spec) != spec_hash(ExperimentSpec.model_validate({"mpc": {"samples": 32}}))
+
+
+def _mpc_spec(tmp_path: Path) -> Path:
+    path = tmp_path / "mpc.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "tiny-mpc", "controller": "mpc", "seeds": [0],
+        "mpc": {"samples": 4, "horizon": 6, "knots": 3, "replan_interval": 3},
+        "training": {"eval_duration": 0.1},
+    }), encoding="utf-8")
+    return path
+
+
+def test_train_refuses_and_evaluate_creates_the_run(tmp_path: Path) -> None:
+    spec = _mpc_spec(tmp_path)
+    runs = tmp_path / "runs"
+    refused = runner.invoke(app, ["train", str(spec), "--runs-dir", str(runs)])
+    assert refused.exit_code == 2
+    assert "nothing to train" in refused.output and "softtrack evaluate" in refused.output
+    assert not runs.exists() or not any(runs.iterdir())
+    result = runner.invoke(app, ["evaluate", str(spec), "--runs-dir", str(runs), "-t", "circle"])
+    assert result.exit_code == 0, result.output
+    assert "created: tiny-mpc seed 0 (controller mpc, mppi)" in result.output
+    (run,) = [p for p in runs.iterdir() if (p / "run.json").is_file()]
+    metrics = read_table(run / "tables" / "eval_metrics.parquet")
+    assert (metrics["planning_time"] > 0).all()
+    assert load_spec(run / "spec.yaml").controller == "mpc"
+    report = runner.invoke(app, ["report", "tiny-mpc", "--runs-dir", str(runs), "--out",
+                                 str(tmp_path / "report")])
+    assert report.exit_code == 0, report.output
+    index = (tmp_path / "report" / "index.md").read_text(encoding="utf-8")
+    assert "### Planning cost (MPC)" in index and "MPC (MPPI)" in index
+    assert "no training (planner)" in index
+
+
+def test_evaluate_refuses_a_spec_that_needs_training(tmp_path: Path) -> None:
+    path = tmp_path / "td3.yaml"
+    path.write_text(yaml.safe_dump({"name": "td3", "seeds": [0]}), encoding="utf-8")
+    result = runner.invoke(app, ["evaluate", str(path), "--runs-dir", str(tmp_path / "runs")])
+    assert result.exit_code == 2
+    assert "needs training" in result.output
