@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -149,3 +150,23 @@ def test_evaluate_refuses_a_spec_that_needs_training(tmp_path: Path) -> None:
     result = runner.invoke(app, ["evaluate", str(path), "--runs-dir", str(tmp_path / "runs")])
     assert result.exit_code == 2
     assert "needs training" in result.output
+
+
+def test_budget_benchmark_writes_its_table_and_figure(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]) -> None:
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_mpc_budget.py"
+    module_spec = importlib.util.spec_from_file_location("bench_mpc_budget", path)
+    assert module_spec is not None and module_spec.loader is not None
+    bench = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(bench)
+    assert bench.parse_budgets("16x50,8x25x2") == [(16, 50, 1), (8, 25, 2)]
+    csv, figure = tmp_path / "b.csv", tmp_path / "b.png"
+    assert bench.main(["--spec", str(_mpc_spec(tmp_path)), "--budgets", "4x6,4x6x2",
+                       "--duration", "0.06", "--trajectories", "circle",
+                       "--csv", str(csv), "--figure", str(figure)]) == 0
+    table = pd.read_csv(csv)
+    assert sorted(set(zip(table["samples"], table["iterations"], strict=True))) == [(4, 1), (4, 2)]
+    assert (table["planning_time"] > 0).all() and figure.stat().st_size > 10_000
+    assert "at or below 0.5 × the study in all six cells: none" in capsys.readouterr().out
