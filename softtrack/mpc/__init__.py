@@ -9,8 +9,7 @@ Names are imported on first use, so the spec validates ``mpc:`` without loading 
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from softtrack.lazy import lazy_exports
 
 __all__ = ["MpcController", "PlannerConfig", "SamplingPlanner"]
 
@@ -21,11 +20,4 @@ _HOME = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _HOME:
-        return getattr(importlib.import_module(_HOME[name]), name)
-    raise AttributeError(f"module 'softtrack.mpc' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)

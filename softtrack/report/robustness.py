@@ -8,6 +8,8 @@ perturbation (:func:`softtrack.report.figures.robustness_figure`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pandas as pd
 
@@ -15,6 +17,7 @@ from softtrack.evaluation.robustness import ROBUSTNESS_SEED
 from softtrack.report import figures as fg
 from softtrack.report.data import Group
 from softtrack.report.document import Context, Doc
+from softtrack.report.text import mean_pm_std
 
 __all__ = ["robustness_section", "robustness_summary"]
 
@@ -26,6 +29,12 @@ def _nominal(table: pd.DataFrame, trajectories: list[str]) -> float:
     if set(rows["trajectory"]) != set(trajectories):
         return float("nan")
     return float(pd.to_numeric(rows["rmse_3d"], errors="coerce").mean())
+
+
+def _finite(reduce: Callable[[np.ndarray], float], values: list[float]) -> float:
+    """``reduce`` over the finite ``values``; NaN when there is none."""
+    array = np.asarray(values, dtype=float)
+    return float(reduce(array)) if np.isfinite(array).any() else float("nan")
 
 
 def robustness_summary(groups: list[Group]) -> pd.DataFrame:
@@ -72,21 +81,16 @@ def robustness_summary(groups: list[Group]) -> pd.DataFrame:
                 "rmse_3d_mean": float(values.mean()),
                 "rmse_3d_std": float(values.std(ddof=1)) if len(values) > 1 else float("nan"),
                 "rmse_3d_min": float(values.min()), "rmse_3d_max": float(values.max()),
-                "ratio_mean": float(np.nanmean([s["ratio"] for s in seeds]))
-                if np.isfinite([s["ratio"] for s in seeds]).any() else float("nan"),
+                "ratio_mean": _finite(np.nanmean, [s["ratio"] for s in seeds]),
                 "diverged": int(sum(s["diverged"] for s in seeds)),
-                "peak_moment": float(np.nanmax([s["peak"] for s in seeds]))
-                if np.isfinite([s["peak"] for s in seeds]).any() else float("nan"),
-                "collision_steps": float(np.nanmean([s["collisions"] for s in seeds]))
-                if np.isfinite([s["collisions"] for s in seeds]).any() else float("nan"),
+                "peak_moment": _finite(np.nanmax, [s["peak"] for s in seeds]),
+                "collision_steps": _finite(np.nanmean, [s["collisions"] for s in seeds]),
             })
     return pd.DataFrame(rows)
 
 
 def _cell(row: pd.Series) -> str:
-    text = f"{row['rmse_3d_mean']:.4f}"
-    if np.isfinite(row["rmse_3d_std"]):
-        text += f" ± {row['rmse_3d_std']:.4f}"
+    text = mean_pm_std(row["rmse_3d_mean"], row["rmse_3d_std"], 4)
     if np.isfinite(row["ratio_mean"]):
         text += f" ({row['ratio_mean']:.2f}×)"
     if row["diverged"]:

@@ -6,8 +6,7 @@ loads without numba and SciPy.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from softtrack.lazy import lazy_exports
 
 __all__ = [
     "InvalidParameterError",
@@ -28,11 +27,4 @@ _HOME = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _HOME:
-        return getattr(importlib.import_module(_HOME[name]), name)
-    raise AttributeError(f"module 'softtrack.sim' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)
