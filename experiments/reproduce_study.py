@@ -131,6 +131,8 @@ JOBS: tuple[Job, ...] = (
       for s in (0, 1, 2)),
     *(Job(V + "sac-sbx-128-1e6-mirror-fast.yaml", s, f"sac-sbx-128-mirror-fast-1e6-seed{s}")
       for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-64-1e6-mirror-tuned.yaml", s, f"td3-sbx-64-mirror-tuned-1e6-seed{s}")
+      for s in (0, 1, 2)),
     # derived from shipped runs (after all trainings):
     *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
           f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
@@ -146,6 +148,7 @@ REPORTED = (
     "independent-td3-sbx", "independent-td3-sbx-2e6", "independent-td3-sbx-2e6-val",
     "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
     "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast", "sac-sbx-128-mirror-fast",
+    "td3-sbx-64-mirror-tuned",
 )
 
 
