@@ -18,10 +18,11 @@ stopped at any time and started again; a training continues from its last checkp
 The ``-confirm`` experiments train exactly like a shipped run and only add a confirmation
 after training (``training.confirm_episodes``), so their runs are derived from the shipped
 ones once every training is done (:func:`derive_run`), then confirmed.
-Finished runs are exported with `softtrack export` (no checkpoints or replay buffers) and
-evaluated with `softtrack evaluate --random 20` (the three trajectories and 20 episodes of
-the random training target); the report is then rebuilt from ``models/`` with
-`softtrack report ... --runs-dir models --out reports/study`.
+Finished runs are evaluated with `softtrack evaluate --random 20` (the three trajectories and
+20 episodes of the random training target) and exported with `softtrack export` (no
+checkpoints or replay buffers); a run of an experiment the report does not draw keeps no
+per-step positions (:func:`lean`). The report is then rebuilt from ``models/`` with
+`softtrack report ... --runs-dir models --out reports/study --figures-for ...`.
 
 Time on one core of the project's machine (2,000-2,300 env steps/s with the JAX backend):
 td3-sbx, td3-sbx-speeds and td3-sbx-arm-bonus ~30 min per seed, td3-sbx-128 ~65 min per seed
@@ -66,6 +67,10 @@ from softtrack.store.runs import RunStore, resolve_runs_dir
 ROOT = Path(__file__).resolve().parent.parent
 SOFTTRACK = [sys.executable, "-m", "softtrack.cli"]
 REPORT_DIR = "reports/study"
+#: The experiments whose trajectories, errors over time and moments the report draws
+#: (`softtrack report --figures-for`): the study protocol, the best centralized variant and the
+#: independent baseline selected alike. Only their runs keep ``eval_trajectories`` in models/.
+FEATURED = ("td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm")
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
 
@@ -247,6 +252,17 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
             _softtrack("train", "--resume", run_id, *runs, taskset=core)
     _softtrack("evaluate", run_id, "--random", str(RANDOM_EPISODES), *runs, taskset=core)
     _softtrack("export", run_id, f"models/{job.dest}", *runs)
+    lean(dest, job.name)
+
+
+def lean(run_dir: Path, name: str) -> None:
+    """Drop the per-step tip and target positions (``eval_trajectories``) of a run under
+    ``models/`` whose experiment is not in :data:`FEATURED`: the report draws them for the
+    featured experiments only, and `softtrack evaluate models/<run>` writes them again in
+    seconds."""
+    table = run_dir / "tables" / "eval_trajectories.parquet"
+    if name not in FEATURED and table.is_file():
+        table.unlink()
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -300,7 +316,8 @@ def main(argv: list[str] | None = None) -> None:
     if waiting:
         print(f"not in the report yet (no finished run in models/): {', '.join(waiting)}")
     reported = [name for name in REPORTED if name in shipped]
-    _softtrack("report", *reported, "--runs-dir", "models", "--out", REPORT_DIR)
+    figures = [arg for name in FEATURED if name in reported for arg in ("--figures-for", name)]
+    _softtrack("report", *reported, "--runs-dir", "models", "--out", REPORT_DIR, *figures)
 
 
 if __name__ == "__main__":
