@@ -176,6 +176,18 @@ def test_robustness_in_worker_processes(trained: tuple[Path, str], tmp_path: Pat
     assert (run / "robustness.log").is_file()
 
 
+def test_robustness_as_slurm_array_via_submitit_local(trained: tuple[Path, str], tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("submitit")
+    monkeypatch.setenv("SOFTTRACK_SUBMITIT_CLUSTER", "local")
+    run = _copy(trained, tmp_path)
+    result = runner.invoke(app, ["robustness", str(run), "--grid", "action_delay=1",
+                                 "-t", "circle", "--executor", "slurm", "--time", "5"])
+    assert result.exit_code == 0, result.output
+    assert sorted(_table(run)["setting"].unique()) == ["action_delay=1", "nominal"]
+    assert not (run / "tables" / "eval_robustness-parts").exists()
+
+
 @pytest.mark.parametrize(("args", "message"), [
     (["--grid", "obs_nosie=0.01"], "unknown perturbation 'obs_nosie'"),
     (["--grid", "youngs_modulus_scale=1,3"], "--grid youngs_modulus_scale=3:"),

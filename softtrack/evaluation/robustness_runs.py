@@ -147,7 +147,8 @@ def run_robustness(
         return outcome
     jobs = [RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
             for record, setting in todo]
-    _run_jobs(jobs, records, options, outcome, on_progress)
+    cluster = specs[records[0].run_id].cluster if records else ClusterSpec()
+    _run_jobs(jobs, records, options, outcome, on_progress, cluster)
     if outcome.detached:
         return outcome
     for record, setting in todo:
@@ -161,8 +162,9 @@ def run_robustness(
 
 def _run_jobs(jobs: Sequence[RobustnessJob], records: Sequence[RunRecord],
               options: ExecOptions, outcome: RobustnessOutcome,
-              on_progress: Callable[[str], None] | None) -> None:
-    """Run the workers on ``options.executor`` (until they end unless detached)."""
+              on_progress: Callable[[str], None] | None, cluster: ClusterSpec) -> None:
+    """Run the workers on ``options.executor`` (until they end unless detached); SLURM
+    resources from the options, else ``cluster`` (the first run's spec)."""
     if not jobs:
         return
 
@@ -180,7 +182,7 @@ def _run_jobs(jobs: Sequence[RobustnessJob], records: Sequence[RunRecord],
     from softtrack.executors.slurm import submit_commands
 
     store = RunStore(Path(records[0].path).parent)
-    slurm = slurm_options(options, ClusterSpec(), store)
+    slurm = slurm_options(options, cluster, store)
     submitted = submit_commands([(j.command, str(j.log_path())) for j in jobs], slurm,
                                 name="softtrack-robustness")
     if options.detach:
