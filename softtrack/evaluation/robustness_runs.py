@@ -128,7 +128,10 @@ def run_robustness(
         done = set() if redo else done_settings(record, trajectories, episodes, keep_realism)
         for setting in settings:
             cell = (record.run_id, setting.key)
-            (outcome.skipped.append(cell) if setting.key in done else todo.append((record, setting)))
+            if setting.key in done:
+                outcome.skipped.append(cell)
+            else:
+                todo.append((record, setting))
     in_process = options.executor == "local" and (options.workers or 1) == 1 and not options.detach
     if in_process:
         frames = []
@@ -148,19 +151,19 @@ def run_robustness(
     jobs = [RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
             for record, setting in todo]
     cluster = specs[records[0].run_id].cluster if records else ClusterSpec()
-    _run_jobs(jobs, records, options, outcome, on_progress, cluster)
+    parts = [part_path(record, setting, trajectories, episodes, keep_realism)
+             for record, setting in todo]
+    _run_jobs(jobs, parts, records, options, outcome, on_progress, cluster)
     if outcome.detached:
         return outcome
-    for record, setting in todo:
-        cell = (record.run_id, setting.key)
-        merged = part_path(record, setting, trajectories, episodes, keep_realism).is_file()
-        (outcome.cells if merged else outcome.failed).append(cell)
+    for (record, setting), part in zip(todo, parts, strict=True):
+        (outcome.cells if part.is_file() else outcome.failed).append((record.run_id, setting.key))
     for record in records:
         merge_parts(record)
     return outcome
 
 
-def _run_jobs(jobs: Sequence[RobustnessJob], records: Sequence[RunRecord],
+def _run_jobs(jobs: Sequence[RobustnessJob], parts: Sequence[Path], records: Sequence[RunRecord],
               options: ExecOptions, outcome: RobustnessOutcome,
               on_progress: Callable[[str], None] | None, cluster: ClusterSpec) -> None:
     """Run the workers on ``options.executor`` (until they end unless detached); SLURM
@@ -170,9 +173,8 @@ def _run_jobs(jobs: Sequence[RobustnessJob], records: Sequence[RunRecord],
 
     def tick() -> None:
         if on_progress is not None:
-            left = sum(not part_path(r, j.setting, j.trajectories, j.episodes, j.keep_realism)
-                       .is_file() for j in jobs for r in records if str(r.path) == j.run_dir)
-            on_progress(f"robustness: {len(jobs) - left} of {len(jobs)} cells done")
+            done = sum(part.is_file() for part in parts)
+            on_progress(f"robustness: {done} of {len(jobs)} cells done")
 
     if options.executor == "local":
         from softtrack.executors.local import LocalPool

@@ -7,7 +7,7 @@ true state of the arms (full-state feedback: the realism's sensing noise and del
 reach it) and the target's path over the horizon (the closed form of a circle, rectangle,
 figure-eight or fixed target; a random target extrapolated at its current velocity), plans
 with a :class:`~softtrack.mpc.planner.SamplingPlanner` and returns the plan's control values
-one step after the other. ``planning_time`` is the wall time of its latest call (s).
+one step after the other (:func:`~softtrack.evaluation.episodes.run_episode` times each call).
 
 The planner's model is the plant's own engine parameters by default (``model="true"``: any
 model error of ``env.realism`` included), or the nominal ``env.physics`` (``model="nominal"``);
@@ -16,7 +16,6 @@ model error of ``env.realism`` included), or the nominal ``env.physics`` (``mode
 
 from __future__ import annotations
 
-import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Literal
 
@@ -56,7 +55,6 @@ class MpcController:
         self.seed = int(seed)
         self.model = model
         self.model_scales = dict(model_scales or {})
-        self.planning_time = 0.0
         self._core: TrackingCore | None = None
         self._planner: SamplingPlanner | None = None
         self._plan = np.zeros((0, 0))
@@ -83,7 +81,6 @@ class MpcController:
         core, planner = self._core, self._planner
         if core is None or planner is None:
             raise RuntimeError("MpcController needs start_episode(core) before its first call")
-        started = time.perf_counter()
         if self._next >= min(self.config.replan_interval, len(self._plan)):
             self._plan = planner.plan(core.engine.get_state([0]), self._target_path(core),
                                       self._previous)
@@ -91,7 +88,6 @@ class MpcController:
         action = self._plan[self._next].copy()
         self._next += 1
         self._previous = action
-        self.planning_time = time.perf_counter() - started
         return action
 
     def _target_path(self, core: TrackingCore) -> np.ndarray:
