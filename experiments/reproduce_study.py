@@ -138,6 +138,11 @@ JOBS: tuple[Job, ...] = (
       for s in (0, 1, 2)),
     *(Job(V + "td3-sbx-64-1e6-mirror-tuned.yaml", s, f"td3-sbx-64-mirror-tuned-1e6-seed{s}")
       for s in (0, 1, 2)),
+    # smooth actuation and domain randomisation (issue 29):
+    *(job for s in (0, 1, 2) for job in (
+        Job(V + "td3-sbx-128-1e6-mirror-smooth.yaml", s, f"td3-sbx-128-mirror-smooth-1e6-seed{s}"),
+        Job(V + "td3-sbx-128-1e6-mirror-dr.yaml", s, f"td3-sbx-128-mirror-dr-1e6-seed{s}"),
+    )),
     # derived from shipped runs (after all trainings):
     *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
           f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
@@ -153,7 +158,7 @@ REPORTED = (
     "independent-td3-sbx", "independent-td3-sbx-2e6", "independent-td3-sbx-2e6-val",
     "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
     "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast", "sac-sbx-128-mirror-fast",
-    "td3-sbx-64-mirror-tuned",
+    "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-dr",
 )
 
 

@@ -66,9 +66,10 @@ class Episode:
             and at a non-finite state; ``None`` when not recorded (then treated as all NaN).
         collision_margin: the run's ``reward.collision_margin``, m: steps with a clearance
             below it count as ``collision_steps``.
-        planning_time: (N,) wall time of the controller's call at each control step, s, for
-            a controller that plans on the episode's state (``start_episode``, e.g. MPC);
-            ``None`` for a policy.
+        planning_time: (N,) CPU time of the controller's call at each control step, s (its
+            thread's CPU time: the cost on one core, unaffected by other processes sharing
+            the machine), for a controller that plans on the episode's state
+            (``start_episode``, e.g. MPC); ``None`` for a policy.
     """
 
     trajectory: str
@@ -105,8 +106,8 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
 
     A controller with a ``start_episode(core)`` method (an MPC planner) is given the
-    episode's :class:`~softtrack.env.core.TrackingCore` after the reset, and the wall time of
-    each of its calls is recorded (``Episode.planning_time``).
+    episode's :class:`~softtrack.env.core.TrackingCore` after the reset, and the CPU time of
+    each of its calls (the calling thread's) is recorded (``Episode.planning_time``).
 
     Args:
         policy: observation (obs_dim,) → action (act_dim,), deterministic.
@@ -140,10 +141,10 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     terminated = False
     done_steps = n_steps
     for k in range(n_steps):
-        started = time.perf_counter()
+        started = time.thread_time()
         action = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
         if planning is not None:
-            planning[k] = time.perf_counter() - started
+            planning[k] = time.thread_time() - started
         result = core.step(action[None])
         actions[k] = action
         tips[k] = core.engine.tip_position[0]

@@ -72,7 +72,7 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     the episode's inter-arm safety, the same in both arms' rows (``min_arm_distance`` m,
     ``collision_steps``: :func:`~softtrack.evaluation.metrics.safety_statistics`; NaN and 0
     in a single-arm scene); for a planning controller (``episode.planning_time``), the mean
-    and largest wall time of its call per control step (``planning_time``,
+    and largest CPU time of its call per control step (``planning_time``,
     ``planning_time_max``, s)."""
     rows = []
     steady = episode.t >= steady_start - 1e-9
