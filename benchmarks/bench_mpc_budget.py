@@ -5,8 +5,9 @@ horizons, beside the RL controllers, with the planning cost as a multiple of rea
         --budgets 32x50,64x50,64x50x2,64x50x3 --rl models/td3-sbx-128-mirror-val-confirm-4e6-seed* \\
         --figure mpc_budget.png --csv mpc_budget.csv
 
-Each budget ``KxH[xI]`` is an MPC with K samples over H control steps and I sampling iterations
-per plan (default 1; the other planner settings
+Each budget ``KxH[xI[xR]]`` is an MPC with K samples over H control steps, I sampling
+iterations per plan (default 1) and a new plan every R control steps (default: the spec's
+``replan_interval``; the other planner settings
 from ``--spec``, default experiments/variants/mpc-mppi-64x50.yaml) evaluated like
 `softtrack evaluate` on the study's circle, rectangle and figure-eight (one deterministic
 episode each, seed 0), one after the other in this process on one core. It prints per budget
@@ -16,7 +17,11 @@ of real time (the 2-ms control step), then the cheapest budget whose mean 3-D RM
 below that of the best RL controller given with ``--rl`` (its seed mean over the stored
 ``eval_metrics``) and whether any budget is at or below 0.5 × the study in all six cells.
 The figure plots mean 3-D RMSE against the multiple of real time, RL controllers and the study
-as horizontal lines.
+as horizontal lines. ``--merge A.csv B.csv`` adds the rows of earlier runs of this script (a
+sweep run in pieces) to the table, the summary and the figure.
+
+The planning time is the planner's CPU time (its thread's) per control step, so the figure's
+real-time factor is the cost on one core even while other processes share the machine.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -45,15 +51,25 @@ from softtrack.store.provenance import cpu_kind  # noqa: E402
 DEFAULT_SPEC = ROOT / "experiments" / "variants" / "mpc-mppi-64x50.yaml"
 
 
-def parse_budgets(text: str) -> list[tuple[int, int, int]]:
-    """``"16x50,64x50x2"`` → [(16, 50, 1), (64, 50, 2)]: samples × horizon [× iterations]."""
+KEYS = ["samples", "horizon", "iterations", "replan_interval"]
+
+
+def parse_budgets(text: str, replan_interval: int) -> list[tuple[int, int, int, int]]:
+    """``"16x50,64x50x2x1"`` → [(16, 50, 1, R), (64, 50, 2, 1)]: samples × horizon
+    [× iterations [× replan interval]], R = ``replan_interval`` when not given."""
     out = []
     for item in text.split(","):
         parts = [int(p) for p in item.strip().split("x")]
-        if len(parts) not in (2, 3):
-            raise SystemExit(f"--budgets: {item!r} is not SAMPLESxHORIZON[xITERATIONS]")
-        out.append((parts[0], parts[1], parts[2] if len(parts) == 3 else 1))
+        if len(parts) not in (2, 3, 4):
+            raise SystemExit(f"--budgets: {item!r} is not SAMPLESxHORIZON[xITERATIONS[xREPLAN]]")
+        out.append((parts[0], parts[1], parts[2] if len(parts) >= 3 else 1,
+                    parts[3] if len(parts) == 4 else replan_interval))
     return out
+
+
+def budget_label(row: Any) -> str:
+    """``64x50x2x5`` from a row with the :data:`KEYS` columns."""
+    return "x".join(str(int(row[key])) for key in KEYS)
 
 
 def study_cells() -> dict[tuple[str, int], float]:
@@ -62,20 +78,19 @@ def study_cells() -> dict[tuple[str, int], float]:
             for a, v in enumerate(pair)}
 
 
-def evaluate_budget(spec_path: Path, samples: int, horizon: int, iterations: int,
+def evaluate_budget(spec_path: Path, budget: tuple[int, int, int, int],
                     duration: float, trajectories: list[str]) -> pd.DataFrame:
-    """Metrics rows (one per trajectory and arm) of the MPC of ``spec_path`` with this budget,
-    with its planning time per control step (s)."""
-    spec = load_spec(spec_path, [f"mpc.samples={samples}", f"mpc.horizon={horizon}",
-                                 f"mpc.iterations={iterations}"])
+    """Metrics rows (one per trajectory and arm) of the MPC of ``spec_path`` with this budget
+    (samples, horizon, iterations, replan interval), with its planning time per control
+    step (s)."""
+    spec = load_spec(spec_path, [f"mpc.{key}={value}" for key, value in zip(KEYS, budget)])
     config = env_config(spec)
     rows = []
     for trajectory in trajectories:
         episode = run_episode(mpc_controller(spec, 0), config, trajectory, duration)
-        table = metrics_table(f"{samples}x{horizon}x{iterations}", episode)
-        table.insert(1, "samples", samples)
-        table.insert(2, "horizon", horizon)
-        table.insert(3, "iterations", iterations)
+        table = metrics_table("x".join(map(str, budget)), episode)
+        for position, (key, value) in enumerate(zip(KEYS, budget), start=1):
+            table.insert(position, key, value)
         rows.append(table)
     out = pd.concat(rows, ignore_index=True)
     out["control_dt"] = config.sim.control_dt
@@ -100,12 +115,12 @@ def write_figure(summary: pd.DataFrame, rl: dict[str, float], path: str) -> None
     fig = Figure(figsize=(8, 5), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    for (horizon, iterations), part in summary.groupby(["horizon", "iterations"]):
+    for (horizon, replan), part in summary.groupby(["horizon", "replan_interval"]):
         part = part.sort_values("realtime_factor")
         ax.plot(part["realtime_factor"], part["rmse_3d_mean"], "-o",
-                label=f"MPC, H = {horizon}, {iterations} iteration(s)")
+                label=f"MPC, horizon {horizon}, a plan every {replan} control step(s)")
         for _, row in part.iterrows():
-            ax.annotate(f"{int(row['samples'])}×{int(row['horizon'])}×{int(row['iterations'])}",
+            ax.annotate(budget_label(row).replace("x", "×"),
                         (row["realtime_factor"], row["rmse_3d_mean"]), fontsize=8,
                         xytext=(4, 4), textcoords="offset points")
     study = float(np.mean(list(study_cells().values())))
@@ -132,31 +147,41 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rl", nargs="*", default=[], help="RL run directories to mark")
     parser.add_argument("--figure", help="write the figure here (PNG)")
     parser.add_argument("--csv", help="write one row per budget, trajectory and arm here")
+    parser.add_argument("--merge", nargs="*", default=[], metavar="CSV",
+                        help="rows of earlier runs (their --csv) to add before summarising")
     args = parser.parse_args(argv)
     trajectories = args.trajectories.split(",")
     study = study_cells()
     spec_text = os.path.relpath(args.spec, ROOT)
     print(f"CPU: {cpu_kind()}; spec {spec_text}; {args.duration:g}-s episodes")
-    frames = []
-    for samples, horizon, iterations in parse_budgets(args.budgets):
+    replan = int(load_spec(Path(args.spec)).mpc.replan_interval)
+    frames = [pd.read_csv(path) for path in args.merge]
+    for frame in frames:  # rows written before budgets had a replan interval: the spec's
+        if "replan_interval" not in frame:
+            frame.insert(4, "replan_interval", replan)
+    for budget in parse_budgets(args.budgets, replan) if args.budgets else []:
         started = time.perf_counter()
-        rows = evaluate_budget(Path(args.spec), samples, horizon, iterations, args.duration,
-                               trajectories)
+        rows = evaluate_budget(Path(args.spec), budget, args.duration, trajectories)
         frames.append(rows)
         cells = " ".join(f"{r.trajectory[:4]}{r.arm + 1} {r.rmse_3d:.4f}"
                          for r in rows.itertuples())
         factor = rows["planning_time"].mean() / rows["control_dt"].iloc[0]
-        print(f"{samples:4d}x{horizon}x{iterations:<3d} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
+        print(f"{'x'.join(map(str, budget)):12s} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
               f"{rows['planning_time'].mean() * 1e3:.2f} ms/step = {factor:.1f}x real time  "
               f"({time.perf_counter() - started:.0f} s)", flush=True)
+    if not frames:
+        raise SystemExit("nothing to summarise: give --budgets or --merge")
     table = pd.concat(frames, ignore_index=True)
-    keys = ["samples", "horizon", "iterations"]
+    keys = KEYS
     summary = table.groupby(keys, as_index=False).agg(
         rmse_3d_mean=("rmse_3d", "mean"), planning_time=("planning_time", "mean"),
         control_dt=("control_dt", "first"))
     summary["realtime_factor"] = summary["planning_time"] / summary["control_dt"]
     half = {key for key, part in table.groupby(keys)
             if all(r.rmse_3d <= 0.5 * study[(r.trajectory, r.arm)] for r in part.itertuples())}
+    for _, row in summary.sort_values("realtime_factor").iterrows():
+        print(f"  {budget_label(row):12s} mean {row['rmse_3d_mean']:.4f} m, "
+              f"{row['realtime_factor']:.1f}x real time")
     print("at or below 0.5 × the study in all six cells: "
           + (", ".join("x".join(map(str, k)) for k in sorted(half)) or "none"))
     rl = rl_means(args.rl)
@@ -166,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         if len(matching):
             m = matching.iloc[0]
             print(f"cheapest budget at or below the best RL controller ({best_name}, {best:.4f} m): "
-                  f"{int(m['samples'])}x{int(m['horizon'])}x{int(m['iterations'])}, "
+                  f"{budget_label(m)}, "
                   f"{m['rmse_3d_mean']:.4f} m, "
                   f"{m['realtime_factor']:.1f}x real time")
         else:

@@ -5,6 +5,7 @@
     .venv/bin/python experiments/reproduce_study.py --list     # what it would do, and budgets
     .venv/bin/python experiments/reproduce_study.py --only ddpg-sbx --report-only
     .venv/bin/python experiments/reproduce_study.py --only td3-sbx-128 --no-report
+    .venv/bin/python experiments/reproduce_study.py --robustness --jobs 2   # then the report
 
 ``--only`` takes an experiment name (the spec's ``name``, as in ``models/`` and the report) or
 a spec file under ``experiments/`` (``variants/td3-sbx-128-4e6.yaml``); experiments/README.md
@@ -161,6 +162,34 @@ REPORTED = (
     "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-dr",
 )
 
+#: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
+#: shipped runs): the study protocol, the best variant, the independent baseline, the fast
+#: variant (the nominal twin of the smooth and domain-randomized ones) and those two.
+ROBUSTNESS = (
+    "td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm",
+    "td3-sbx-128-mirror-fast", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-dr",
+)
+#: One factor at a time, then the combination a user expects on hardware (one setting).
+ROBUSTNESS_GRIDS = (
+    ("--grid", "obs_noise=0.002,0.005,0.01", "--grid", "action_delay=1,2,4",
+     "--grid", "youngs_modulus_scale=0.7,1.3", "--grid", "gravity=on",
+     "--grid", "torque_scale_factor=0.85"),
+    ("--full-grid", "--grid", "youngs_modulus_scale=0.7", "--grid", "obs_noise=0.005",
+     "--grid", "action_delay=2", "--grid", "gravity=on"),
+)
+
+
+def run_robustness(names: list[str], workers: int) -> None:
+    """`softtrack robustness` on the shipped runs of ``names`` (experiments of
+    :data:`ROBUSTNESS`) with :data:`ROBUSTNESS_GRIDS`; settings already stored are skipped."""
+    runs = [f"models/{job.dest}" for job in JOBS
+            if job.name in names and (ROOT / "models" / job.dest).is_dir()]
+    if not runs:
+        print("robustness: no shipped run of " + ", ".join(names), flush=True)
+        return
+    for grid in ROBUSTNESS_GRIDS:
+        _softtrack("robustness", *runs, *grid, "--workers", str(workers))
+
 
 def _softtrack(*args: str, taskset: int | None = None) -> str:
     """Run the CLI, echoing its output; return stdout. Exits with its code on failure."""
@@ -279,10 +308,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--runs-dir", default=None, help="where runs are trained [runs/]")
     parser.add_argument("--list", action="store_true", help="print the jobs and stop")
     parser.add_argument("--report-only", action="store_true", help="only rebuild the report")
+    parser.add_argument("--robustness", action="store_true",
+                        help="evaluate the shipped runs of the robustness experiments under "
+                        "perturbations (softtrack robustness; with --only, those named) instead "
+                        "of training")
     parser.add_argument("--no-report", action="store_true",
                         help="do not rebuild the report (e.g. for two --only processes at once)")
     args = parser.parse_args(argv)
     jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
+    if args.robustness:
+        run_robustness([n for n in ROBUSTNESS if not args.only or n in args.only],
+                       max(1, args.jobs))
+        args.report_only = True
     if args.list:
         for job in jobs:
             spec = load_experiment(job.spec)
