@@ -144,6 +144,8 @@ JOBS: tuple[Job, ...] = (
         Job(V + "td3-sbx-128-1e6-mirror-smooth.yaml", s, f"td3-sbx-128-mirror-smooth-1e6-seed{s}"),
         Job(V + "td3-sbx-128-1e6-mirror-dr.yaml", s, f"td3-sbx-128-mirror-dr-1e6-seed{s}"),
     )),
+    # sampling MPC (issue 30; evaluated on the three trajectories only: no --random episodes):
+    Job(V + "mpc-mppi-64x50.yaml", 0, "mpc-mppi-64x50-seed0"),
     # derived from shipped runs (after all trainings):
     *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
           f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
@@ -160,6 +162,7 @@ REPORTED = (
     "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
     "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast", "sac-sbx-128-mirror-fast",
     "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-dr",
+    "mpc-mppi-64x50",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
@@ -272,6 +275,15 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         run_id = derive_run(job, runs_dir) if found is None else found[0]
         record = RunStore(runs_dir).get_run(run_id)
         confirm_run(record, record.load_spec())  # each policy once, also after a kill
+    elif load_experiment(job.spec).controller == "mpc":  # a planner: nothing to train
+        if found is None:
+            out = _softtrack("evaluate", f"experiments/{job.spec}", *runs, taskset=core)
+            run_id = out.split()[0]
+        else:
+            run_id = found[0]
+            _softtrack("evaluate", run_id, *runs, taskset=core)
+        _softtrack("export", run_id, f"models/{job.dest}", *runs)
+        return
     elif found is None:
         out = _softtrack("train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs,
                          taskset=core)
@@ -326,8 +338,10 @@ def main(argv: list[str] | None = None) -> None:
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
             per_arm = " per arm" if spec.controller == "independent" else ""
             how = f"derived from models/{job.derive_from}, " if job.derive_from else ""
-            print(f"{job.name:35s} seed {job.seed}  {spec.training.total_timesteps:>10,d} env "
-                  f"steps{per_arm}  models/{job.dest}  (experiments/{job.spec}; {how}{state})")
+            budget = ("no training (planner)" if spec.controller == "mpc" else
+                      f"{spec.training.total_timesteps:>10,d} env steps{per_arm}")
+            print(f"{job.name:35s} seed {job.seed}  {budget}  models/{job.dest}  "
+                  f"(experiments/{job.spec}; {how}{state})")
         return
     if not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)

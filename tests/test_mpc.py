@@ -142,6 +142,11 @@ def test_train_refuses_and_evaluate_creates_the_run(tmp_path: Path) -> None:
     index = (tmp_path / "report" / "index.md").read_text(encoding="utf-8")
     assert "### Planning cost (MPC)" in index and "MPC (MPPI)" in index
     assert "no training (planner)" in index
+    exported = tmp_path / "models" / "tiny-mpc-seed0"
+    moved = runner.invoke(app, ["export", run.name, str(exported), "--runs-dir", str(runs)])
+    assert moved.exit_code == 0, moved.output  # a planner exports its spec and tables only
+    assert (exported / "tables" / "eval_metrics.parquet").is_file()
+    assert not list(exported.rglob("*.zip")) and not list(exported.rglob("policy.json"))
 
 
 def test_evaluate_refuses_a_spec_that_needs_training(tmp_path: Path) -> None:
@@ -161,12 +166,22 @@ def test_budget_benchmark_writes_its_table_and_figure(tmp_path: Path,
     assert module_spec is not None and module_spec.loader is not None
     bench = importlib.util.module_from_spec(module_spec)
     module_spec.loader.exec_module(bench)
-    assert bench.parse_budgets("16x50,8x25x2") == [(16, 50, 1), (8, 25, 2)]
+    assert bench.parse_budgets("16x50,8x25x2,8x25x2x1", 5) == [
+        (16, 50, 1, 5), (8, 25, 2, 5), (8, 25, 2, 1)]
     csv, figure = tmp_path / "b.csv", tmp_path / "b.png"
-    assert bench.main(["--spec", str(_mpc_spec(tmp_path)), "--budgets", "4x6,4x6x2",
+    spec = str(_mpc_spec(tmp_path))
+    assert bench.main(["--spec", spec, "--budgets", "4x6,4x6x2",
                        "--duration", "0.06", "--trajectories", "circle",
                        "--csv", str(csv), "--figure", str(figure)]) == 0
     table = pd.read_csv(csv)
     assert sorted(set(zip(table["samples"], table["iterations"], strict=True))) == [(4, 1), (4, 2)]
+    assert set(table["replan_interval"]) == {3}  # the spec's
     assert (table["planning_time"] > 0).all() and figure.stat().st_size > 10_000
     assert "at or below 0.5 × the study in all six cells: none" in capsys.readouterr().out
+    # a sweep in pieces: one more budget, merged with the first piece's rows
+    merged = tmp_path / "merged.csv"
+    assert bench.main(["--spec", spec, "--budgets", "4x6x1x1", "--duration", "0.06",
+                       "--trajectories", "circle", "--merge", str(csv), "--csv", str(merged)]) == 0
+    out = capsys.readouterr().out
+    assert all(f"  {label} " in out for label in ("4x6x1x3", "4x6x2x3", "4x6x1x1"))
+    assert len(pd.read_csv(merged)) == 3 * 2

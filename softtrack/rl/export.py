@@ -35,10 +35,13 @@ def export_plan(record: RunRecord, spec: ExperimentSpec
     Returns:
         (models, manifests): one :class:`ModelCopy` per existing model of each policy (its
         policy to ``model.zip``, the other to ``other_models/<name>/model.zip``), and the
-        manifest by policy directory relative to the run directory.
+        manifest by policy directory relative to the run directory; none for a planner
+        (``controller: mpc``), whose spec is the whole controller.
     """
     models: list[ModelCopy] = []
     manifests: dict[Path, dict[str, Any]] = {}
+    if spec.controller == "mpc":  # a planner: its spec is the controller, no model files
+        return models, manifests
     for policy in PolicyDir.all_of_run(record.path, spec.controller == "independent"):
         relative = policy.path.relative_to(record.path)
         chosen = policy_choice(policy, spec)
