@@ -286,6 +286,7 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
             run_id = found[0]
             _softtrack("evaluate", run_id, *runs, taskset=core)
         _softtrack("export", run_id, f"models/{job.dest}", *runs)
+        lean(dest, job.name)
         return
     elif found is None:
         out = _softtrack("train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs,

@@ -41,8 +41,9 @@ def planning_section(doc: Doc, ctx: Context) -> None:
     doc.h(3, "Planning cost (MPC)")
     doc.table(["controller", "planner", "planning time per control step (ms, mean)",
                "longest call (ms)", "multiple of real time"], rows)
-    doc.p("Wall time of the controller's call per control step during the evaluation episodes "
-          "(mean over steps, trajectories and seeds; a replanning step costs the plan, the others "
-          "only read it), on the CPU of the runs table, one core; real time is the control step "
+    doc.p("CPU time (the calling thread's) of the controller's call per control step during the "
+          "evaluation episodes (mean over steps, trajectories and seeds; a replanning step costs "
+          "the plan, the others only read it), on the CPU of the runs table: the cost on one core "
+          "even when other processes shared the machine; real time is the control step "
           "(2 ms by default). A multiple above 1 means the planner cannot run in real time on "
           "this machine.")
