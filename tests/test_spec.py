@@ -576,8 +576,9 @@ def _experiment_files_by_name() -> dict[str, Path]:
 
 
 def _spec_of_command(command: list[str]) -> tuple[Path, list[str]]:
-    """The spec file and the ``--set`` overrides of a recorded ``softtrack train`` command."""
-    assert command[:2] == ["softtrack", "train"], command
+    """The spec file and the ``--set`` overrides of a recorded ``softtrack train`` command (or
+    ``softtrack evaluate SPEC``, which creates a planner's runs)."""
+    assert command[:2] in (["softtrack", "train"], ["softtrack", "evaluate"]), command
     args, overrides, spec = command[2:], [], None
     i = 0
     while i < len(args):
