@@ -67,9 +67,10 @@ def parse_budgets(text: str, replan_interval: int) -> list[tuple[int, int, int, 
     return out
 
 
-def budget_label(row: Any) -> str:
-    """``64x50x2x5`` from a row with the :data:`KEYS` columns."""
-    return "x".join(str(int(row[key])) for key in KEYS)
+def budget_label(budget: Any) -> str:
+    """``64x50x2x5`` from a budget tuple or a row with the :data:`KEYS` columns."""
+    values = budget if isinstance(budget, tuple) else (budget[key] for key in KEYS)
+    return "x".join(str(int(value)) for value in values)
 
 
 def study_cells() -> dict[tuple[str, int], float]:
@@ -88,7 +89,7 @@ def evaluate_budget(spec_path: Path, budget: tuple[int, int, int, int],
     rows = []
     for trajectory in trajectories:
         episode = run_episode(mpc_controller(spec, 0), config, trajectory, duration)
-        table = metrics_table("x".join(map(str, budget)), episode)
+        table = metrics_table(budget_label(budget), episode)
         for position, (key, value) in enumerate(zip(KEYS, budget), start=1):
             table.insert(position, key, value)
         rows.append(table)
@@ -166,24 +167,23 @@ def main(argv: list[str] | None = None) -> int:
         cells = " ".join(f"{r.trajectory[:4]}{r.arm + 1} {r.rmse_3d:.4f}"
                          for r in rows.itertuples())
         factor = rows["planning_time"].mean() / rows["control_dt"].iloc[0]
-        print(f"{'x'.join(map(str, budget)):12s} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
+        print(f"{budget_label(budget):12s} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
               f"{rows['planning_time'].mean() * 1e3:.2f} ms/step = {factor:.1f}x real time  "
               f"({time.perf_counter() - started:.0f} s)", flush=True)
     if not frames:
         raise SystemExit("nothing to summarise: give --budgets or --merge")
     table = pd.concat(frames, ignore_index=True)
-    keys = KEYS
-    summary = table.groupby(keys, as_index=False).agg(
+    summary = table.groupby(KEYS, as_index=False).agg(
         rmse_3d_mean=("rmse_3d", "mean"), planning_time=("planning_time", "mean"),
         control_dt=("control_dt", "first"))
     summary["realtime_factor"] = summary["planning_time"] / summary["control_dt"]
-    half = {key for key, part in table.groupby(keys)
+    half = {key for key, part in table.groupby(KEYS)
             if all(r.rmse_3d <= 0.5 * study[(r.trajectory, r.arm)] for r in part.itertuples())}
     for _, row in summary.sort_values("realtime_factor").iterrows():
         print(f"  {budget_label(row):12s} mean {row['rmse_3d_mean']:.4f} m, "
               f"{row['realtime_factor']:.1f}x real time")
     print("at or below 0.5 × the study in all six cells: "
-          + (", ".join("x".join(map(str, k)) for k in sorted(half)) or "none"))
+          + (", ".join(budget_label(k) for k in sorted(half)) or "none"))
     rl = rl_means(args.rl)
     if rl:
         best_name, best = min(rl.items(), key=lambda kv: kv[1])

@@ -332,10 +332,6 @@ def main(argv: list[str] | None = None) -> None:
                         help="do not rebuild the report (e.g. for two --only processes at once)")
     args = parser.parse_args(argv)
     jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
-    if args.robustness:
-        run_robustness([n for n in ROBUSTNESS if not args.only or n in args.only],
-                       max(1, args.jobs))
-        args.report_only = True
     if args.list:
         for job in jobs:
             spec = load_experiment(job.spec)
@@ -347,7 +343,10 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{job.name:35s} seed {job.seed}  {budget}  models/{job.dest}  "
                   f"(experiments/{job.spec}; {how}{state})")
         return
-    if not args.report_only:
+    if args.robustness:
+        run_robustness([n for n in ROBUSTNESS if not args.only or n in args.only],
+                       max(1, args.jobs))
+    elif not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)
         n = max(1, args.jobs)
         cores: queue.Queue[int | None] = queue.Queue()
