@@ -138,6 +138,15 @@ class AlgoSpec(SpecModel):
         "equal arm weights only)",
         "-",
     )
+    actor_preactivation_penalty: Float = unit_field(
+        0.0,
+        "weight λ of the mean square of the actor's pre-tanh activations u (a = tanh u) in "
+        "the TD3 actor loss, −Q + λ·mean(u²): keeps control values off ±1, where tanh's "
+        "gradient vanishes and a policy goes bang-bang (0 = off, the study; td3 with backend "
+        "sbx and critic joint only)",
+        "-",
+        ge=0,
+    )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
     learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
     batch_size: Int = unit_field(

@@ -194,6 +194,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "per_arm_networks"): False,
     ("algo", "actor_observation"): "full",
     ("algo", "mirror_replay"): False,
+    ("algo", "actor_preactivation_penalty"): 0.0,
     ("training", "validation_episodes"): 0,
     ("training", "validation_trajectories"): False,
     ("training", "final_policy"): "last",

@@ -338,6 +338,15 @@ class ExperimentSpec(SpecModel):
             )
         if a.mirror_replay:
             _check_mirror_replay(self)
+        if a.actor_preactivation_penalty > 0 and (
+            a.name != "td3" or a.backend != "sbx" or a.critic != "joint"
+        ):
+            raise custom_error(
+                "actor_preactivation_penalty is implemented for td3 with backend sbx and "
+                f"critic joint, not {a.name} with backend {a.backend} and critic {a.critic}; "
+                "change those or set algo.actor_preactivation_penalty: 0",
+                "algo.actor_preactivation_penalty",
+            )
         if t.final_policy == "best_validated":
             check_validated_checkpoints(t, "final_policy 'best_validated'",
                                         "training.final_policy", or_else=" or final_policy: last")

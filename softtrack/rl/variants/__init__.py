@@ -10,6 +10,9 @@ idea touches this folder (and its spec fields), not the factory:
   actors that see only their arm); its environment reports the reward shares.
 * ``mirror_replay`` (``algo.mirror_replay``, :mod:`~softtrack.rl.variants.mirror`): a replay
   buffer that also stores every transition's mirror image.
+* ``actor_preactivation_penalty`` (``algo.actor_preactivation_penalty``,
+  :mod:`~softtrack.rl.variants.bounded_actor`): TD3 whose actor loss also penalises the
+  actor's pre-tanh activations, keeping its actions off ±1.
 
 The factory asks :func:`model_class_override`, :func:`model_kwargs` and :func:`vec_env_kwargs`.
 A variant's classes are named as ``"module:attribute"`` and imported only when a spec enables
@@ -89,6 +92,14 @@ VARIANTS: tuple[Variant, ...] = (
         name="mirror_replay",
         enabled=lambda spec: bool(spec.algo.mirror_replay),
         replay_buffer_class="softtrack.rl.variants.mirror:MirrorReplayBuffer",
+    ),
+    Variant(
+        name="actor_preactivation_penalty",
+        enabled=lambda spec: spec.algo.actor_preactivation_penalty > 0,
+        algo_class="softtrack.rl.variants.bounded_actor:PreactivationPenaltyTD3",
+        model_kwargs=lambda spec: {
+            "preactivation_penalty": spec.algo.actor_preactivation_penalty
+        },
     ),
 )
 """Every variant, in the order their keyword arguments are merged."""
