@@ -20,7 +20,7 @@ from softtrack.cli import app
 from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl import variants
 from softtrack.rl.factory import model_class
-from softtrack.rl.variants.bounded_actor import PreactivationPenaltyTD3
+from softtrack.rl.variants.bounded_actor import PenalisedActor, PreactivationPenaltyTD3
 from softtrack.spec import SpecError, load_spec, parse_spec
 from softtrack.store.runs import RunStore
 
@@ -118,7 +118,8 @@ def test_train_evaluate_and_export_a_run(tmp_path: Path) -> None:
     record = RunStore(runs_dir).get_run(run_id)
     model = model_class(load_spec(spec_path)).load(str(record.model_path))
     assert isinstance(model, PreactivationPenaltyTD3) and model.preactivation_penalty == 0.1
-    assert "PenalisedActor" in repr(model.policy.actor_state.apply_fn)  # resumes penalised
+    actor = model.policy.actor_state.apply_fn.__self__  # resumes with the saved penalty
+    assert isinstance(actor, PenalisedActor) and actor.preactivation_penalty == 0.1
 
     evaluated = runner.invoke(
         app, ["evaluate", run_id, "--runs-dir", str(runs_dir), "--trajectory", "circle"])

@@ -239,6 +239,18 @@ def _check_mirror_replay(spec: ExperimentSpec) -> None:
         )
 
 
+def _check_actor_preactivation_penalty(spec: ExperimentSpec) -> None:
+    """Raise the spec error of a setting ``algo.actor_preactivation_penalty`` cannot run with."""
+    a = spec.algo
+    if a.name != "td3" or a.backend != "sbx" or a.critic != "joint":
+        raise custom_error(
+            "actor_preactivation_penalty is implemented for td3 with backend sbx and "
+            f"critic joint, not {a.name} with backend {a.backend} and critic {a.critic}; "
+            "change those or set algo.actor_preactivation_penalty: 0",
+            "algo.actor_preactivation_penalty",
+        )
+
+
 class ExperimentSpec(SpecModel):
     """One experiment: an environment, an algorithm, a budget and a set of seeds.
 
@@ -338,15 +350,8 @@ class ExperimentSpec(SpecModel):
             )
         if a.mirror_replay:
             _check_mirror_replay(self)
-        if a.actor_preactivation_penalty > 0 and (
-            a.name != "td3" or a.backend != "sbx" or a.critic != "joint"
-        ):
-            raise custom_error(
-                "actor_preactivation_penalty is implemented for td3 with backend sbx and "
-                f"critic joint, not {a.name} with backend {a.backend} and critic {a.critic}; "
-                "change those or set algo.actor_preactivation_penalty: 0",
-                "algo.actor_preactivation_penalty",
-            )
+        if a.actor_preactivation_penalty > 0:
+            _check_actor_preactivation_penalty(self)
         if t.final_policy == "best_validated":
             check_validated_checkpoints(t, "final_policy 'best_validated'",
                                         "training.final_policy", or_else=" or final_policy: last")
