@@ -148,6 +148,8 @@ JOBS: tuple[Job, ...] = (
         "td3-sbx-128-mirror-smooth-act2-1e6-seed0"),
     *(Job(V + "td3-sbx-128-1e6-mirror-bounded.yaml", s, f"td3-sbx-128-mirror-bounded-1e6-seed{s}")
       for s in (0, 1, 2)),
+    *(Job(V + "td3-sbx-128-1e6-mirror-dr-warmup.yaml", s,
+          f"td3-sbx-128-mirror-dr-warmup-1e6-seed{s}") for s in (0, 1, 2)),
     # sampling MPC (issue 30; evaluated on the three trajectories only: no --random episodes):
     Job(V + "mpc-mppi-64x50.yaml", 0, "mpc-mppi-64x50-seed0"),
     # derived from shipped runs (after all trainings):
@@ -166,7 +168,8 @@ REPORTED = (
     "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
     "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast", "sac-sbx-128-mirror-fast",
     "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-smooth-act2",
-    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "mpc-mppi-64x50",
+    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "td3-sbx-128-mirror-dr-warmup",
+    "mpc-mppi-64x50",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
@@ -175,7 +178,7 @@ REPORTED = (
 ROBUSTNESS = (
     "td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm",
     "td3-sbx-128-mirror-fast", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-smooth-act2",
-    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded",
+    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "td3-sbx-128-mirror-dr-warmup",
 )
 #: One factor at a time, then the combination a user expects on hardware (one setting).
 ROBUSTNESS_GRIDS = (

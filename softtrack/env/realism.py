@@ -289,6 +289,29 @@ class RealismModel:
                            else c.action_rate_limit * self.control_dt)
         self._applied = np.zeros((n, a))
         self.model_error_ranges = c.model_error_ranges
+        self.strength = 1.0
+
+    @property
+    def strength(self) -> float:
+        """How much of the random perturbations applies, in [0, 1] (1, the default: all).
+
+        A curriculum (``training.randomisation_warmup_steps``) raises it from 0 to 1 during
+        training. At strength s, each per-episode range (low, high) of a model-error factor
+        becomes (1 + s·(low − 1), 1 + s·(high − 1)), the episode's action delay is drawn from
+        d₀ … d₀ + round(s·(``action_delay_max`` − d₀)), d₀ = ``action_delay``, and the
+        observation noise's standard deviations and the stuck and drop probabilities are
+        multiplied by s. Fixed settings (fixed factors and delays, lag, rate and torque
+        limits) are the plant and do not change; the number of random draws does not either.
+        It acts at the next reset (ranges, delay) and the next step (noise, stuck, drops).
+        """
+        return self._strength
+
+    @strength.setter
+    def strength(self, value: float) -> None:
+        value = float(value)
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f"strength={value!r} must lie in [0, 1]")
+        self._strength = value
 
     # ---- reset ------------------------------------------------------------------------------
     def reset(self, env_indices: Sequence[int] | np.ndarray,
@@ -312,7 +335,8 @@ class RealismModel:
         self._stuck_left[idx] = 0
         self._action_history[idx] = 0.0
         if self.config.action_delay_max is not None:
-            low, high = self.config.action_delay, self.config.action_delay_max
+            low = self.config.action_delay
+            high = low + round(self._strength * (self.config.action_delay_max - low))
             for i in idx.tolist():
                 self.action_delays[i] = _spawn(self._rng(i)).integers(low, high + 1)
         self._lagged[idx] = 0.0
@@ -337,8 +361,13 @@ class RealismModel:
                     continue
                 if rng is None:
                     rng = _spawn(self._rng(i))
-                out[name][row] = rng.uniform(low, high)
+                out[name][row] = rng.uniform(*self._narrowed(low, high))
         return out
+
+    def _narrowed(self, low: float, high: float) -> tuple[float, float]:
+        """A model-error range at the current :attr:`strength` (itself at strength 1)."""
+        s = self._strength
+        return (low, high) if s == 1.0 else (1.0 + s * (low - 1.0), 1.0 + s * (high - 1.0))
 
     # ---- observations -----------------------------------------------------------------------
     def filter_obs(self, observations: np.ndarray) -> np.ndarray:
@@ -353,8 +382,8 @@ class RealismModel:
             queue[:, -1] = obs
             obs = delayed
         reading = self._noisy(obs, idx)
-        p_stuck = self.config.obs_stuck_probability
-        if p_stuck > 0:
+        p_stuck = self._strength * self.config.obs_stuck_probability
+        if self.config.obs_stuck_probability > 0:
             draws = np.stack([self._rng(i).random(self.obs_dim) for i in idx.tolist()])
             left = self._stuck_left
             left[(left == 0) & (draws < p_stuck)] = self.config.obs_stuck_steps
@@ -374,11 +403,11 @@ class RealismModel:
         if self.obs_sigma is None:
             return obs.astype(np.float32, copy=True)
         noise = np.stack([self._rng(i).standard_normal(self.obs_dim) for i in idx.tolist()])
-        return (obs + self.obs_sigma * noise).astype(np.float32)
+        return (obs + self._strength * self.obs_sigma * noise).astype(np.float32)
 
     def _dropped(self, reading: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        p_drop = self.config.obs_drop_probability
-        if p_drop <= 0:
+        p_drop = self._strength * self.config.obs_drop_probability
+        if self.config.obs_drop_probability <= 0:
             return reading.copy()
         draws = np.stack([self._rng(i).random(self.obs_dim) for i in idx.tolist()])
         return np.where(draws < p_drop, np.float32(0.0), reading).astype(np.float32)

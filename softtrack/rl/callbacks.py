@@ -12,6 +12,10 @@
   ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
   ``training.keep_checkpoints`` are deleted. An ``after_save`` hook (validation, see
   :mod:`softtrack.rl.validation`) runs after each periodic checkpoint.
+* :class:`RandomisationWarmup` raises the training environments' realism strength
+  (:attr:`softtrack.env.realism.RealismModel.strength`) linearly from 0 to 1 over
+  ``training.randomisation_warmup_steps`` env steps (a curriculum); it follows the model's step
+  count, so a resumed run continues the ramp where it stopped.
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
   latest episode return) on a terminal, or otherwise (a log file, a cluster job) prints whole
   progress lines: one at every :data:`PROGRESS_LINE_PERCENT` % of the budget and at least
@@ -44,6 +48,7 @@ __all__ = [
     "Checkpointer",
     "EpisodeLogger",
     "ProgressMonitor",
+    "RandomisationWarmup",
     "TrainingClock",
     "final_progress_line",
     "progress_line",
@@ -182,6 +187,46 @@ def save_checkpoint(
     for old in policy.list_checkpoints()[:-keep]:
         shutil.rmtree(old, ignore_errors=True)
     return target
+
+
+class RandomisationWarmup(BaseCallback):
+    """Sets the realism strength of the training environments to min(1, step / warmup_steps)
+    (see the module docstring): at construction for ``step``, so that the episodes the model's
+    first reset starts are already ramped, then before every env step.
+
+    Args:
+        warmup_steps: env steps (the model's ``num_timesteps``) to reach full strength, > 0.
+        env: the training ``VecEnv``: a ``TrackingVecEnv`` with realism settings, possibly
+            wrapped (``VecMonitor``, ``VecNormalize``).
+        step: the model's step count when training (re)starts.
+
+    Raises:
+        ValueError: ``warmup_steps`` ≤ 0, or an environment without realism settings.
+    """
+
+    def __init__(self, warmup_steps: int, env: Any, step: int = 0) -> None:
+        super().__init__()
+        if warmup_steps <= 0:
+            raise ValueError(f"warmup_steps={warmup_steps!r} must be > 0")
+        self.warmup_steps = int(warmup_steps)
+        from softtrack.env.vec_env import TrackingVecEnv
+
+        while not isinstance(env, TrackingVecEnv):
+            if not hasattr(env, "venv"):
+                raise TypeError(f"{type(env).__name__} wraps no TrackingVecEnv to ramp")
+            env = env.venv
+        if env.core.realism is None:
+            raise ValueError("a randomisation warm-up needs env.realism settings to ramp")
+        self.realism = env.core.realism
+        self.realism.strength = self.strength_at(step)
+
+    def strength_at(self, step: int) -> float:
+        """The strength after ``step`` env steps, in [0, 1]."""
+        return min(1.0, step / self.warmup_steps)
+
+    def _on_step(self) -> bool:
+        self.realism.strength = self.strength_at(self.num_timesteps)
+        return True
 
 
 class Checkpointer(BaseCallback):

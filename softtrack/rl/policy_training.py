@@ -28,6 +28,7 @@ from softtrack.rl.callbacks import (
     Checkpointer,
     EpisodeLogger,
     ProgressMonitor,
+    RandomisationWarmup,
     TrainingClock,
     save_checkpoint,
 )
@@ -290,11 +291,16 @@ class PolicyTrainer:
         )
         from stable_baselines3.common.callbacks import CallbackList
 
+        callbacks: list[Any] = [episodes, checkpointer, self.monitor]
+        if training.randomisation_warmup_steps > 0:
+            callbacks.insert(0, RandomisationWarmup(training.randomisation_warmup_steps,
+                                                    self.model.get_env(),
+                                                    int(self.model.num_timesteps)))
         remaining = job.total_timesteps - int(self.model.num_timesteps)
         if remaining > 0 and not self.stop_requested():
             self.model.learn(
                 total_timesteps=remaining if state is not None else job.total_timesteps,
-                callback=CallbackList([episodes, checkpointer, self.monitor]),
+                callback=CallbackList(callbacks),
                 reset_num_timesteps=state is None,
                 progress_bar=False,
             )

@@ -387,6 +387,16 @@ class RealismSpec(SpecModel):
         """True when any field differs from its default ("off")."""
         return self != RealismSpec()
 
+    @property
+    def random_perturbations(self) -> bool:
+        """True when something is drawn at random: a [low, high] model-error range, an action
+        delay range, observation noise, stuck or dropped values."""
+        return (any(low != high for low, high in self.model_error_ranges().values())
+                or (self.action_delay_max or 0) > self.action_delay
+                or any(getattr(self, name) > 0 for name in (
+                    "obs_noise_node_position", "obs_noise_target_position", "obs_noise_speed",
+                    "obs_noise_direction", "obs_drop_probability", "obs_stuck_probability")))
+
 
 class EnvSpec(SpecModel):
     """The dual-arm tracking environment: physics, target, reward and episode length."""

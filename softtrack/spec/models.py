@@ -106,6 +106,16 @@ class TrainingSpec(SpecModel):
         "episodes",
         ge=0,
     )
+    randomisation_warmup_steps: Int = unit_field(
+        0,
+        "curriculum: env.realism's random perturbations (per-episode ranges of the model "
+        "error and the action delay, observation noise, stuck and dropped values) grow "
+        "linearly from none to their full size over the first this many env steps of "
+        "training; fixed settings apply throughout, evaluation always sees the full size; "
+        "0 = full size from the start",
+        "env steps",
+        ge=0,
+    )
     final_stage_fraction: Float = unit_field(
         0.1,
         "the final-stage return averages episodes in this last fraction of total_timesteps "
@@ -251,6 +261,26 @@ def _check_actor_preactivation_penalty(spec: ExperimentSpec) -> None:
         )
 
 
+def _check_randomisation_warmup(spec: ExperimentSpec) -> None:
+    """Raise the spec error of a ``training.randomisation_warmup_steps`` with nothing to ramp
+    or longer than the training."""
+    t = spec.training
+    if not spec.env.realism.random_perturbations:
+        raise custom_error(
+            f"randomisation_warmup_steps {t.randomisation_warmup_steps} ramps env.realism's "
+            "random perturbations, but it has none (no [low, high] range, action_delay_max, "
+            "noise, stuck or dropped values); add some or set randomisation_warmup_steps: 0",
+            "training.randomisation_warmup_steps",
+        )
+    if t.randomisation_warmup_steps > t.total_timesteps:
+        raise custom_error(
+            f"randomisation_warmup_steps {t.randomisation_warmup_steps} > total_timesteps "
+            f"{t.total_timesteps}, so training would never see the full perturbations; use "
+            "at most total_timesteps",
+            "training.randomisation_warmup_steps",
+        )
+
+
 class ExperimentSpec(SpecModel):
     """One experiment: an environment, an algorithm, a budget and a set of seeds.
 
@@ -352,6 +382,8 @@ class ExperimentSpec(SpecModel):
             _check_mirror_replay(self)
         if a.actor_preactivation_penalty > 0:
             _check_actor_preactivation_penalty(self)
+        if t.randomisation_warmup_steps > 0:
+            _check_randomisation_warmup(self)
         if t.final_policy == "best_validated":
             check_validated_checkpoints(t, "final_policy 'best_validated'",
                                         "training.final_policy", or_else=" or final_policy: last")
