@@ -86,6 +86,18 @@ def test_perturbed_spec_resets_realism_unless_kept() -> None:
     assert perturbed_spec(spec, Setting(()), keep_realism=True) == spec
 
 
+def test_perturbed_spec_of_a_curriculum_run_drops_the_warmup() -> None:
+    """A run trained with training.randomisation_warmup_steps is evaluated without its
+    randomisation (nothing left to ramp) and with it at full size."""
+    spec = ExperimentSpec.model_validate(
+        {"env": {"realism": {"youngs_modulus_scale": [0.9, 1.1]}},
+         "training": {"randomisation_warmup_steps": 1000}})
+    for keep in (False, True):
+        for setting in (Setting(()), Setting((("action_delay", "2"),))):
+            assert perturbed_spec(spec, setting, keep).training.randomisation_warmup_steps == 0
+    assert perturbed_spec(spec, Setting(()), True).env.realism == spec.env.realism
+
+
 def test_an_unstable_setting_names_itself() -> None:
     with pytest.raises(SpecError) as info:
         perturbed_spec(ExperimentSpec(), Setting((("youngs_modulus_scale", "3"),)))

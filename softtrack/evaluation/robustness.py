@@ -161,12 +161,14 @@ def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = Fals
 def perturbed_spec(spec: ExperimentSpec, setting: Setting, keep_realism: bool = False
                    ) -> ExperimentSpec:
     """The run's spec with ``setting`` applied (``env.realism`` reset first unless
-    ``keep_realism``).
+    ``keep_realism``; a training curriculum, ``training.randomisation_warmup_steps``, is
+    dropped: evaluation sees the full perturbations).
 
     Raises:
         SpecError: the setting makes the spec invalid (one line naming the setting).
     """
     data = spec.model_dump(mode="json")
+    data["training"].pop("randomisation_warmup_steps", None)
     if not keep_realism:
         data["env"].pop("realism", None)
     try:
