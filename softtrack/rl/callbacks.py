@@ -192,7 +192,7 @@ def save_checkpoint(
 class RandomisationWarmup(BaseCallback):
     """Sets the realism strength of the training environments to min(1, step / warmup_steps)
     (see the module docstring): at construction for ``step``, so that the episodes the model's
-    first reset starts are already ramped, then before every env step.
+    first reset starts are already ramped, then after every env step for the next one.
 
     Args:
         warmup_steps: env steps (the model's ``num_timesteps``) to reach full strength, > 0.

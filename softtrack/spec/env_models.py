@@ -393,9 +393,8 @@ class RealismSpec(SpecModel):
         delay range, observation noise, stuck or dropped values."""
         return (any(low != high for low, high in self.model_error_ranges().values())
                 or (self.action_delay_max or 0) > self.action_delay
-                or any(getattr(self, name) > 0 for name in (
-                    "obs_noise_node_position", "obs_noise_target_position", "obs_noise_speed",
-                    "obs_noise_direction", "obs_drop_probability", "obs_stuck_probability")))
+                or any(getattr(self, name) > 0 for name in type(self).model_fields
+                       if name.startswith("obs_noise_") or name.endswith("_probability")))
 
 
 class EnvSpec(SpecModel):
