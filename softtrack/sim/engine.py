@@ -94,7 +94,10 @@ class RodBatch:
         self._inv_inertia = np.tile(c.inv_inertia, (n_envs, 1, 1))
         self._shear = np.tile(c.shear_stiffness, (n_envs, 1, 1))  # (E, 3, N) N
         self._bend = np.tile(c.bend_stiffness, (n_envs, 1, 1))  # (E, 3, N−1) N·m²
+        self._volume = np.tile(c.volume, (n_envs, 1))  # (E, N) m³, sets the contact radius
         self._damping = np.full(n_envs, float(p.damping))  # (E,) N·s/m²
+        self._penetration = np.zeros(n_envs)  # (E,) m, contact outputs of the last advance
+        self._contact_force = np.zeros(n_envs)  # (E,) N
         self._torque_factor = np.ones(n_envs)  # (E,)
         self._scaled_torques = False  # any torque factor ≠ 1
         self.reset()
@@ -124,6 +127,8 @@ class RodBatch:
         self.torques[idx] = 0.0
         self.time[idx] = 0.0
         self._finite[idx] = True
+        self._penetration[idx] = 0.0
+        self._contact_force[idx] = 0.0
 
     def get_state(self, env_indices: Sequence[int] | np.ndarray | None = None) -> RodState:
         """A copy of the listed environments' state (default: all)."""
@@ -226,6 +231,7 @@ class RodBatch:
             self._inv_inertia[env] = c.inv_inertia
             self._shear[env] = c.shear_stiffness
             self._bend[env] = c.bend_stiffness
+            self._volume[env] = c.volume
             self._damping[env] = float(params.damping)
             self._torque_factor[env] = row[_TORQUE_COLUMN]
             self.factors[env] = row
@@ -262,9 +268,25 @@ class RodBatch:
             float(p.dt), self._damping, float(p.gravity), c.rest_lengths,
             c.rest_voronoi_lengths, self._inv_mass, self._mass, self._inertia,
             self._inv_inertia, self._shear, self._bend, c.base_position, c.base_directors,
-            self._finite,
+            self._finite, self._volume, float(p.contact_k), float(p.contact_nu),
+            self._penetration, self._contact_force,
         )
         self.time += steps * p.dt
+
+    @property
+    def contact_on(self) -> bool:
+        """True when the arms touch each other (``params.contact_k`` > 0)."""
+        return self.params.contact_k > 0.0 and self.params.n_arms > 1
+
+    def contact_state(self) -> tuple[np.ndarray, np.ndarray]:
+        """Contact between the arms during the last :meth:`advance` (zeros without contact).
+
+        Returns:
+            penetration: (E,) m, the deepest overlap of the two arms' surfaces over its steps.
+            force: (E,) N, the magnitude of the total contact force one arm exerts on the
+            other, mean over its steps.
+        """
+        return self._penetration.copy(), self._contact_force.copy()
 
     def finite(self) -> np.ndarray:
         """(E,) bool: True where every state value of the environment was finite after the

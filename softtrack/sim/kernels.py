@@ -1,8 +1,10 @@
 """Numba kernels of the clamped Cosserat-rod engine (private).
 
 One compiled call, :func:`advance`, integrates every rod of a batch by ``n_steps`` Position
-Verlet steps. Each rod is integrated to the end before the next one starts, so its whole state
-(a few kB) stays in L1 cache; rods are independent (the arms never touch).
+Verlet steps. Without contact each rod is integrated to the end before the next one starts, so
+its whole state (a few kB) stays in L1 cache; with rod–rod contact (:mod:`softtrack.sim.contact`)
+the rods of an environment advance together and the contact stage runs inside every step,
+between the forces and the kick, as PyElastica's synchronize stage.
 
 The discretisation is PyElastica 1.0.0's (Gazzola et al. 2018, RSOS), written out per element:
 shear/stretch strain σ = e·Q·t − d₃, curvature from the rotation log map between neighbouring
@@ -32,6 +34,8 @@ from collections.abc import Callable
 
 import numpy as np
 from numba import njit
+
+from softtrack.sim.contact import rod_rod_contact
 
 __all__ = ["advance"]
 
@@ -191,8 +195,262 @@ def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad
         kappa[2, j] = mag * v2
 
 
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, dil_rate, damp_f,
+                   kappa, cosines, couple, kxc, rest_len, inv_rest_len, rest_vor, inv_rest_vor,
+                   vor_mask, shear_k, bend_k, damp_coef, n_pad):
+    """Geometry, strains and stresses of one rod's elements and Voronoi points (outputs in place).
+
+    Per rod (3, n_pad+1) nodes and (3, n_pad) elements: lengths, 1/lengths (m, 1/m); qt = Q·t;
+    n_local (N, local frame); f_elem = Qᵀn/e (N, lab frame); dil_rate (1/s); damp_f, the
+    damping force of each element on each of its nodes (N); kappa (1/m), couple and kxc (N·m)
+    at the Voronoi points; cosines of the angles between neighbouring frames.
+    """
+    for k in range(n_pad):
+        dx = pos[0, k + 1] - pos[0, k]
+        dy = pos[1, k + 1] - pos[1, k]
+        dz = pos[2, k + 1] - pos[2, k]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
+        lengths[k] = length
+        inv_lengths[k] = 1.0 / length
+    for k in range(n_pad):
+        inv_length = inv_lengths[k]
+        tx = (pos[0, k + 1] - pos[0, k]) * inv_length
+        ty = (pos[1, k + 1] - pos[1, k]) * inv_length
+        tz = (pos[2, k + 1] - pos[2, k]) * inv_length
+        e = lengths[k] * inv_rest_len[k]
+        q0 = dirs[0, 0, k] * tx + dirs[0, 1, k] * ty + dirs[0, 2, k] * tz
+        q1 = dirs[1, 0, k] * tx + dirs[1, 1, k] * ty + dirs[1, 2, k] * tz
+        q2 = dirs[2, 0, k] * tx + dirs[2, 1, k] * ty + dirs[2, 2, k] * tz
+        qt[0, k] = q0
+        qt[1, k] = q1
+        qt[2, k] = q2
+        n_local[0, k] = shear_k[0, k] * (e * q0)
+        n_local[1, k] = shear_k[1, k] * (e * q1)
+        n_local[2, k] = shear_k[2, k] * (e * q2 - 1.0)
+    for k in range(n_pad):
+        inv_e = rest_len[k] * inv_lengths[k]
+        n0 = n_local[0, k] * inv_e
+        n1 = n_local[1, k] * inv_e
+        n2 = n_local[2, k] * inv_e
+        f_elem[0, k] = dirs[0, 0, k] * n0 + dirs[1, 0, k] * n1 + dirs[2, 0, k] * n2
+        f_elem[1, k] = dirs[0, 1, k] * n0 + dirs[1, 1, k] * n1 + dirs[2, 1, k] * n2
+        f_elem[2, k] = dirs[0, 2, k] * n0 + dirs[1, 2, k] * n1 + dirs[2, 2, k] * n2
+    for k in range(n_pad):
+        dx = pos[0, k + 1] - pos[0, k]
+        dy = pos[1, k + 1] - pos[1, k]
+        dz = pos[2, k + 1] - pos[2, k]
+        dvx = vel[0, k + 1] - vel[0, k]
+        dvy = vel[1, k + 1] - vel[1, k]
+        dvz = vel[2, k + 1] - vel[2, k]
+        dil_rate[k] = ((dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k]
+                       * inv_rest_len[k])
+    for k in range(n_pad):
+        c = damp_coef[k] * lengths[k]
+        damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
+        damp_f[1, k] = c * (vel[1, k] + vel[1, k + 1])
+        damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
+
+    # --- Voronoi points: curvature and bend/twist couple
+    _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad, _log_map_factor_halving)
+    smallest_cos = 1.0
+    for j in range(n_pad):
+        smallest_cos = min(smallest_cos, cosines[j])
+    if smallest_cos < _CURVATURE_SERIES_MIN_COS:
+        _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad, _log_map_factor_trig)
+    for j in range(n_pad):
+        vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_vor[j]
+        inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
+        k0 = kappa[0, j]
+        k1 = kappa[1, j]
+        k2 = kappa[2, j]
+        c0 = bend_k[0, j] * k0
+        c1 = bend_k[1, j] * k1
+        c2 = bend_k[2, j] * k2
+        couple[0, j] = c0 * inv3
+        couple[1, j] = c1 * inv3
+        couple[2, j] = c2 * inv3
+        w = 0.5 * rest_vor[j] * inv3
+        kxc[0, j] = (k1 * c2 - k2 * c1) * w
+        kxc[1, j] = (k2 * c0 - k0 * c2) * w
+        kxc[2, j] = (k0 * c1 - k1 * c0) * w
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _node_forces(f_elem, damp_f, weight_m, gravity, force_int, force_ext, n_pad):
+    """PyElastica's node force arrays of one rod: internal Δ(Qᵀn/e) and external damping +
+    gravity (N, (3, n_pad+1)), kept apart because contact reads both."""
+    for i in range(3):
+        g = -gravity if i == 1 else 0.0
+        force_int[i, 0] = f_elem[i, 0]
+        force_ext[i, 0] = damp_f[i, 0] + g * weight_m[0]
+        for k in range(1, n_pad + 1):
+            force_int[i, k] = f_elem[i, k] - f_elem[i, k - 1]
+            force_ext[i, k] = damp_f[i, k] + damp_f[i, k - 1] + g * weight_m[k]
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _kick_nodes(vel, force_int, force_ext, inv_m, dt, n_pad):
+    """v += dt·(F_int + F_ext)/m (node 0 clamped)."""
+    for i in range(3):
+        for k in range(1, n_pad + 1):
+            vel[i, k] += dt * ((force_int[i, k] + force_ext[i, k]) * inv_m[k])
+        vel[i, 0] = 0.0
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len, inv_rest_len, inert,
+                   inv_inert, dil_rate, qt, n_local, tq, env_damping, dt, n_pad):
+    """ω += dt·J⁻¹·τ·e for every element (element 0 clamped), τ the internal, damping and
+    actuation couples (local frame)."""
+    for k in range(1, n_pad + 1):
+        ti0 = couple[0, k] - couple[0, k - 1] + kxc[0, k] + kxc[0, k - 1]
+        ti1 = couple[1, k] - couple[1, k - 1] + kxc[1, k] + kxc[1, k - 1]
+        ti2 = couple[2, k] - couple[2, k - 1] + kxc[2, k] + kxc[2, k - 1]
+        e = lengths[k] * inv_rest_len[k]
+        inv_e = rest_len[k] * inv_lengths[k]
+        w0 = om[0, k]
+        w1 = om[1, k]
+        w2 = om[2, k]
+        jw0 = inert[0, k] * w0 * inv_e
+        jw1 = inert[1, k] * w1 * inv_e
+        jw2 = inert[2, k] * w2 * inv_e
+        unsteady = dil_rate[k] * inv_e
+        q0 = qt[0, k]
+        q1 = qt[1, k]
+        q2 = qt[2, k]
+        n0 = n_local[0, k]
+        n1 = n_local[1, k]
+        n2 = n_local[2, k]
+        dl = rest_len[k]
+        damp = env_damping * lengths[k]
+        t0 = (ti0 + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
+              + jw0 * unsteady + tq[0, k] - damp * w0)
+        t1 = (ti1 + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
+              + jw1 * unsteady + tq[1, k] - damp * w1)
+        t2 = (ti2 + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
+              + jw2 * unsteady - damp * w2)
+        om[0, k] = w0 + dt * (inv_inert[0, k] * t0 * e)
+        om[1, k] = w1 + dt * (inv_inert[1, k] * t1 * e)
+        om[2, k] = w2 + dt * (inv_inert[2, k] * t2 * e)
+    for i in range(3):
+        om[i, 0] = 0.0
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _rod_work(width):
+    """One rod's work arrays, ``width`` entries per row: positions, velocities, directors,
+    angular velocities, torques, lengths, 1/lengths, dilatation rates, f_elem, n_local, qt,
+    damp_f, couple, kxc, internal and external node forces, element radii and edges."""
+    return (np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, 3, width)),
+            np.zeros((3, width)), np.zeros((2, width)), np.ones(width), np.ones(width),
+            np.zeros(width), np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
+            np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
+            np.zeros((3, width)), np.zeros((3, width)), np.zeros(width), np.zeros((3, width)))
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _rest_geometry(rest_lengths, rest_voronoi, width):
+    """Padded rest lengths, their inverses, rest Voronoi lengths, their inverses and the
+    Voronoi mask (1 at real points, 0 in the padding)."""
+    n_elem = rest_lengths.shape[0]
+    rest_len = np.ones(width)
+    inv_rest_len = np.ones(width)
+    rest_vor = np.ones(width)
+    inv_rest_vor = np.ones(width)
+    vor_mask = np.zeros(width)
+    for k in range(n_elem):
+        rest_len[k] = rest_lengths[k]
+        inv_rest_len[k] = 1.0 / rest_lengths[k]
+    for j in range(n_elem - 1):
+        rest_vor[j] = rest_voronoi[j]
+        inv_rest_vor[j] = 1.0 / rest_voronoi[j]
+        vor_mask[j] = 1.0
+    return rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend, volume,
+                   damp_coef, inv_m, weight_m, inert, inv_inert, shear_k, bend_k, vol):
+    """Copy environment ``env``'s material (model error) into the padded work arrays."""
+    n_elem = volume.shape[1]
+    for k in range(n_elem):
+        damp_coef[k] = -0.25 * damping[env]
+        vol[k] = volume[env, k]
+        for i in range(3):
+            inert[i, k] = inertia[env, i, k]
+            inv_inert[i, k] = inv_inertia[env, i, k]
+            shear_k[i, k] = shear[env, i, k]
+    for j in range(n_elem - 1):
+        for i in range(3):
+            bend_k[i, j] = bend[env, i, j]
+    for k in range(n_elem + 1):
+        inv_m[k] = inv_mass[env, k]
+        weight_m[k] = mass[env, k]
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _load_rod(position, velocity, directors, omega, torques, base_position, base_directors,
+              env, arm, pos, vel, dirs, om, tq, base_pos, base_dirs, n_pad):
+    """Copy one rod's state, torques and clamp into its padded work arrays; padded nodes
+    continue the last element's line beyond the tip, at rest, with its frame."""
+    n_elem = omega.shape[3]
+    for i in range(3):
+        for k in range(n_elem + 1):
+            pos[i, k] = position[env, arm, i, k]
+            vel[i, k] = velocity[env, arm, i, k]
+        step_out = pos[i, n_elem] - pos[i, n_elem - 1]
+        for k in range(n_elem + 1, n_pad + 1):
+            pos[i, k] = pos[i, n_elem] + (k - n_elem) * step_out
+            vel[i, k] = 0.0
+        for k in range(n_elem):
+            om[i, k] = omega[env, arm, i, k]
+        for k in range(n_elem, n_pad + 1):
+            om[i, k] = 0.0
+        for j in range(3):
+            for k in range(n_elem):
+                dirs[i, j, k] = directors[env, arm, i, j, k]
+            for k in range(n_elem, n_pad + 1):
+                dirs[i, j, k] = dirs[i, j, n_elem - 1]
+        base_pos[i] = base_position[arm, i]
+        for j in range(3):
+            base_dirs[i, j] = base_directors[arm, i, j]
+    for i in range(2):
+        for k in range(n_elem):
+            tq[i, k] = torques[env, arm, i, k]
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _store_rod(pos, vel, dirs, om, env, arm, position, velocity, directors, omega):
+    """Copy a rod's real entries back; returns their sum (NaN and inf propagate through it,
+    so one reduction checks the whole state)."""
+    n_elem = omega.shape[3]
+    checksum = 0.0
+    for i in range(3):
+        for k in range(n_elem + 1):
+            position[env, arm, i, k] = pos[i, k]
+            velocity[env, arm, i, k] = vel[i, k]
+            checksum += pos[i, k] + vel[i, k]
+        for k in range(n_elem):
+            omega[env, arm, i, k] = om[i, k]
+            checksum += om[i, k]
+        for j in range(3):
+            for k in range(n_elem):
+                directors[env, arm, i, j, k] = dirs[i, j, k]
+                checksum += dirs[i, j, k]
+    return checksum
+
+
+# Padding (elements n_elem.., nodes n_elem+1.., Voronoi points n_elem−1..) is inert in both
+# kernels: zero stiffness, damping, gravity and volume, unit rest lengths, masses and inertias,
+# zero velocities, so it exerts no force or couple on the real rod, never moves and never
+# touches anything. Every work array is allocated in the kernel and copied from the batch
+# once per environment and advance; the step loops touch nothing else.
+
+
 def _build_advance(n_pad):
-    """The integrator for rods padded to ``n_pad`` elements (a multiple of 8, > n_elem).
+    """The contact-free integrator for rods padded to ``n_pad`` elements (a multiple of 8,
+    > n_elem): each rod is integrated to the end before the next starts.
 
     ``n_pad`` is a closure constant, so every element/node loop has a compile-time trip count
     that is a multiple of the vector width: no scalar remainder iterations.
@@ -202,174 +460,46 @@ def _build_advance(n_pad):
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
     def advance_padded(position, velocity, directors, omega, torques, n_steps, dt, damping,
                        gravity, rest_lengths, rest_voronoi, inv_mass, mass, inertia,
-                       inv_inertia, shear, bend, base_position, base_directors, finite):
+                       inv_inertia, shear, bend, base_position, base_directors, finite, volume):
         n_env = position.shape[0]
         n_arm = position.shape[1]
-        n_elem = rest_lengths.shape[0]
-        n_node = n_elem + 1
-        # Every array the loops touch is allocated here, so LLVM knows none of them alias and
-        # vectorises the loops without runtime overlap checks; each rod's state is copied
-        # into these padded work arrays, integrated, and its real entries copied back.
-        # Padding (elements n_elem.., nodes n_elem+1.., Voronoi points n_elem−1..) is inert:
-        # zero stiffness, damping and gravity, unit rest lengths, masses and inertias, zero
-        # velocities, so it exerts no force or couple on the real rod and never moves.
-        lengths = np.ones(width)
-        inv_lengths = np.ones(width)
-        cosines = np.ones(width)
-        dil_rate = np.zeros(width)
-        f_elem = np.zeros((3, width))
-        n_local = np.zeros((3, width))
-        qt = np.zeros((3, width))
-        damp_f = np.zeros((3, width))
-        couple = np.zeros((3, width))
-        kxc = np.zeros((3, width))
+        rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
+            rest_lengths, rest_voronoi, width)
+        (pos, vel, dirs, om, tq, lengths, inv_lengths, dil_rate, f_elem, n_local, qt, damp_f,
+         couple, kxc, _, _, _, _) = _rod_work(width)
         kappa = np.zeros((3, width))
-        rest_len = np.ones(width)
-        inv_rest_len = np.ones(width)
-        rest_vor = np.ones(width)
-        inv_rest_vor = np.ones(width)
-        vor_mask = np.zeros(width)
+        cosines = np.ones(width)
         damp_coef = np.zeros(width)
         inv_m = np.ones(width)
         weight_m = np.zeros(width)
+        vol = np.zeros(width)
         inert = np.ones((3, width))
         inv_inert = np.ones((3, width))
         shear_k = np.zeros((3, width))
         bend_k = np.zeros((3, width))
-        for k in range(n_elem):
-            rest_len[k] = rest_lengths[k]
-            inv_rest_len[k] = 1.0 / rest_lengths[k]
-        for j in range(n_elem - 1):
-            rest_vor[j] = rest_voronoi[j]
-            inv_rest_vor[j] = 1.0 / rest_voronoi[j]
-            vor_mask[j] = 1.0
-        pos = np.zeros((3, width))
-        vel = np.zeros((3, width))
-        dirs = np.zeros((3, 3, width))
-        om = np.zeros((3, width))
-        tq = np.zeros((2, width))
         base_pos = np.empty(3)
         base_dirs = np.empty((3, 3))
         half_dt = 0.5 * dt
         for env in range(n_env):
-            finite[env] = True
-            # this environment's material, damping (model error; the same for all by default)
+            _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend,
+                           volume, damp_coef, inv_m, weight_m, inert, inv_inert, shear_k,
+                           bend_k, vol)
             env_damping = damping[env]
-            for k in range(n_elem):
-                damp_coef[k] = -0.25 * env_damping
-                for i in range(3):
-                    inert[i, k] = inertia[env, i, k]
-                    inv_inert[i, k] = inv_inertia[env, i, k]
-                    shear_k[i, k] = shear[env, i, k]
-            for j in range(n_elem - 1):
-                for i in range(3):
-                    bend_k[i, j] = bend[env, i, j]
-            for k in range(n_node):
-                inv_m[k] = inv_mass[env, k]
-                weight_m[k] = mass[env, k]
+            checksum = 0.0
             for arm in range(n_arm):
-                for i in range(3):
-                    for k in range(n_node):
-                        pos[i, k] = position[env, arm, i, k]
-                        vel[i, k] = velocity[env, arm, i, k]
-                    # padded nodes continue the last element's line beyond the tip, at rest
-                    step_out = pos[i, n_elem] - pos[i, n_elem - 1]
-                    for k in range(n_node, n_pad + 1):
-                        pos[i, k] = pos[i, n_elem] + (k - n_elem) * step_out
-                        vel[i, k] = 0.0
-                    for k in range(n_elem):
-                        om[i, k] = omega[env, arm, i, k]
-                    for k in range(n_elem, n_pad + 1):
-                        om[i, k] = 0.0
-                    for j in range(3):
-                        for k in range(n_elem):
-                            dirs[i, j, k] = directors[env, arm, i, j, k]
-                        for k in range(n_elem, n_pad + 1):
-                            dirs[i, j, k] = dirs[i, j, n_elem - 1]
-                    base_pos[i] = base_position[arm, i]
-                    for j in range(3):
-                        base_dirs[i, j] = base_directors[arm, i, j]
-                for i in range(2):
-                    for k in range(n_elem):
-                        tq[i, k] = torques[env, arm, i, k]
-                # The closing half drift of one step and the opening half drift of the next are
-                # one drift of dt (same velocities, same rotation axis), so they are fused.
+                _load_rod(position, velocity, directors, omega, torques, base_position,
+                          base_directors, env, arm, pos, vel, dirs, om, tq, base_pos,
+                          base_dirs, n_pad)
+                # The closing half drift of one step and the opening half drift of the next
+                # are one drift of dt (same velocities, same rotation axis), so they are fused.
                 _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_pad)
                 for step in range(n_steps):
-
-                    # --- elements: geometry, strains, stresses (short loops that vectorise)
-                    for k in range(n_pad):
-                        dx = pos[0, k + 1] - pos[0, k]
-                        dy = pos[1, k + 1] - pos[1, k]
-                        dz = pos[2, k + 1] - pos[2, k]
-                        length = math.sqrt(dx * dx + dy * dy + dz * dz) + _EPS
-                        lengths[k] = length
-                        inv_lengths[k] = 1.0 / length
-                    for k in range(n_pad):
-                        inv_length = inv_lengths[k]
-                        tx = (pos[0, k + 1] - pos[0, k]) * inv_length
-                        ty = (pos[1, k + 1] - pos[1, k]) * inv_length
-                        tz = (pos[2, k + 1] - pos[2, k]) * inv_length
-                        e = lengths[k] * inv_rest_len[k]
-                        q0 = dirs[0, 0, k] * tx + dirs[0, 1, k] * ty + dirs[0, 2, k] * tz
-                        q1 = dirs[1, 0, k] * tx + dirs[1, 1, k] * ty + dirs[1, 2, k] * tz
-                        q2 = dirs[2, 0, k] * tx + dirs[2, 1, k] * ty + dirs[2, 2, k] * tz
-                        qt[0, k] = q0
-                        qt[1, k] = q1
-                        qt[2, k] = q2
-                        n_local[0, k] = shear_k[0, k] * (e * q0)
-                        n_local[1, k] = shear_k[1, k] * (e * q1)
-                        n_local[2, k] = shear_k[2, k] * (e * q2 - 1.0)
-                    for k in range(n_pad):
-                        inv_e = rest_len[k] * inv_lengths[k]
-                        n0 = n_local[0, k] * inv_e
-                        n1 = n_local[1, k] * inv_e
-                        n2 = n_local[2, k] * inv_e
-                        f_elem[0, k] = dirs[0, 0, k] * n0 + dirs[1, 0, k] * n1 + dirs[2, 0, k] * n2
-                        f_elem[1, k] = dirs[0, 1, k] * n0 + dirs[1, 1, k] * n1 + dirs[2, 1, k] * n2
-                        f_elem[2, k] = dirs[0, 2, k] * n0 + dirs[1, 2, k] * n1 + dirs[2, 2, k] * n2
-                    for k in range(n_pad):
-                        dx = pos[0, k + 1] - pos[0, k]
-                        dy = pos[1, k + 1] - pos[1, k]
-                        dz = pos[2, k + 1] - pos[2, k]
-                        dvx = vel[0, k + 1] - vel[0, k]
-                        dvy = vel[1, k + 1] - vel[1, k]
-                        dvz = vel[2, k + 1] - vel[2, k]
-                        dil_rate[k] = ((dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k]
-                                       * inv_rest_len[k])
-                    for k in range(n_pad):
-                        c = damp_coef[k] * lengths[k]
-                        damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
-                        damp_f[1, k] = c * (vel[1, k] + vel[1, k + 1])
-                        damp_f[2, k] = c * (vel[2, k] + vel[2, k + 1])
-
-                    # --- Voronoi points: curvature and bend/twist couple
-                    _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad,
-                                _log_map_factor_halving)
-                    smallest_cos = 1.0
-                    for j in range(n_pad):
-                        smallest_cos = min(smallest_cos, cosines[j])
-                    if smallest_cos < _CURVATURE_SERIES_MIN_COS:
-                        _curvatures(dirs, inv_rest_vor, vor_mask, kappa, cosines, n_pad,
-                                    _log_map_factor_trig)
-                    for j in range(n_pad):
-                        vor_dil = 0.5 * (lengths[j] + lengths[j + 1]) * inv_rest_vor[j]
-                        inv3 = 1.0 / (vor_dil * vor_dil * vor_dil)
-                        k0 = kappa[0, j]
-                        k1 = kappa[1, j]
-                        k2 = kappa[2, j]
-                        c0 = bend_k[0, j] * k0
-                        c1 = bend_k[1, j] * k1
-                        c2 = bend_k[2, j] * k2
-                        couple[0, j] = c0 * inv3
-                        couple[1, j] = c1 * inv3
-                        couple[2, j] = c2 * inv3
-                        w = 0.5 * rest_vor[j] * inv3
-                        kxc[0, j] = (k1 * c2 - k2 * c1) * w
-                        kxc[1, j] = (k2 * c0 - k0 * c2) * w
-                        kxc[2, j] = (k0 * c1 - k1 * c0) * w
-
-                    # --- nodes: forces → velocities (node 0 is clamped)
+                    _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem,
+                                   dil_rate, damp_f, kappa, cosines, couple, kxc, rest_len,
+                                   inv_rest_len, rest_vor, inv_rest_vor, vor_mask, shear_k,
+                                   bend_k, damp_coef, n_pad)
+                    # v += dt·F/m, F = internal + damping + gravity in one pass (written out
+                    # here: as an inlined helper this loop ran 25 % slower)
                     for i in range(3):
                         g = -gravity if i == 1 else 0.0
                         for k in range(1, n_pad + 1):
@@ -377,70 +507,124 @@ def _build_advance(n_pad):
                                  + g * weight_m[k])
                             vel[i, k] += dt * (f * inv_m[k])
                         vel[i, 0] = 0.0
-
-                    # --- elements: couples → angular velocities (element 0 is clamped)
-                    for k in range(1, n_pad + 1):
-                        ti0 = couple[0, k] - couple[0, k - 1] + kxc[0, k] + kxc[0, k - 1]
-                        ti1 = couple[1, k] - couple[1, k - 1] + kxc[1, k] + kxc[1, k - 1]
-                        ti2 = couple[2, k] - couple[2, k - 1] + kxc[2, k] + kxc[2, k - 1]
-                        e = lengths[k] * inv_rest_len[k]
-                        inv_e = rest_len[k] * inv_lengths[k]
-                        w0 = om[0, k]
-                        w1 = om[1, k]
-                        w2 = om[2, k]
-                        jw0 = inert[0, k] * w0 * inv_e
-                        jw1 = inert[1, k] * w1 * inv_e
-                        jw2 = inert[2, k] * w2 * inv_e
-                        unsteady = dil_rate[k] * inv_e
-                        q0 = qt[0, k]
-                        q1 = qt[1, k]
-                        q2 = qt[2, k]
-                        n0 = n_local[0, k]
-                        n1 = n_local[1, k]
-                        n2 = n_local[2, k]
-                        dl = rest_len[k]
-                        damp = env_damping * lengths[k]
-                        t0 = (ti0 + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
-                              + jw0 * unsteady + tq[0, k] - damp * w0)
-                        t1 = (ti1 + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
-                              + jw1 * unsteady + tq[1, k] - damp * w1)
-                        t2 = (ti2 + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
-                              + jw2 * unsteady - damp * w2)
-                        om[0, k] = w0 + dt * (inv_inert[0, k] * t0 * e)
-                        om[1, k] = w1 + dt * (inv_inert[1, k] * t1 * e)
-                        om[2, k] = w2 + dt * (inv_inert[2, k] * t2 * e)
-                    for i in range(3):
-                        om[i, 0] = 0.0
-
+                    _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len,
+                                   inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq,
+                                   env_damping, dt, n_pad)
                     drift_dt = half_dt if step == n_steps - 1 else dt
                     _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_pad)
-                # Copy the real entries back; NaN and inf propagate through a sum, so one
-                # reduction over them checks the whole state.
-                checksum = 0.0
-                for i in range(3):
-                    for k in range(n_node):
-                        position[env, arm, i, k] = pos[i, k]
-                        velocity[env, arm, i, k] = vel[i, k]
-                        checksum += pos[i, k] + vel[i, k]
-                    for k in range(n_elem):
-                        omega[env, arm, i, k] = om[i, k]
-                        checksum += om[i, k]
-                    for j in range(3):
-                        for k in range(n_elem):
-                            directors[env, arm, i, j, k] = dirs[i, j, k]
-                            checksum += dirs[i, j, k]
-                if not math.isfinite(checksum):
-                    finite[env] = False
+                checksum += _store_rod(pos, vel, dirs, om, env, arm, position, velocity,
+                                       directors, omega)
+            finite[env] = math.isfinite(checksum)
 
     return advance_padded
 
 
-_KERNELS: dict[int, Callable[..., None]] = {}  # n_pad → compiled advance_padded
+def _build_advance_contact(n_pad):
+    """The integrator of two rods in contact (:mod:`softtrack.sim.contact`), padded as
+    :func:`_build_advance`: both rods of an environment advance together, step by step, and
+    the contact stage runs between the forces and the kick of every step (PyElastica's
+    synchronize stage).
+    """
+    width = n_pad + 8
+
+    @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
+    def advance_contact(position, velocity, directors, omega, torques, n_steps, dt, damping,
+                        gravity, rest_lengths, rest_voronoi, inv_mass, mass, inertia,
+                        inv_inertia, shear, bend, base_position, base_directors, finite,
+                        volume, contact_k, contact_nu, penetration, contact_force):
+        n_env = position.shape[0]
+        n_elem = rest_lengths.shape[0]
+        rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
+            rest_lengths, rest_voronoi, width)
+        (pos_a, vel_a, dirs_a, om_a, tq_a, lengths_a, inv_lengths_a, dil_rate_a, f_elem_a,
+         n_local_a, qt_a, damp_f_a, couple_a, kxc_a, force_int_a, force_ext_a, radius_a,
+         edge_a) = _rod_work(width)
+        (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, dil_rate_b, f_elem_b,
+         n_local_b, qt_b, damp_f_b, couple_b, kxc_b, force_int_b, force_ext_b, radius_b,
+         edge_b) = _rod_work(width)
+        kappa = np.zeros((3, width))
+        cosines = np.ones(width)
+        damp_coef = np.zeros(width)
+        inv_m = np.ones(width)
+        weight_m = np.zeros(width)
+        vol = np.zeros(width)
+        inert = np.ones((3, width))
+        inv_inert = np.ones((3, width))
+        shear_k = np.zeros((3, width))
+        bend_k = np.zeros((3, width))
+        base_pos_a = np.empty(3)
+        base_dirs_a = np.empty((3, 3))
+        base_pos_b = np.empty(3)
+        base_dirs_b = np.empty((3, 3))
+        pairs = np.zeros((n_elem * n_elem, 2), dtype=np.int64)
+        reach = np.zeros(width)
+        force_on_b = np.zeros(3)
+        half_dt = 0.5 * dt
+        for env in range(n_env):
+            _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend,
+                           volume, damp_coef, inv_m, weight_m, inert, inv_inert, shear_k,
+                           bend_k, vol)
+            env_damping = damping[env]
+            _load_rod(position, velocity, directors, omega, torques, base_position,
+                      base_directors, env, 0, pos_a, vel_a, dirs_a, om_a, tq_a, base_pos_a,
+                      base_dirs_a, n_pad)
+            _load_rod(position, velocity, directors, omega, torques, base_position,
+                      base_directors, env, 1, pos_b, vel_b, dirs_b, om_b, tq_b, base_pos_b,
+                      base_dirs_b, n_pad)
+            deepest = 0.0
+            force_total = 0.0
+            _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
+            _drift(pos_b, vel_b, dirs_b, om_b, half_dt, base_pos_b, base_dirs_b, n_pad)
+            for step in range(n_steps):
+                _element_stage(pos_a, vel_a, dirs_a, lengths_a, inv_lengths_a, qt_a, n_local_a,
+                               f_elem_a, dil_rate_a, damp_f_a, kappa, cosines, couple_a, kxc_a,
+                               rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
+                               shear_k, bend_k, damp_coef, n_pad)
+                _node_forces(f_elem_a, damp_f_a, weight_m, gravity, force_int_a, force_ext_a,
+                             n_pad)
+                _element_stage(pos_b, vel_b, dirs_b, lengths_b, inv_lengths_b, qt_b, n_local_b,
+                               f_elem_b, dil_rate_b, damp_f_b, kappa, cosines, couple_b, kxc_b,
+                               rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
+                               shear_k, bend_k, damp_coef, n_pad)
+                _node_forces(f_elem_b, damp_f_b, weight_m, gravity, force_int_b, force_ext_b,
+                             n_pad)
+                depth = rod_rod_contact(
+                    pos_a, vel_a, lengths_a, force_int_a, force_ext_a, radius_a, edge_a,
+                    pos_b, vel_b, lengths_b, force_int_b, force_ext_b, radius_b, edge_b,
+                    vol, contact_k, contact_nu, pairs, reach, n_elem, n_pad, force_on_b)
+                deepest = max(deepest, depth)
+                force_total += math.sqrt(force_on_b[0] * force_on_b[0]
+                                         + force_on_b[1] * force_on_b[1]
+                                         + force_on_b[2] * force_on_b[2])
+                drift_dt = half_dt if step == n_steps - 1 else dt
+                _kick_nodes(vel_a, force_int_a, force_ext_a, inv_m, dt, n_pad)
+                _kick_elements(om_a, couple_a, kxc_a, lengths_a, inv_lengths_a, rest_len,
+                               inv_rest_len, inert, inv_inert, dil_rate_a, qt_a, n_local_a,
+                               tq_a, env_damping, dt, n_pad)
+                _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
+                _kick_nodes(vel_b, force_int_b, force_ext_b, inv_m, dt, n_pad)
+                _kick_elements(om_b, couple_b, kxc_b, lengths_b, inv_lengths_b, rest_len,
+                               inv_rest_len, inert, inv_inert, dil_rate_b, qt_b, n_local_b,
+                               tq_b, env_damping, dt, n_pad)
+                _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
+            penetration[env] = deepest
+            contact_force[env] = force_total / max(n_steps, 1)
+            checksum = _store_rod(pos_a, vel_a, dirs_a, om_a, env, 0, position, velocity,
+                                  directors, omega)
+            checksum += _store_rod(pos_b, vel_b, dirs_b, om_b, env, 1, position, velocity,
+                                   directors, omega)
+            finite[env] = math.isfinite(checksum)
+
+    return advance_contact
+
+
+_KERNELS: dict[tuple[int, bool], Callable[..., None]] = {}  # (n_pad, contact) → compiled kernel
 
 
 def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
             rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-            base_position, base_directors, finite):
+            base_position, base_directors, finite, volume, contact_k, contact_nu, penetration,
+            contact_force):
     """Integrate every rod of the batch by ``n_steps`` steps of ``dt`` seconds, in place.
 
     Args:
@@ -452,14 +636,28 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
         dt: time step, s. damping: (E,) ν_d per environment, N·s/m². gravity: m/s² along −y.
         rest_lengths (N,), rest_voronoi (N−1,) m (shared); per environment (model error):
         inv_mass, mass (E, N+1) 1/kg and kg; inertia, inv_inertia (E, 3, N) kg·m²;
-        shear (E, 3, N) N; bend (E, 3, N−1) N·m²;
+        shear (E, 3, N) N; bend (E, 3, N−1) N·m²; volume (E, N) m³ (contact radius);
         base_position (A, 3) m; base_directors (A, 3, 3).
         finite: (E,) bool output: False where any state value of the environment is NaN/inf.
+        contact_k: rod–rod contact stiffness, N/m (0: no contact, the arms pass through
+            each other); contact_nu: contact damping, N·s/m.
+        penetration: (E,) output with contact on: the deepest overlap of two arms over the
+            steps, m. contact_force: (E,) output with contact on: the magnitude of the total
+            contact force between the arms, mean over the steps, N. Untouched without contact.
     """
     n_pad = (rest_lengths.shape[0] // 8 + 1) * 8  # multiple of 8, > N: room for the tip node
-    kernel = _KERNELS.get(n_pad)
+    contact = contact_k > 0.0 and position.shape[1] == 2
+    key = (n_pad, contact)
+    kernel = _KERNELS.get(key)
     if kernel is None:
-        kernel = _KERNELS[n_pad] = _build_advance(n_pad)
-    kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
-           rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-           base_position, base_directors, finite)
+        builder = _build_advance_contact if contact else _build_advance
+        kernel = _KERNELS[key] = builder(n_pad)
+    if contact:
+        kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
+               rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
+               base_position, base_directors, finite, volume, contact_k, contact_nu,
+               penetration, contact_force)
+    else:
+        kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
+               rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
+               base_position, base_directors, finite, volume)

@@ -70,6 +70,9 @@ class SimParams:
         base_positions: clamp position of each arm, m; its length is the number of arms.
         direction: rest tangent d₃ of every arm (unit vector).
         normal: rest normal d₁ of every arm (unit vector, orthogonal to ``direction``).
+        contact_k: stiffness of the contact between the arms, N/m (PyElastica's
+            ``RodRodContact`` k); 0 = off, the arms pass through each other (the study).
+        contact_nu: damping of that contact, N·s/m (``RodRodContact`` nu); needs contact_k > 0.
     """
 
     n_elem: int = 20
@@ -87,6 +90,8 @@ class SimParams:
     base_positions: tuple[tuple[float, float, float], ...] = ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0))
     direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    contact_k: float = 0.0
+    contact_nu: float = 0.0
 
     @classmethod
     def from_overrides(cls, **overrides: Any) -> SimParams:

@@ -132,7 +132,7 @@ def _elastica_classes() -> dict[str, Any]:
         ``{"LegacyExplicitDamping": cls, "ElementCouples": cls, "Simulator": cls}``.
     """
     require_pyelastica()  # the ImportError with the install hint
-    from elastica import BaseSystemCollection, Constraints, Forcing
+    from elastica import BaseSystemCollection, Constraints, Contact, Forcing
     from elastica.external_forces import NoForces
 
     class _LegacyExplicitDamping(NoForces):
@@ -190,8 +190,9 @@ def _elastica_classes() -> dict[str, Any]:
     _ElementCouples.__name__ = _ElementCouples.__qualname__ = "ElementCouples"
     _LegacyExplicitDamping.__module__ = _ElementCouples.__module__ = __name__
 
-    class _Simulator(BaseSystemCollection, Constraints, Forcing):
-        """Rods + clamp + forcing; no callbacks (the state is read after ``advance``)."""
+    class _Simulator(BaseSystemCollection, Constraints, Forcing, Contact):
+        """Rods + clamp + forcing + contact; no callbacks (the state is read after
+        ``advance``)."""
 
     return {
         "LegacyExplicitDamping": _LegacyExplicitDamping,
@@ -216,7 +217,9 @@ class PyElasticaDualArm:
     One ``CosseratRod.straight_rod`` per entry of ``params.base_positions``; each is clamped
     at node 0 / element 0 with ``OneEndFixedBC``, damped by :class:`LegacyExplicitDamping`,
     pulled by ``GravityForces`` (−``params.gravity`` along y, only when it is non-zero) and
-    actuated by :class:`ElementCouples`. Time integration: PyElastica's ``PositionVerlet``.
+    actuated by :class:`ElementCouples`; with ``params.contact_k`` > 0 the two arms touch
+    through ``RodRodContact(contact_k, contact_nu)``, registered after the forcings. Time
+    integration: PyElastica's ``PositionVerlet``.
 
     Shapes use A = arms, N = ``params.n_elem`` elements (N + 1 nodes).
 
@@ -268,6 +271,11 @@ class PyElasticaDualArm:
                 )
             sim.add_forcing_to(rod).using(classes["ElementCouples"], couples=self._torques[arm])
             self.rods.append(rod)
+        if params.contact_k > 0.0:
+            # registered after every forcing, so it runs after them in the synchronize stage
+            sim.detect_contact_between(self.rods[0], self.rods[1]).using(
+                ea.RodRodContact, k=np.float64(params.contact_k), nu=np.float64(params.contact_nu)
+            )
         sim.finalize()
         self.simulator = sim
         self.stepper = ea.PositionVerlet()
