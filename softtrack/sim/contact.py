@@ -18,11 +18,18 @@ elements (i of arm A, j of arm B), in the order i outer, j inner:
 
 The element radius follows volume conservation, r = √(V/(π·l)), as PyElastica's rods do.
 
-Broad phase (speed only, the result is unchanged): PyElastica's bounding boxes of the two rods
-(nodes ± (max r + max l)), then a per-pair test on element midpoints that skips only pairs whose
-segments are provably farther apart than r_i + r_j + 1e-5 (a midpoint distance above
-r_i + r_j + ½(l_i + l_j) + 1e-5 + 1e-9), so that every pair PyElastica evaluates is evaluated,
-in PyElastica's order.
+Broad phase (speed only, the result is unchanged): a neighbour list of the element pairs whose
+midpoints are within r_i + r_j + ½(l_i + l_j) + 1e-5 m + a margin, rebuilt at the first step of
+every advance and whenever the nodes have moved (or the radii and lengths grown) by more than
+the margin since it was built. Each step, a listed pair is evaluated only when its midpoints
+are within r_i + r_j + ½(l_i + l_j) + 1e-5 m (+1e-9 m for rounding): farther segments are
+provably more than r_i + r_j + 1e-5 m apart, so PyElastica skips them too. Listed pairs are
+kept in PyElastica's order, so every pair PyElastica evaluates is evaluated in its order.
+(PyElastica's rod bounding boxes never separate here: the bases are exactly 2(r + l) apart.)
+
+The contact forces are kept in their own node array ``f_contact`` that the kick adds to the
+internal, damping and gravity forces; a step without contact is therefore bit-identical to the
+contact-free engine.
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ _FLAGS = {"contract", "arcp", "nsz"}
 _PARALLEL_TOLERANCE = 1e-6  # 1 − cos² of the angle below which two segments count as parallel
 _GAMMA_CUTOFF = -1e-5  # pairs separated by more than this are skipped (m), as PyElastica
 _BROAD_PHASE_MARGIN = 1e-9  # m, added to the provable bound so rounding cannot skip a pair
+_LIST_MARGIN = 0.01  # m, how far the nodes may move before the neighbour list is rebuilt
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -102,68 +110,56 @@ def _closest_parameters(ax, ay, az, ex, ey, ez, bx, by, bz, fx, fy, fz):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _element_geometry(pos, lengths, volume, radius, edge, n_pad):
-    """Radius r = √(V/(π·l)) (m) and edge l·t (m) of every element, t = (x_{k+1} − x_k)/l."""
+def _node_force(f_elem, damp_f, f_contact, weight, gravity, c, k):
+    """Component c of node k's force so far, N: internal Δ(Qᵀn/e), damping, gravity, contact."""
+    internal = f_elem[c, k] - f_elem[c, k - 1] if k > 0 else f_elem[c, 0]
+    external = damp_f[c, k] + damp_f[c, k - 1] if k > 0 else damp_f[c, 0]
+    if c == 1:
+        external += -gravity * weight[k]
+    return internal + (external + f_contact[c, k])
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _reach(volume, inv_lengths, lengths, radius, reach, n_elem, n_pad):
+    """radius_k = √(V·(1/l)/π) (m, within an ulp or two of PyElastica's √(V/l/π)) and
+    reach_k = r_k + ½l_k + 1e-5 m (m) for real elements, −1 in the padding."""
     for k in range(n_pad):
-        radius[k] = math.sqrt(volume[k] / lengths[k] / math.pi)
-    for i in range(3):
-        for k in range(n_pad):
-            edge[i, k] = lengths[k] * ((pos[i, k + 1] - pos[i, k]) / lengths[k])
+        r = math.sqrt(volume[k] * inv_lengths[k] * (1.0 / math.pi))
+        radius[k] = r
+        reach[k] = r + 0.5 * lengths[k] - _GAMMA_CUTOFF if k < n_elem else -1.0
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _boxes_apart(pos_a, radius_a, lengths_a, pos_b, radius_b, lengths_b, n_elem):
-    """True when the rods' bounding boxes (nodes ± (max r + max l)) do not intersect."""
-    reach_a = 0.0
-    reach_b = 0.0
-    max_ra = 0.0
-    max_la = 0.0
-    max_rb = 0.0
-    max_lb = 0.0
-    for k in range(n_elem):
-        max_ra = max(max_ra, radius_a[k])
-        max_la = max(max_la, lengths_a[k])
-        max_rb = max(max_rb, radius_b[k])
-        max_lb = max(max_lb, lengths_b[k])
-    reach_a = max_ra + max_la
-    reach_b = max_rb + max_lb
-    for i in range(3):
-        low_a = pos_a[i, 0]
-        high_a = pos_a[i, 0]
-        low_b = pos_b[i, 0]
-        high_b = pos_b[i, 0]
-        for k in range(1, n_elem + 1):
-            low_a = min(low_a, pos_a[i, k])
-            high_a = max(high_a, pos_a[i, k])
-            low_b = min(low_b, pos_b[i, k])
-            high_b = max(high_b, pos_b[i, k])
-        if high_b + reach_b < low_a - reach_a or low_b - reach_b > high_a + reach_a:
-            return True
-    return False
+def _drift_since(pos, anchor, reach, n_pad):
+    """Largest node displacement since ``anchor`` (rows 0–2) plus the largest growth of the
+    reach since then (row 3), m."""
+    moved = 0.0
+    grown = 0.0
+    for k in range(n_pad + 1):
+        dx = pos[0, k] - anchor[0, k]
+        dy = pos[1, k] - anchor[1, k]
+        dz = pos[2, k] - anchor[2, k]
+        moved = max(moved, dx * dx + dy * dy + dz * dz)
+    for k in range(n_pad):
+        grown = max(grown, reach[k] - anchor[3, k])
+    return math.sqrt(moved) + grown
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _candidate_pairs(pos_a, edge_a, radius_a, lengths_a, pos_b, edge_b, radius_b, lengths_b,
-                     reach_b, pairs, n_elem, n_pad):
-    """Write the element pairs (i, j) that may touch into ``pairs`` in PyElastica's order.
-
-    ``reach_b`` (n_pad,) work array. Returns the number of pairs written.
-    """
-    for j in range(n_pad):
-        reach_b[j] = (radius_b[j] + 0.5 * lengths_b[j] - _GAMMA_CUTOFF + _BROAD_PHASE_MARGIN
-                      if j < n_elem else -1.0)
+def _build_neighbours(pos_a, reach_a, pos_b, reach_b, margin, pairs, n_elem):
+    """Write the element pairs (i, j) whose midpoints lie within reach_i + reach_j + margin
+    into ``pairs``, i outer and j inner; returns their number."""
     count = 0
     for i in range(n_elem):
-        mx = pos_a[0, i] + 0.5 * edge_a[0, i]
-        my = pos_a[1, i] + 0.5 * edge_a[1, i]
-        mz = pos_a[2, i] + 0.5 * edge_a[2, i]
-        reach_a = radius_a[i] + 0.5 * lengths_a[i]
+        mx = 0.5 * (pos_a[0, i] + pos_a[0, i + 1])
+        my = 0.5 * (pos_a[1, i] + pos_a[1, i + 1])
+        mz = 0.5 * (pos_a[2, i] + pos_a[2, i + 1])
         for j in range(n_elem):
-            dx = pos_b[0, j] + 0.5 * edge_b[0, j] - mx
-            dy = pos_b[1, j] + 0.5 * edge_b[1, j] - my
-            dz = pos_b[2, j] + 0.5 * edge_b[2, j] - mz
-            reach = reach_a + reach_b[j]
-            if dx * dx + dy * dy + dz * dz <= reach * reach:
+            dx = 0.5 * (pos_b[0, j] + pos_b[0, j + 1]) - mx
+            dy = 0.5 * (pos_b[1, j] + pos_b[1, j + 1]) - my
+            dz = 0.5 * (pos_b[2, j] + pos_b[2, j + 1]) - mz
+            limit = reach_a[i] + reach_b[j] + margin
+            if dx * dx + dy * dy + dz * dz <= limit * limit:
                 pairs[count, 0] = i
                 pairs[count, 1] = j
                 count += 1
@@ -171,41 +167,69 @@ def _candidate_pairs(pos_a, edge_a, radius_a, lengths_a, pos_b, edge_b, radius_b
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def rod_rod_contact(pos_a, vel_a, lengths_a, force_int_a, force_ext_a, radius_a, edge_a,
-                    pos_b, vel_b, lengths_b, force_int_b, force_ext_b, radius_b, edge_b,
-                    volume, stiffness, damping, pairs, reach_b, n_elem, n_pad, force_on_b):
-    """Add the contact forces between rods A and B to their external node forces.
+def rod_rod_contact(pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, f_contact_a,
+                    geometry_a, anchor_a, pos_b, vel_b, lengths_b, inv_lengths_b, f_elem_b,
+                    damp_f_b, f_contact_b, geometry_b, anchor_b, weight, gravity, volume, stiffness,
+                    damping, pairs, n_pairs, rebuild, n_elem, n_pad, force_on_b):
+    """The contact forces between rods A and B at this step, into ``f_contact_a/b``.
 
-    Args:
-        pos_a, vel_a: (3, ≥ n_pad+1) node positions (m) and velocities (m/s) of rod A.
-        lengths_a: (≥ n_pad,) current element lengths, m.
-        force_int_a: (3, ≥ n_pad+1) internal node forces, N (read).
-        force_ext_a: (3, ≥ n_pad+1) external node forces so far, N (contact added in place).
-        radius_a, edge_a: (≥ n_pad,) and (3, ≥ n_pad) work arrays (element radius, m; edge, m).
-        pos_b … edge_b: the same for rod B.
-        volume: (≥ n_pad,) element volumes, m³ (0 in the padding).
-        stiffness: k, N/m; damping: ν, N·s/m.
-        pairs: (n_elem², 2) int work array; reach_b: (≥ n_pad,) work array.
+    Args (per rod, A shown; arrays padded to ≥ n_pad elements / n_pad+1 nodes):
+        pos_a, vel_a: (3, ·) node positions (m) and velocities (m/s).
+        lengths_a, inv_lengths_a: (·,) current element lengths (m) and their inverses.
+        f_elem_a: (3, ·) element stress Qᵀn/e (N); damp_f_a: (3, ·) each element's damping
+            force on each of its nodes (N): with gravity, the node forces before contact.
+        f_contact_a: (3, ·) output, the contact force on each node, N.
+        geometry_a: (2, ·) work array: the element radii r and reaches r + ½l + 1e-5 m, m.
+        anchor_a: (4, ·) the node positions (3 rows) and reaches when the neighbour list was
+            built.
+        weight: (·,) node masses, kg; gravity: m/s² along −y; volume: (·,) element volumes,
+            m³ (0 in the padding); stiffness: k, N/m; damping: ν, N·s/m.
+        pairs: (n_elem², 2) int, the neighbour list; n_pairs: its length.
+        rebuild: build the list anew (the first step of an advance).
         n_elem: real elements per rod; n_pad: padded element count (loop trip count).
-        force_on_b: (3,) output, the total contact force on rod B (N); A receives its negative.
+        force_on_b: (3,) output, the total contact force on rod B (N); A receives −force_on_b.
 
     Returns:
-        The deepest overlap max(γ) over the pairs in contact, m (0 when none overlaps).
+        (deepest overlap max(γ) of the pairs in contact or 0, m; the neighbour list's length).
     """
-    force_on_b[0] = 0.0
-    force_on_b[1] = 0.0
-    force_on_b[2] = 0.0
-    _element_geometry(pos_a, lengths_a, volume, radius_a, edge_a, n_pad)
-    _element_geometry(pos_b, lengths_b, volume, radius_b, edge_b, n_pad)
-    if _boxes_apart(pos_a, radius_a, lengths_a, pos_b, radius_b, lengths_b, n_elem):
-        return 0.0
-    n_pairs = _candidate_pairs(pos_a, edge_a, radius_a, lengths_a, pos_b, edge_b, radius_b,
-                               lengths_b, reach_b, pairs, n_elem, n_pad)
+    for c in range(3):
+        force_on_b[c] = 0.0
+        for k in range(n_pad + 1):
+            f_contact_a[c, k] = 0.0
+            f_contact_b[c, k] = 0.0
+    radius_a = geometry_a[0]
+    reach_a = geometry_a[1]
+    radius_b = geometry_b[0]
+    reach_b = geometry_b[1]
+    _reach(volume, inv_lengths_a, lengths_a, radius_a, reach_a, n_elem, n_pad)
+    _reach(volume, inv_lengths_b, lengths_b, radius_b, reach_b, n_elem, n_pad)
+    stale = rebuild
+    if not stale:
+        moved = (_drift_since(pos_a, anchor_a, reach_a, n_pad)
+                 + _drift_since(pos_b, anchor_b, reach_b, n_pad))
+        stale = moved > _LIST_MARGIN - _BROAD_PHASE_MARGIN
+    listed = n_pairs
+    if stale:
+        listed = _build_neighbours(pos_a, reach_a, pos_b, reach_b, _LIST_MARGIN, pairs, n_elem)
+        for c in range(3):
+            for k in range(n_pad + 1):
+                anchor_a[c, k] = pos_a[c, k]
+                anchor_b[c, k] = pos_b[c, k]
+        for k in range(n_pad):
+            anchor_a[3, k] = reach_a[k]
+            anchor_b[3, k] = reach_b[k]
     deepest = 0.0
     last = n_elem - 1
-    for p in range(n_pairs):
+    for p in range(listed):
         i = pairs[p, 0]
         j = pairs[p, 1]
+        mx = 0.5 * (pos_b[0, j] + pos_b[0, j + 1] - pos_a[0, i] - pos_a[0, i + 1])
+        my = 0.5 * (pos_b[1, j] + pos_b[1, j + 1] - pos_a[1, i] - pos_a[1, i + 1])
+        mz = 0.5 * (pos_b[2, j] + pos_b[2, j + 1] - pos_a[2, i] - pos_a[2, i + 1])
+        limit = reach_a[i] + reach_b[j] + _BROAD_PHASE_MARGIN
+        if mx * mx + my * my + mz * mz > limit * limit:
+            continue
+        # from here on, PyElastica's narrow phase for this pair
         ax = pos_a[0, i]
         ay = pos_a[1, i]
         az = pos_a[2, i]
@@ -218,12 +242,13 @@ def rod_rod_contact(pos_a, vel_a, lengths_a, force_int_a, force_ext_a, radius_a,
         dz = az - bz
         if math.sqrt(dx * dx + dy * dy + dz * dz) >= radii + (lengths_a[i] + lengths_b[j]):
             continue
-        ex = edge_a[0, i]
-        ey = edge_a[1, i]
-        ez = edge_a[2, i]
-        fx = edge_b[0, j]
-        fy = edge_b[1, j]
-        fz = edge_b[2, j]
+        # edges: PyElastica's l·((x_{k+1} − x_k)/l) is x_{k+1} − x_k to an ulp
+        ex = pos_a[0, i + 1] - ax
+        ey = pos_a[1, i + 1] - ay
+        ez = pos_a[2, i + 1] - az
+        fx = pos_b[0, j + 1] - bx
+        fy = pos_b[1, j + 1] - by
+        fz = pos_b[2, j + 1] - bz
         t, s = _closest_parameters(ax, ay, az, ex, ey, ez, bx, by, bz, fx, fy, fz)
         nx = bx + s * fx - ax - t * ex
         ny = by + s * fy - ay - t * ey
@@ -237,30 +262,33 @@ def rod_rod_contact(pos_a, vel_a, lengths_a, force_int_a, force_ext_a, radius_a,
             continue
         # normal-force term from the element-mean node forces of both rods
         push = 0.0
-        for c, n_c in ((0, nx), (1, ny), (2, nz)):
-            mean_a = 0.5 * (force_ext_a[c, i] + force_ext_a[c, i + 1] + force_int_a[c, i]
-                            + force_int_a[c, i + 1])
-            mean_b = 0.5 * (force_ext_b[c, j] + force_ext_b[c, j + 1] + force_int_b[c, j]
-                            + force_int_b[c, j + 1])
-            push += (mean_b - mean_a) * n_c
+        for c in range(3):
+            mean_a = 0.5 * (_node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i)
+                            + _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c,
+                                          i + 1))
+            mean_b = 0.5 * (_node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j)
+                            + _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c,
+                                          j + 1))
+            push += (mean_b - mean_a) * (nx if c == 0 else (ny if c == 1 else nz))
         magnitude = abs(min(push, 0.0))
         if overlap > 0.0:
-            approach = 0.0
-            for c, n_c in ((0, nx), (1, ny), (2, nz)):
-                approach += 0.5 * ((vel_a[c, i] + vel_a[c, i + 1])
-                                   - (vel_b[c, j] + vel_b[c, j + 1])) * n_c
+            approach = (0.5 * ((vel_a[0, i] + vel_a[0, i + 1]) - (vel_b[0, j] + vel_b[0, j + 1]))
+                        * nx
+                        + 0.5 * ((vel_a[1, i] + vel_a[1, i + 1]) - (vel_b[1, j] + vel_b[1, j + 1]))
+                        * ny
+                        + 0.5 * ((vel_a[2, i] + vel_a[2, i + 1]) - (vel_b[2, j] + vel_b[2, j + 1]))
+                        * nz)
             magnitude += 0.5 * (damping * approach + stiffness * overlap)
             deepest = max(deepest, overlap)
         share_a0 = 2.0 / 3.0 if i == 0 else (4.0 / 3.0 if i == last else 1.0)
         share_a1 = 4.0 / 3.0 if i == 0 else (2.0 / 3.0 if i == last else 1.0)
         share_b0 = 2.0 / 3.0 if j == 0 else (4.0 / 3.0 if j == last else 1.0)
         share_b1 = 4.0 / 3.0 if j == 0 else (2.0 / 3.0 if j == last else 1.0)
-        for c, n_c in ((0, nx), (1, ny), (2, nz)):
-            f = magnitude * n_c
-            force_ext_a[c, i] -= f * share_a0
-            force_ext_a[c, i + 1] -= f * share_a1
-            force_ext_b[c, j] += f * share_b0
-            force_ext_b[c, j + 1] += f * share_b1
+        for c in range(3):
+            f = magnitude * (nx if c == 0 else (ny if c == 1 else nz))
+            f_contact_a[c, i] -= f * share_a0
+            f_contact_a[c, i + 1] -= f * share_a1
+            f_contact_b[c, j] += f * share_b0
+            f_contact_b[c, j + 1] += f * share_b1
             force_on_b[c] += 2.0 * f
-    return deepest
-
+    return deepest, listed

@@ -277,24 +277,15 @@ def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, di
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _node_forces(f_elem, damp_f, weight_m, gravity, force_int, force_ext, n_pad):
-    """PyElastica's node force arrays of one rod: internal Δ(Qᵀn/e) and external damping +
-    gravity (N, (3, n_pad+1)), kept apart because contact reads both."""
+def _kick_nodes(vel, f_elem, damp_f, f_contact, weight_m, inv_m, gravity, dt, n_pad):
+    """v += dt·F/m, F = internal + damping + gravity + contact (node 0 clamped); with no
+    contact force the sum is bit for bit the contact-free kernel's."""
     for i in range(3):
         g = -gravity if i == 1 else 0.0
-        force_int[i, 0] = f_elem[i, 0]
-        force_ext[i, 0] = damp_f[i, 0] + g * weight_m[0]
         for k in range(1, n_pad + 1):
-            force_int[i, k] = f_elem[i, k] - f_elem[i, k - 1]
-            force_ext[i, k] = damp_f[i, k] + damp_f[i, k - 1] + g * weight_m[k]
-
-
-@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _kick_nodes(vel, force_int, force_ext, inv_m, dt, n_pad):
-    """v += dt·(F_int + F_ext)/m (node 0 clamped)."""
-    for i in range(3):
-        for k in range(1, n_pad + 1):
-            vel[i, k] += dt * ((force_int[i, k] + force_ext[i, k]) * inv_m[k])
+            f = (f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1]
+                 + g * weight_m[k] + f_contact[i, k])
+            vel[i, k] += dt * (f * inv_m[k])
         vel[i, 0] = 0.0
 
 
@@ -341,12 +332,13 @@ def _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len, inv_rest_len
 def _rod_work(width):
     """One rod's work arrays, ``width`` entries per row: positions, velocities, directors,
     angular velocities, torques, lengths, 1/lengths, dilatation rates, f_elem, n_local, qt,
-    damp_f, couple, kxc, internal and external node forces, element radii and edges."""
+    damp_f, couple, kxc; for contact the contact node forces, the element radii and reaches,
+    and the positions and reaches the neighbour list was built at."""
     return (np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, 3, width)),
             np.zeros((3, width)), np.zeros((2, width)), np.ones(width), np.ones(width),
             np.zeros(width), np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
             np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
-            np.zeros((3, width)), np.zeros((3, width)), np.zeros(width), np.zeros((3, width)))
+            np.zeros((3, width)), np.zeros((2, width)), np.zeros((4, width)))
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -466,7 +458,7 @@ def _build_advance(n_pad):
         rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
             rest_lengths, rest_voronoi, width)
         (pos, vel, dirs, om, tq, lengths, inv_lengths, dil_rate, f_elem, n_local, qt, damp_f,
-         couple, kxc, _, _, _, _) = _rod_work(width)
+         couple, kxc, _, _, _) = _rod_work(width)
         kappa = np.zeros((3, width))
         cosines = np.ones(width)
         damp_coef = np.zeros(width)
@@ -537,11 +529,11 @@ def _build_advance_contact(n_pad):
         rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
             rest_lengths, rest_voronoi, width)
         (pos_a, vel_a, dirs_a, om_a, tq_a, lengths_a, inv_lengths_a, dil_rate_a, f_elem_a,
-         n_local_a, qt_a, damp_f_a, couple_a, kxc_a, force_int_a, force_ext_a, radius_a,
-         edge_a) = _rod_work(width)
+         n_local_a, qt_a, damp_f_a, couple_a, kxc_a, f_contact_a, geometry_a,
+         anchor_a) = _rod_work(width)
         (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, dil_rate_b, f_elem_b,
-         n_local_b, qt_b, damp_f_b, couple_b, kxc_b, force_int_b, force_ext_b, radius_b,
-         edge_b) = _rod_work(width)
+         n_local_b, qt_b, damp_f_b, couple_b, kxc_b, f_contact_b, geometry_b,
+         anchor_b) = _rod_work(width)
         kappa = np.zeros((3, width))
         cosines = np.ones(width)
         damp_coef = np.zeros(width)
@@ -557,7 +549,6 @@ def _build_advance_contact(n_pad):
         base_pos_b = np.empty(3)
         base_dirs_b = np.empty((3, 3))
         pairs = np.zeros((n_elem * n_elem, 2), dtype=np.int64)
-        reach = np.zeros(width)
         force_on_b = np.zeros(3)
         half_dt = 0.5 * dt
         for env in range(n_env):
@@ -573,6 +564,7 @@ def _build_advance_contact(n_pad):
                       base_dirs_b, n_pad)
             deepest = 0.0
             force_total = 0.0
+            n_pairs = 0
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
             _drift(pos_b, vel_b, dirs_b, om_b, half_dt, base_pos_b, base_dirs_b, n_pad)
             for step in range(n_steps):
@@ -580,29 +572,39 @@ def _build_advance_contact(n_pad):
                                f_elem_a, dil_rate_a, damp_f_a, kappa, cosines, couple_a, kxc_a,
                                rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
                                shear_k, bend_k, damp_coef, n_pad)
-                _node_forces(f_elem_a, damp_f_a, weight_m, gravity, force_int_a, force_ext_a,
-                             n_pad)
                 _element_stage(pos_b, vel_b, dirs_b, lengths_b, inv_lengths_b, qt_b, n_local_b,
                                f_elem_b, dil_rate_b, damp_f_b, kappa, cosines, couple_b, kxc_b,
                                rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
                                shear_k, bend_k, damp_coef, n_pad)
-                _node_forces(f_elem_b, damp_f_b, weight_m, gravity, force_int_b, force_ext_b,
-                             n_pad)
-                depth = rod_rod_contact(
-                    pos_a, vel_a, lengths_a, force_int_a, force_ext_a, radius_a, edge_a,
-                    pos_b, vel_b, lengths_b, force_int_b, force_ext_b, radius_b, edge_b,
-                    vol, contact_k, contact_nu, pairs, reach, n_elem, n_pad, force_on_b)
+                depth, n_pairs = rod_rod_contact(
+                    pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, f_contact_a,
+                    geometry_a, anchor_a, pos_b, vel_b, lengths_b, inv_lengths_b, f_elem_b,
+                    damp_f_b, f_contact_b, geometry_b, anchor_b, weight_m, gravity, vol,
+                    contact_k, contact_nu, pairs, n_pairs, step == 0, n_elem, n_pad,
+                    force_on_b)
                 deepest = max(deepest, depth)
                 force_total += math.sqrt(force_on_b[0] * force_on_b[0]
                                          + force_on_b[1] * force_on_b[1]
                                          + force_on_b[2] * force_on_b[2])
                 drift_dt = half_dt if step == n_steps - 1 else dt
-                _kick_nodes(vel_a, force_int_a, force_ext_a, inv_m, dt, n_pad)
+                for i in range(3):
+                    g = -gravity if i == 1 else 0.0
+                    for k in range(1, n_pad + 1):
+                        f = (f_elem_a[i, k] - f_elem_a[i, k - 1] + damp_f_a[i, k] + damp_f_a[i, k - 1]
+                             + g * weight_m[k] + f_contact_a[i, k])
+                        vel_a[i, k] += dt * (f * inv_m[k])
+                    vel_a[i, 0] = 0.0
                 _kick_elements(om_a, couple_a, kxc_a, lengths_a, inv_lengths_a, rest_len,
                                inv_rest_len, inert, inv_inert, dil_rate_a, qt_a, n_local_a,
                                tq_a, env_damping, dt, n_pad)
                 _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
-                _kick_nodes(vel_b, force_int_b, force_ext_b, inv_m, dt, n_pad)
+                for i in range(3):
+                    g = -gravity if i == 1 else 0.0
+                    for k in range(1, n_pad + 1):
+                        f = (f_elem_b[i, k] - f_elem_b[i, k - 1] + damp_f_b[i, k] + damp_f_b[i, k - 1]
+                             + g * weight_m[k] + f_contact_b[i, k])
+                        vel_b[i, k] += dt * (f * inv_m[k])
+                    vel_b[i, 0] = 0.0
                 _kick_elements(om_b, couple_b, kxc_b, lengths_b, inv_lengths_b, rest_len,
                                inv_rest_len, inert, inv_inert, dil_rate_b, qt_b, n_local_b,
                                tq_b, env_damping, dt, n_pad)

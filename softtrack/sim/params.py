@@ -15,9 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from softtrack.sim.stability import stable_time_step_limit
+from softtrack.sim.stability import (
+    contact_mode,
+    contact_stiffness_limit,
+    mode_is_stable,
+    stable_time_step_limit,
+)
 
 __all__ = [
+    "CONTACT_ON",
     "MODEL_PARAMETERS",
     "STANDARD_GRAVITY",
     "InvalidParameterError",
@@ -28,6 +34,12 @@ __all__ = [
 ]
 
 STANDARD_GRAVITY = 9.81  # m/s², along −y when gravity is switched on
+
+# "Contact on" (docs/physics.md, "Contact"): stiff enough that the arms overlap by at most
+# ~5 mm when every control value presses them together at ±1 (tests/test_contact.py), damped
+# enough that contact does not ring (a third of critical for one element pair), and well inside
+# the contact's stability limits at dt = 2e-4 s (k ≤ 1.08e7 N/m at this ν; ν ≤ 1.58e3 N·s/m).
+CONTACT_ON: dict[str, float] = {"contact_k": 1.0e6, "contact_nu": 600.0}
 
 
 # Model error (env.realism): each factor's name → the SimParams field it multiplies. The order
@@ -167,7 +179,8 @@ class SimParams:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise InvalidParameterError(f"{name}={value!r} must be a finite number > 0")
-        for name in ("damping", "gravity", "torque_scale", "shear_correction"):
+        for name in ("damping", "gravity", "torque_scale", "shear_correction", "contact_k",
+                     "contact_nu"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise InvalidParameterError(f"{name}={value!r} must be a finite number")
@@ -193,12 +206,46 @@ class SimParams:
             raise InvalidParameterError("direction and normal must be unit vectors")
         if abs(float(d @ n)) > 1e-9:
             raise InvalidParameterError("normal must be orthogonal to direction")
+        self._validate_contact()
         limit = self.dt_limit
         if self.dt > limit:
             raise InvalidParameterError(
                 f"dt={self.dt:g} s exceeds the explicit stability limit {limit:.3g} s of this "
                 f"discretisation (n_elem={self.n_elem}, damping={self.damping:g}); "
                 f"use dt ≤ {limit:.3g}"
+            )
+
+
+    def _validate_contact(self) -> None:
+        """The contact fields: signs, two arms, and a contact_k stable at dt."""
+        for name in ("contact_k", "contact_nu"):
+            if getattr(self, name) < 0:
+                raise InvalidParameterError(
+                    f"{name}={getattr(self, name)!r} must be ≥ 0 (0 switches contact off)"
+                )
+        if self.contact_k == 0.0:
+            if self.contact_nu != 0.0:
+                raise InvalidParameterError(
+                    f"contact_nu={self.contact_nu!r} needs contact_k > 0: contact is off; "
+                    f"set contact_k (e.g. {CONTACT_ON['contact_k']:g} N/m) or contact_nu: 0"
+                )
+            return
+        if self.n_arms != 2:
+            raise InvalidParameterError(
+                f"contact_k={self.contact_k:g} needs two arms (contact is between arm 1 and "
+                f"arm 2), but there are {self.n_arms}; set contact_k: 0"
+            )
+        if not mode_is_stable(*contact_mode(self), self.dt):
+            limit = contact_stiffness_limit(self)
+            if limit == 0.0:
+                raise InvalidParameterError(
+                    f"contact_nu={self.contact_nu:g} N·s/m makes the contact unstable at "
+                    f"dt={self.dt:g} s whatever contact_k; lower contact_nu or dt"
+                )
+            raise InvalidParameterError(
+                f"contact_k={self.contact_k:g} N/m with contact_nu={self.contact_nu:g} N·s/m "
+                f"exceeds the explicit stability limit of the contact at dt={self.dt:g} s; "
+                f"use contact_k ≤ {_floor_3g(limit):.3g} N/m or a smaller dt"
             )
 
 

@@ -12,6 +12,13 @@ stiffness and damping per unit inertia, A = M⁻¹K and D = M⁻¹C:
   −ν_d·l·ω damps rotation only);
 * twist: A = 4G/(ρ·dl²), D = ν_d/(ρ·I₃).
 
+* contact (only with ``contact_k`` > 0): the element-mean approach of the two arms, a mode the
+  rod's zig-zag stiffness does not touch. A pair in contact pushes each node of its two
+  elements with ½(k·γ + ν·γ'); the node next to the tip takes 4/3 of its end element's share
+  plus all of its inner element's, and both arms move, so A = (7/3)·k/m, D = (7/3)·ν/m with m
+  the interior node mass ρ·A·dl. (The engine stays stable up to about 3–5 times this k in the
+  hardest press test, tests/test_contact.py: several pairs rarely peak on one node.)
+
 Position Verlet with an explicit damping kick maps (q, q') by the matrix
 drift(½dt)·kick(dt)·drift(½dt); a mode is stable while its spectral radius is ≤ 1. The limit
 is found by bisection on dt. At the default settings it is 2.32e-4 s; the full nonlinear engine
@@ -27,7 +34,13 @@ import numpy as np
 if TYPE_CHECKING:
     from softtrack.sim.params import SimParams
 
-__all__ = ["mode_is_stable", "rod_modes", "stable_time_step_limit"]
+__all__ = [
+    "contact_mode",
+    "contact_stiffness_limit",
+    "mode_is_stable",
+    "rod_modes",
+    "stable_time_step_limit",
+]
 
 
 def _step_matrix(stiffness: np.ndarray, damping: np.ndarray, dt: float) -> np.ndarray:
@@ -78,6 +91,43 @@ def rod_modes(params: SimParams) -> list[tuple[np.ndarray, np.ndarray]]:
     ]
 
 
+_CONTACT_NODE_SHARE = 7.0 / 3.0  # 2 arms × (4/3 + 1) × ½, module docstring
+
+
+def contact_mode(params: SimParams, stiffness: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(A, D) of the contact mode (module docstring), 1/s² and 1/s.
+
+    Args:
+        params: the settings (their ``contact_nu``, and ``contact_k`` unless ``stiffness``).
+        stiffness: a contact stiffness to use instead of ``params.contact_k``, N/m.
+    """
+    k = params.contact_k if stiffness is None else stiffness
+    node_mass = params.density * params.area * params.length / params.n_elem
+    share = _CONTACT_NODE_SHARE / node_mass
+    return np.array([[share * k]]), np.array([[share * params.contact_nu]])
+
+
 def stable_time_step_limit(params: SimParams) -> float:
-    """The largest stable time step (s) for ``params``' material, discretisation and damping."""
-    return min(_critical_dt(a, d) for a, d in rod_modes(params))
+    """The largest stable time step (s) for ``params``' material, discretisation, damping and
+    (when ``contact_k`` > 0) contact."""
+    modes = rod_modes(params)
+    if params.contact_k > 0.0:
+        modes.append(contact_mode(params))
+    return min(_critical_dt(a, d) for a, d in modes)
+
+
+def contact_stiffness_limit(params: SimParams) -> float:
+    """The largest contact stiffness (N/m) stable at ``params.dt`` with ``params.contact_nu``,
+    to 1e-4 relative; 0 when the contact damping alone is unstable there."""
+    if not mode_is_stable(*contact_mode(params, 0.0), params.dt):
+        return 0.0
+    node_mass = params.density * params.area * params.length / params.n_elem
+    hi = 4.0 * node_mass / (_CONTACT_NODE_SHARE * params.dt**2)  # the undamped limit, ×1
+    lo = 0.0
+    while hi - lo > 1e-4 * hi:
+        mid = 0.5 * (lo + hi)
+        if mode_is_stable(*contact_mode(params, mid), params.dt):
+            lo = mid
+        else:
+            hi = mid
+    return lo
