@@ -7,9 +7,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from softtrack.env.realism import RealismConfig
 from softtrack.env.reward import RewardConfig
 from softtrack.env.targets import TargetConfig
+from softtrack.env.tasks import TaskConfig
 from softtrack.sim.params import InvalidParameterError, SimParams
 
 __all__ = ["TrackingConfig", "make_config"]
@@ -25,6 +28,10 @@ class TrackingConfig:
         reward: reward terms (docs/environment.md).
         episode_duration: simulated seconds before truncation, s.
         realism: sensing and actuation imperfections (docs/environment.md); off by default.
+        task: which point each arm tracks (:mod:`softtrack.env.tasks`); the study's shared
+            target by default.
+        arm: the dual-arm index (0 or 1) of a single-arm scene's arm, ``None`` for the dual
+            scene.
     """
 
     sim: SimParams
@@ -32,10 +39,17 @@ class TrackingConfig:
     reward: RewardConfig
     episode_duration: float = 10.0
     realism: RealismConfig = RealismConfig()
+    task: TaskConfig = TaskConfig()
+    arm: int | None = None
 
     @property
     def n_arms(self) -> int:
         return self.sim.n_arms
+
+    def goal_offsets(self) -> np.ndarray:
+        """(A, 3) offset of each arm's point from the target centre, m (:mod:`softtrack.env.tasks`)."""
+        arms = (0, 1) if self.arm is None else (self.arm,)
+        return self.task.goal_offsets(arms[: self.n_arms])
 
     @property
     def max_episode_steps(self) -> int:
@@ -45,7 +59,7 @@ class TrackingConfig:
     def validate(self) -> None:
         """Raise :class:`InvalidParameterError` naming the first invalid setting."""
         self.sim.validate()
-        for part in (self.target, self.reward, self.realism):
+        for part in (self.target, self.reward, self.realism, self.task):
             try:
                 part.validate()
             except ValueError as err:
@@ -77,8 +91,9 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
 
     Any field of :class:`SimParams`, :class:`TargetConfig` or :class:`RewardConfig` may be
     given by name, plus ``target`` (a mode name or a ``TargetConfig``), ``reward`` (a
-    ``RewardConfig``), ``episode_duration`` and ``realism`` (a ``RealismConfig`` or a mapping
-    of its fields; default all off).
+    ``RewardConfig``), ``episode_duration``, ``realism`` (a ``RealismConfig`` or a mapping
+    of its fields; default all off), ``task`` (a task name or a ``TaskConfig``) and
+    ``standoff`` (m, the viewpoints task's distance of each arm's point from the target).
 
     Args:
         n_arms: 2 for the dual-arm scene, 1 for a single arm.
@@ -91,6 +106,10 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     target = kwargs.pop("target", "random")
     reward = kwargs.pop("reward", None)
     episode_duration = float(kwargs.pop("episode_duration", 10.0))
+    task = kwargs.pop("task", "shared")
+    task_config = task if isinstance(task, TaskConfig) else TaskConfig(name=str(task))
+    if "standoff" in kwargs:
+        task_config = dataclasses.replace(task_config, standoff=kwargs.pop("standoff"))
     try:
         realism = RealismConfig.from_value(kwargs.pop("realism", None))
     except ValueError as err:
@@ -100,7 +119,8 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     reward_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _REWARD_FIELDS}
     if kwargs:
         valid = sorted(_SIM_FIELDS | _TARGET_FIELDS | _REWARD_FIELDS
-                       | {"target", "reward", "episode_duration", "realism"})
+                       | {"target", "reward", "episode_duration", "realism", "task",
+                          "standoff"})
         raise InvalidParameterError(
             f"unknown environment parameter {min(kwargs)!r}; valid names: {', '.join(valid)}"
         )
@@ -123,7 +143,8 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     if reward is None:
         reward = RewardConfig() if n_arms == 2 else RewardConfig.single_arm()
     reward_config = dataclasses.replace(reward, **_tuples(reward_kw))
-    config = TrackingConfig(sim, target_config, reward_config, episode_duration, realism)
+    config = TrackingConfig(sim, target_config, reward_config, episode_duration, realism,
+                            task_config, arm if n_arms == 1 else None)
     config.validate()
     return config
 

@@ -39,7 +39,8 @@ class StepResult:
         reward: (n,) float64.
         terminated: (n,) bool, the state became non-finite.
         truncated: (n,) bool, the episode reached its duration (and did not terminate).
-        distances: (n, A) tip–target distances, m.
+        distances: (n, A) distances of each tip from its arm's point (the target centre in
+            the shared task), m.
     """
 
     observation: np.ndarray
@@ -64,6 +65,7 @@ class TrackingCore:
         self.n_arms = config.n_arms
         self.engine = RodBatch(self.n_envs, config.sim)
         self.targets = BatchedTargets(config.target, self.n_envs)
+        self.goal_offsets = config.goal_offsets()  # (A, 3) m, each arm's point − target centre
         self.rngs: list[np.random.Generator | None] = [None] * self.n_envs
         self.step_count = np.zeros(self.n_envs, dtype=np.int64)
         self.max_steps = config.max_episode_steps
@@ -167,7 +169,7 @@ class TrackingCore:
         self.step_count += 1
 
         finite = engine.finite()
-        diff = engine.tip_position - self.targets.position[:, None, :]
+        diff = engine.tip_position - self.goal_positions()
         distances = np.sqrt(np.einsum("nai,nai->na", diff, diff))
         reward = tracking_reward(distances, self.config.reward)
         if self.config.reward.collision_penalty:
@@ -185,6 +187,10 @@ class TrackingCore:
             observation = realism.filter_obs(observation)
         return StepResult(observation, reward, terminated, truncated, distances)
 
+    def goal_positions(self) -> np.ndarray:
+        """(n, A, 3) the point each arm tracks (the target centre plus the task's offset), m."""
+        return self.targets.position[:, None, :] + self.goal_offsets[None]
+
     def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
         """The info dict (docs/environment.md) of environment ``i`` after a step (copies, SI units)."""
         info: dict[str, Any] = {
@@ -194,6 +200,10 @@ class TrackingCore:
             "element_torques": self.engine.torques[i].copy(),
             "time": float(self.step_count[i] * self._control_dt),
         }
+        if self.engine.contact_on:
+            penetration, force = self.engine.contact_state()
+            info["penetration"] = float(penetration[i])
+            info["contact_force"] = float(force[i])
         if self.model_error:
             info["parameters"] = self.parameters(i)
         return info

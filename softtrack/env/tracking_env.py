@@ -34,7 +34,7 @@ class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
         super().reset(seed=seed)
         obs = self.core.reset([0], [self.np_random])[0]
         distances = np.linalg.norm(
-            self.core.engine.tip_position[0] - self.core.targets.position[0], axis=-1
+            self.core.engine.tip_position[0] - self.core.goal_positions()[0], axis=-1
         )[None]
         return obs, self.core.info(0, distances)
 

@@ -66,6 +66,18 @@ class Episode:
             and at a non-finite state; ``None`` when not recorded (then treated as all NaN).
         collision_margin: the run's ``reward.collision_margin``, m: steps with a clearance
             below it count as ``collision_steps``.
+        penetration: (N,) how deep the arms' surfaces overlap during each control step, m:
+            with contact on (``physics.contact_k`` > 0) the engine's deepest overlap of two
+            element segments over the step's integration steps; without contact, where the
+            arms pass through each other, max(0, −clearance); NaN in a single-arm scene;
+            ``None`` when not recorded.
+        contact_force: (N,) the magnitude of the total contact force between the arms, mean
+            over the control step's integration steps, N (0 without contact).
+        snapshots: (S, A, 3, n_nodes) the arms' centreline nodes at the control steps
+            ``snapshot_steps`` (S,) (0-based), m; for figures that draw the arms.
+        snapshot_steps: (S,) int, see ``snapshots``.
+        goal_offsets: (A, 3) offset of each arm's point from the target centre, m (the
+            task's, :mod:`softtrack.env.tasks`; zeros in the shared task); ``None``: zeros.
         planning_time: (N,) CPU time of the controller's call at each control step, s (its
             thread's CPU time: the cost on one core, unaffected by other processes sharing
             the machine), for a controller that plans on the episode's state
@@ -82,6 +94,18 @@ class Episode:
     clearance: np.ndarray | None = None
     collision_margin: float = 0.0
     planning_time: np.ndarray | None = None
+    penetration: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
+    snapshots: np.ndarray | None = None
+    snapshot_steps: np.ndarray | None = None
+    goal_offsets: np.ndarray | None = None
+
+    def goals(self, arm: int) -> np.ndarray:
+        """(N, 3) the point arm ``arm`` tracked at each step: the target centre plus its
+        task offset, m."""
+        if self.goal_offsets is None:
+            return self.target
+        return self.target + self.goal_offsets[arm]
 
 
 def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
@@ -133,6 +157,11 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
     two_arms = core.n_arms >= 2
     # the rods' radius in this episode: the nominal one, times its model-error factor if any
     radius = float(eval_config.sim.radius) * core.parameters(0)["radius_scale"]
+    penetration = np.full(n_steps, np.nan)
+    contact_force = np.zeros(n_steps)
+    snapshot_at = _snapshot_steps(n_steps)
+    snapshots = np.full((len(snapshot_at), core.n_arms, 3, eval_config.sim.n_nodes), np.nan)
+    contact_on = core.engine.contact_on
     start_episode = getattr(policy, "start_episode", None)
     planning = None
     if start_episode is not None:
@@ -152,12 +181,31 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
         torques[k] = core.engine.torques[0]
         if two_arms:
             clearance[k] = arm_clearance(core.engine.position[0], radius)
+            if contact_on:
+                depth, force = core.engine.contact_state()
+                penetration[k], contact_force[k] = depth[0], force[0]
+            else:
+                penetration[k] = max(0.0, -clearance[k])
+        snapshots[snapshot_at == k] = core.engine.position[0]
         obs = result.observation[0]
         if result.terminated[0]:
             terminated, done_steps = True, k + 1
             break
     t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
+    kept = snapshot_at < done_steps
     return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
                    actions[:done_steps], terminated, clearance[:done_steps],
                    float(eval_config.reward.collision_margin),
-                   None if planning is None else planning[:done_steps])
+                   None if planning is None else planning[:done_steps],
+                   penetration[:done_steps], contact_force[:done_steps], snapshots[kept],
+                   snapshot_at[kept], core.goal_offsets.copy())
+
+
+SNAPSHOTS = 4  # arm shapes kept per episode, evenly spaced, the last at the episode's end
+
+
+def _snapshot_steps(n_steps: int) -> np.ndarray:
+    """(S,) 0-based control steps at which an episode keeps the arms' shapes: the ends of
+    its quarters (2.5, 5, 7.5, 10 s of a 10-s episode)."""
+    quarters = np.arange(1, SNAPSHOTS + 1) * n_steps // SNAPSHOTS - 1
+    return np.unique(np.clip(quarters, 0, n_steps - 1))

@@ -13,7 +13,8 @@ With e(t) = tip(t) − target(t) of one arm over the N control steps of an episo
   their largest absolute value (N·m);
 * for the two arms of a scene: the surface clearance (smallest node-to-node distance of their
   centrelines minus both radii, m) at each step, its minimum over the episode and the number
-  of steps below the collision test's margin (inter-arm safety).
+  of steps below the collision test's margin (inter-arm safety); the deepest overlap of
+  their surfaces, the steps on which they touch and the contact force between them (contact).
 """
 
 from __future__ import annotations
@@ -27,11 +28,13 @@ from numpy.typing import ArrayLike
 __all__ = [
     "ACTION_STATISTICS",
     "AXES",
+    "CONTACT_STATISTICS",
     "SAFETY_STATISTICS",
     "SATURATION_THRESHOLD",
     "TORQUE_STATISTICS",
     "action_statistics",
     "arm_clearance",
+    "contact_statistics",
     "moment_peak",
     "moment_rms",
     "safety_statistics",
@@ -49,6 +52,9 @@ SATURATION_THRESHOLD = 0.99  # |a| at or above this counts as saturated
 #: columns (absent in tables written before they were added).
 TORQUE_STATISTICS = ("torque_rate_rms", "peak_moment")
 SAFETY_STATISTICS = ("min_arm_distance", "collision_steps")
+#: Keys of :func:`contact_statistics`, ``eval_metrics`` columns since contact was added.
+CONTACT_STATISTICS = ("max_penetration", "contact_steps", "mean_contact_force",
+                      "max_contact_force")
 
 
 def tracking_errors(tip: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -216,6 +222,32 @@ def _scene_min_distance2(x):  # pragma: no cover - compiled
                     if d2 < best:
                         best = d2
     return best
+
+
+def contact_statistics(penetration: ArrayLike, contact_force: ArrayLike) -> dict[str, float | int]:
+    """Contact between the arms over one episode.
+
+    Args:
+        penetration: (N,) the overlap of the arms' surfaces at each control step, m (NaN
+            where undefined: one arm).
+        contact_force: (N,) the total contact force between the arms at each step, N.
+
+    Returns:
+        ``max_penetration``: the deepest overlap, m (NaN if none is defined);
+        ``contact_steps``: the number of steps on which the arms touch (a contact force,
+        or without contact modelled, an overlap);
+        ``mean_contact_force``, ``max_contact_force``: over all steps, N.
+    """
+    depth = np.asarray(penetration, dtype=np.float64).reshape(-1)
+    force = np.asarray(contact_force, dtype=np.float64).reshape(-1)
+    finite = depth[np.isfinite(depth)]
+    touching = (force > 0) | (np.nan_to_num(depth, nan=0.0) > 0)
+    return {
+        "max_penetration": float(finite.max()) if finite.size else float("nan"),
+        "contact_steps": int(np.count_nonzero(touching)),
+        "mean_contact_force": float(force.mean()) if force.size else 0.0,
+        "max_contact_force": float(force.max()) if force.size else 0.0,
+    }
 
 
 def safety_statistics(clearance: ArrayLike, margin: float = 0.0) -> dict[str, float | int]:

@@ -4,14 +4,18 @@
 writes its tables into the run's ``tables/`` (atomically, replacing the rows of the
 trajectories it evaluated and keeping the others):
 
-* ``eval_trajectories.parquet``: tip and target positions at every control step;
+* ``eval_trajectories.parquet``: tip and target positions at every control step, and the
+  arms' clearance, penetration and contact force at that step;
+* ``eval_snapshots.parquet``: both arms' centrelines at four instants (figures that draw the
+  arms with their radius);
 * ``eval_metrics.parquet``: the docs/environment.md metrics per arm (also over the steady window t ≥ 1 s),
   the CPU kind that computed them (``cpu``: a deterministic episode's rounding, and so its
   numbers, differ slightly between CPU kinds; tables written before lack it), and the arm's
   action statistics (``action_saturation``, ``action_change``, ``action_rms``), its torque
   smoothness and peak (``torque_rate_rms``, ``peak_moment``) and the episode's inter-arm
-  safety (``min_arm_distance``, ``collision_steps``); tables written before these were added
-  lack them, and readers treat them as optional;
+  safety (``min_arm_distance``, ``collision_steps``) and contact (``max_penetration``,
+  ``contact_steps``, ``mean_contact_force``, ``max_contact_force``); tables written before
+  these were added lack them, and readers treat them as optional;
 * ``eval_moments.parquet``: the spatial RMS of the element torques per step, arm and direction
   (docs/environment.md, float32);
 * ``eval_moment_peaks.parquet``: each element's largest absolute torque over the episode, per
@@ -50,6 +54,7 @@ from softtrack.evaluation.tables import (
     metrics_table,
     moment_peaks_table,
     moments_table,
+    snapshot_table,
     trajectory_table,
 )
 from softtrack.rl.policy import ModelChoice, load_policy
@@ -62,6 +67,7 @@ __all__ = [
     "ELEMENT_MOMENTS_TABLE",
     "EVAL_TABLES",
     "RANDOM_TABLE",
+    "SNAPSHOT_TABLE",
     "evaluate_random_targets",
     "evaluate_run",
     "has_evaluation",
@@ -70,6 +76,7 @@ __all__ = [
 
 EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments", "eval_moment_peaks")
 ELEMENT_MOMENTS_TABLE = "eval_element_moments"
+SNAPSHOT_TABLE = "eval_snapshots"  # the arms' shapes at four instants (figures)
 RANDOM_TABLE = "eval_random"
 
 
@@ -151,6 +158,7 @@ def evaluate_run(
         "eval_metrics": metrics_table,
         "eval_moments": moments_table,
         "eval_moment_peaks": moment_peaks_table,
+        SNAPSHOT_TABLE: snapshot_table,
     }
     if full_moments:
         tables[ELEMENT_MOMENTS_TABLE] = element_moments_table

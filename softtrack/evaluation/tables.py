@@ -19,6 +19,7 @@ from softtrack.evaluation.episodes import Episode
 from softtrack.evaluation.metrics import (
     AXES,
     action_statistics,
+    contact_statistics,
     moment_rms,
     safety_statistics,
     torque_statistics,
@@ -33,6 +34,7 @@ __all__ = [
     "metrics_table",
     "moment_peaks_table",
     "moments_table",
+    "snapshot_table",
     "trajectory_table",
     "validation_score",
 ]
@@ -43,9 +45,13 @@ _ARM_ACTIONS = 2 * N_CONTROL_POINTS  # per arm: 6 normal, then 6 binormal contro
 
 
 def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
-    """Rows (run_id, trajectory, step, t, arm, tip_x/y/z, target_x/y/z), one per step and arm;
-    positions in m as float32 (0.1 µm resolution: for figures; the metrics are computed in
-    float64 before storing)."""
+    """Rows (run_id, trajectory, step, t, arm, tip_x/y/z, target_x/y/z, clearance,
+    penetration, contact_force), one per step and arm (``target_*``: the arm's own point,
+    the target centre in the shared task); positions in m as float32 (0.1 µm
+    resolution: for figures; the metrics are computed in float64 before storing). The last
+    three are the scene's, repeated in both arms' rows (:class:`Episode`): surface clearance
+    and overlap (m) and the contact force between the arms (N), float32; NaN where not
+    recorded."""
     n, n_arms = episode.tips.shape[:2]
     step = np.repeat(np.arange(1, n + 1, dtype=np.int32), n_arms)
     data = {
@@ -57,13 +63,43 @@ def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
     }
     for i, axis in enumerate(AXES):
         data[f"tip_{axis}"] = episode.tips[:, :, i].reshape(-1).astype(np.float32)
+    goals = np.stack([episode.goals(arm) for arm in range(n_arms)], axis=1)  # (N, A, 3)
     for i, axis in enumerate(AXES):
-        data[f"target_{axis}"] = np.repeat(episode.target[:, i], n_arms).astype(np.float32)
+        data[f"target_{axis}"] = goals[:, :, i].reshape(-1).astype(np.float32)
+    for name in ("clearance", "penetration", "contact_force"):
+        values = getattr(episode, name)
+        values = np.full(n, np.nan) if values is None else values
+        data[name] = np.repeat(values, n_arms).astype(np.float32)
+    return pd.DataFrame(data)
+
+
+def snapshot_table(run_id: str, episode: Episode) -> pd.DataFrame:
+    """The arms' shapes at a few instants (:attr:`Episode.snapshots`): rows (run_id,
+    trajectory, step, t, arm, node, x, y, z), positions in m as float32; no rows when the
+    episode kept none."""
+    if episode.snapshots is None or episode.snapshot_steps is None:
+        nodes = np.zeros((0, episode.tips.shape[1], 3, 0))
+        steps = np.zeros(0, dtype=np.int64)
+    else:
+        nodes, steps = episode.snapshots, episode.snapshot_steps
+    n_snap, n_arms, _, n_nodes = nodes.shape
+    per_snap = n_arms * n_nodes
+    data = {
+        "run_id": run_id,
+        "trajectory": episode.trajectory,
+        "step": np.repeat(steps.astype(np.int32) + 1, per_snap),
+        "t": np.repeat(episode.t[steps] if n_snap else np.zeros(0), per_snap),
+        "arm": np.tile(np.repeat(np.arange(n_arms, dtype=np.int32), n_nodes), n_snap),
+        "node": np.tile(np.arange(n_nodes, dtype=np.int32), n_snap * n_arms),
+    }
+    for i, axis in enumerate(AXES):
+        data[axis] = nodes[:, :, i, :].reshape(-1).astype(np.float32)
     return pd.DataFrame(data)
 
 
 def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
-    """One row per arm: every docs/environment.md metric over the episode, and ``*_steady`` over t ≥ 1 s
+    """One row per arm: every docs/environment.md metric over the episode (errors from the
+    arm's own point, :meth:`Episode.goals`), and ``*_steady`` over t ≥ 1 s
     (NaN when the episode is shorter than that), and the arm's action statistics
     (``action_saturation``, ``action_change``, ``action_rms``, see
     :func:`softtrack.evaluation.metrics.action_statistics`) over the steps the episode ran;
@@ -71,7 +107,10 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     N·m/s, ``peak_moment`` N·m: :func:`~softtrack.evaluation.metrics.torque_statistics`) and
     the episode's inter-arm safety, the same in both arms' rows (``min_arm_distance`` m,
     ``collision_steps``: :func:`~softtrack.evaluation.metrics.safety_statistics`; NaN and 0
-    in a single-arm scene); for a planning controller (``episode.planning_time``), the mean
+    in a single-arm scene) and contact (``max_penetration`` m, ``contact_steps``,
+    ``mean_contact_force`` and ``max_contact_force`` N:
+    :func:`~softtrack.evaluation.metrics.contact_statistics`; absent in a single-arm scene
+    and in episodes recorded without them); for a planning controller (``episode.planning_time``), the mean
     and largest CPU time of its call per control step (``planning_time``,
     ``planning_time_max``, s)."""
     rows = []
@@ -85,13 +124,16 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
     clearance = episode.clearance if episode.clearance is not None else np.full(len(episode.t),
                                                                                  np.nan)
     safety = safety_statistics(clearance, episode.collision_margin)
+    if n_arms >= 2 and episode.penetration is not None and episode.contact_force is not None:
+        safety.update(contact_statistics(episode.penetration, episode.contact_force))
     for arm in range(n_arms):
         row: dict[str, object] = {"run_id": run_id, "trajectory": episode.trajectory, "arm": arm}
-        row.update(tracking_metrics(episode.tips[:, arm], episode.target))
+        goals = episode.goals(arm)
+        row.update(tracking_metrics(episode.tips[:, arm], goals))
         if steady.any():
-            steady_metrics = tracking_metrics(episode.tips[steady, arm], episode.target[steady])
+            steady_metrics = tracking_metrics(episode.tips[steady, arm], goals[steady])
         else:  # an episode shorter than the approach: no steady window
-            steady_metrics = dict.fromkeys(tracking_metrics(episode.tips[:, arm], episode.target),
+            steady_metrics = dict.fromkeys(tracking_metrics(episode.tips[:, arm], goals),
                                            float("nan"))
         row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
         columns = slice(_ARM_ACTIONS * arm, _ARM_ACTIONS * (arm + 1))

@@ -91,11 +91,14 @@ class MpcController:
         return action
 
     def _target_path(self, core: TrackingCore) -> np.ndarray:
-        """(H, 3) target centre after each of the next H control steps, m."""
+        """(H, A, 3) each arm's point (target centre plus the task's offset) after each of
+        the next H control steps, m."""
         targets = core.targets
         ahead = np.arange(1, self.config.horizon + 1) * core.config.sim.control_dt
         if targets.config.name != "random":
-            return trajectory_position(targets.config, targets.time[0] + ahead)
-        low, high = targets.shrunk_box
-        path = targets.position[0] + ahead[:, None] * targets.velocity[0]
-        return np.clip(path, low, high)
+            centre = trajectory_position(targets.config, targets.time[0] + ahead)
+        else:
+            low, high = targets.shrunk_box
+            centre = np.clip(targets.position[0] + ahead[:, None] * targets.velocity[0], low,
+                             high)
+        return centre[:, None, :] + core.goal_offsets[None]

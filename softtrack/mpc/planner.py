@@ -92,7 +92,8 @@ class SamplingPlanner:
 
         Args:
             state: the system's current state (one environment).
-            target_path: (H, 3) target centre after each of the next H control steps, m.
+            target_path: (H, A, 3) each arm's point (or (H, 3) one point for all arms) after
+                each of the next H control steps, m.
             previous_action: (24,) the control values applied in the last step.
 
         Returns:

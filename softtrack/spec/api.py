@@ -190,6 +190,11 @@ def spec_to_yaml(spec: ExperimentSpec, *, comments: bool = False) -> str:
 # field keeps the hash (and the spec matching) of every existing run and experiment file.
 _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "target", "speed_min"): None,
+    ("env", "physics", "contact_k"): 0.0,
+    ("env", "physics", "contact_nu"): 0.0,
+    ("env", "task", "name"): "shared",
+    ("env", "task", "standoff"): 0.1,
+    ("env", "task"): {},
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,
     ("algo", "actor_observation"): "full",

@@ -26,19 +26,24 @@ def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
     Args:
         arm: ``None`` for the dual-arm scene; 0 or 1 for the single-arm scene of that arm
             (its base from ``env.physics.base_positions``, the independent baseline's
-            single-arm reward with the spec's ``nonfinite_reward``); the result then holds
-            ``arm``.
+            single-arm reward with the spec's ``nonfinite_reward``, and no contact: there
+            is no other arm); the result then holds ``arm``.
     """
     env = spec.env
     sim = env.sim_kwargs()
     target = env.target_kwargs()
     common = {"target": target.pop("name"), "episode_duration": env.episode_duration,
               **target}
+    if env.task.name != "shared":  # only then, so the kwargs of a default spec stay as they were
+        common.update(task=env.task.name, standoff=env.task.standoff)
     if env.realism.active:  # only then, so the kwargs of a default spec stay as they were
         common["realism"] = env.realism.realism_kwargs()
     if arm is None:
         return {**common, **sim, **env.reward_kwargs()}
     sim["base_positions"] = (tuple(sim["base_positions"][arm]),)
+    # alone in its scene the arm has nothing to touch: an independent policy learns without
+    # the other arm, and meets it (and the contact) only in the dual-arm evaluation
+    sim["contact_k"] = sim["contact_nu"] = 0.0
     single = RewardConfig.single_arm()
     reward = RewardConfig(
         arm_weights=single.arm_weights,

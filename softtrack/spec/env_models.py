@@ -9,6 +9,7 @@ from typing import Any, Literal
 from pydantic import field_validator, model_validator
 
 from softtrack.sim.params import (
+    CONTACT_ON,
     MODEL_PARAMETERS,
     STANDARD_GRAVITY,
     InvalidParameterError,
@@ -73,6 +74,20 @@ class PhysicsSpec(SpecModel):
     )
     base_positions: tuple[Vec3, Vec3] = unit_field(
         ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0)), "clamp position (x, y, z) of arm 1 and arm 2", "m"
+    )
+    contact_k: Float = unit_field(
+        0.0,
+        "stiffness of the contact between the two arms (PyElastica RodRodContact k); 0 = off, "
+        f"the arms pass through each other (the study); 'contact on': {CONTACT_ON['contact_k']:g}",
+        "N/m",
+        ge=0,
+    )
+    contact_nu: Float = unit_field(
+        0.0,
+        "damping of the contact between the arms (RodRodContact nu); needs contact_k > 0; "
+        f"'contact on': {CONTACT_ON['contact_nu']:g}",
+        "N·s/m",
+        ge=0,
     )
 
     @field_validator("gravity", mode="before")
@@ -397,6 +412,21 @@ class RealismSpec(SpecModel):
                        if name.startswith("obs_noise_") or name.endswith("_probability")))
 
 
+class TaskSpec(SpecModel):
+    """Which point each arm tracks (:mod:`softtrack.env.tasks`, docs/environment.md)."""
+
+    name: Literal["shared", "viewpoints"] = unit_field(
+        "shared",
+        "shared: both tips track the target centre (the study); viewpoints: each tip tracks "
+        "its own point at the standoff from the centre along x (arm 1 at -x, arm 2 at +x)",
+        "-",
+    )
+    standoff: Float = unit_field(
+        0.1, "viewpoints: distance of each arm's point from the target centre along x", "m",
+        ge=0,
+    )
+
+
 class EnvSpec(SpecModel):
     """The dual-arm tracking environment: physics, target, reward and episode length."""
 
@@ -407,6 +437,9 @@ class EnvSpec(SpecModel):
     reward: RewardSpec = section_field(RewardSpec, "reward terms (docs/environment.md)")
     episode_duration: Float = unit_field(
         10.0, "simulated length of a training episode (then truncated)", "s", gt=0
+    )
+    task: TaskSpec = section_field(
+        TaskSpec, "which point each arm tracks: the shared target (the study) or viewpoints"
     )
     realism: RealismSpec = section_field(
         RealismSpec,

@@ -128,11 +128,17 @@ TABLE_DESCRIPTIONS: dict[str, str] = {
     "statistics, terminated, duration, the arm's torque_rate_rms (N*m/s) and peak_moment "
     "(N*m), the episode's min_arm_distance (m, surface clearance between the arms; NaN with "
     "one arm) and collision_steps (steps with clearance < reward.collision_margin); these "
-    "four are NULL in tables written before they existed",
+    "four are NULL in tables written before they existed; with two arms also "
+    "max_penetration (m, deepest overlap of the arms' surfaces), contact_steps, "
+    "mean_contact_force and max_contact_force (N; 0 without contact), NULL before contact "
+    "existed",
     "eval_random": "`softtrack evaluate --random N`: one row per random-target episode and arm, "
     "with the tracking metrics and the columns of eval_metrics",
     "eval_trajectories": "`softtrack evaluate`: tip and target position per trajectory, step "
-    "and arm",
+    "and arm, and the scene's clearance, penetration (m) and contact_force (N) at that step "
+    "(NULL in tables written before contact existed)",
+    "eval_snapshots": "`softtrack evaluate`: both arms' centreline nodes (x, y, z, m) at four "
+    "instants of each trajectory, per step, arm and node",
     "eval_moments": "`softtrack evaluate`: internal moments per trajectory, step, arm and "
     "direction (rms_moment: spatial RMS; runs stored by older versions also have "
     "max_abs_moment and element_torques, NULL for newer runs)",
