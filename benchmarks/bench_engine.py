@@ -11,6 +11,13 @@ Prints steps/s (one step = both arms advanced by dt) for PyElastica, for softtra
 environment (stepped one control step = 10 integration steps per call, as an environment
 does), and for softtrack with a batch of 64 environments (per environment), plus the ratios,
 and the time a warm process spends before its first step (numba cache load).
+
+Then the same with rod-rod contact between the arms on (``CONTACT_ON``: PyElastica's
+``RodRodContact`` against softtrack's contact stage) in two scenes: the random actions above,
+with which the arms touch now and then, and the arms pressed together (every normal control
+value pushing toward the other arm, ±0.15 with noise), where they touch along their length
+at every step. Each contact row gives its cost against the contact-free step of the same
+batch size, measured in the same interleaved repeats.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import time
 import numpy as np
 
 from softtrack.sim import RodBatch, SimParams, actions_to_element_torques
+from softtrack.sim.params import CONTACT_ON
 from softtrack.store.provenance import cpu_description
 
 
@@ -48,16 +56,54 @@ def make_pyelastica_runner(params: SimParams, torques: np.ndarray, control_steps
 
 
 def make_softtrack_runner(params: SimParams, torques: np.ndarray, n_envs: int, control_steps: int):
-    """A function integrating a batch of ``n_envs`` for ``control_steps`` control steps."""
+    """A function integrating a batch of ``n_envs`` for ``control_steps`` control steps.
+
+    Every run starts from the state reached after 30 control steps of the same torques, so
+    repeats time the same motion (the arms' contacts included).
+    """
     batch = RodBatch(n_envs, params)
     tiled = np.broadcast_to(torques[:, None], (len(torques), n_envs) + torques.shape[1:]).copy()
+    for k in range(30):
+        batch.set_element_torques(tiled[k % len(tiled)])
+        batch.advance()
+    start = batch.get_state()
 
     def run() -> None:
+        batch.set_state(start)
         for k in range(control_steps):
             batch.set_element_torques(tiled[k % len(tiled)])
             batch.advance()
 
     return run
+
+
+def scene_torques(scene: str, params: SimParams, rng: np.random.Generator) -> np.ndarray:
+    """(50, A, 2, N) element torques, N·m: ``random`` actions in ±0.3, or ``pressed``: every
+    normal control value curling each arm toward the other (±0.15, noise ±0.05)."""
+    if scene == "random":
+        actions = rng.uniform(-0.3, 0.3, size=(50, params.n_arms, 2, 6))
+    else:
+        actions = rng.uniform(-0.05, 0.05, size=(50, params.n_arms, 2, 6))
+        actions[:, 0, 0] += -0.15  # arm 1 (x < 0) curls toward +x
+        actions[:, 1, 0] += 0.15
+    return actions_to_element_torques(actions, params.n_elem, params.torque_scale)
+
+
+def interleaved_rates(runners: dict, repeats: int) -> dict[str, list[float]]:
+    """Steps/s of every runner in each of ``repeats`` interleaved rounds (each round times all
+    runners back to back, so the machine's load affects them alike)."""
+    for run, _ in runners.values():
+        run()  # warm-up: compilation and caches
+    rates: dict[str, list[float]] = {name: [] for name in runners}
+    for _ in range(repeats):
+        for name, (run, n_steps) in runners.items():
+            rates[name].append(n_steps / _timed(run))
+    return rates
+
+
+def median_ratio(a: list[float], b: list[float]) -> float:
+    """Median over the rounds of a/b."""
+    return statistics.median(x / y for x, y in zip(a, b, strict=True))
 
 
 def warm_start_seconds() -> float:
@@ -79,12 +125,13 @@ def main() -> None:
                         help="control steps (of 10 integration steps) per timed run")
     parser.add_argument("--repeats", type=int, default=11, help="timed runs per measurement")
     parser.add_argument("--batch", type=int, default=64, help="environments in the batch")
+    parser.add_argument("--no-contact", action="store_true",
+                        help="leave out the contact-on measurements")
     args = parser.parse_args()
 
     params = SimParams()
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-0.3, 0.3, size=(50, params.n_arms, 2, 6))
-    torques = actions_to_element_torques(actions, params.n_elem, params.torque_scale)
+    torques = scene_torques("random", params, rng)
 
     steps = params.steps_per_action
     batch_control_steps = max(args.control_steps // args.batch, 5)
@@ -96,19 +143,13 @@ def main() -> None:
         "batch": (make_softtrack_runner(params, torques, args.batch, batch_control_steps),
                   batch_control_steps * steps * args.batch),
     }
-    for run, _ in runners.values():
-        run()  # warm-up: compilation and caches
-    # Interleaved repeats: each repeat times all three back to back, so the machine's load
-    # affects them alike; ratios are taken within a repeat, then the median over repeats.
-    rates: dict[str, list[float]] = {name: [] for name in runners}
-    for _ in range(args.repeats):
-        for name, (run, n_steps) in runners.items():
-            rates[name].append(n_steps / _timed(run))
+    # ratios are taken within a round, then the median over rounds
+    rates = interleaved_rates(runners, args.repeats)
     pyelastica = statistics.median(rates["pyelastica"])
     single = statistics.median(rates["single"])
     batch = statistics.median(rates["batch"])
-    single_ratio = statistics.median(s / p for s, p in zip(rates["single"], rates["pyelastica"]))
-    batch_ratio = statistics.median(b / p for b, p in zip(rates["batch"], rates["pyelastica"]))
+    single_ratio = median_ratio(rates["single"], rates["pyelastica"])
+    batch_ratio = median_ratio(rates["batch"], rates["pyelastica"])
     warm = warm_start_seconds()
 
     print("integration steps/s (both arms, dt = 2e-4 s), median of", args.repeats,
@@ -119,6 +160,48 @@ def main() -> None:
     print(f"  softtrack, {args.batch} envs, per env {batch:9,.0f}   ({1e6 / batch:6.2f} µs/step)"
           f"   {batch_ratio:5.1f}× PyElastica")
     print(f"warm start (import + first step, cached compilation): {warm:.2f} s")
+    if not args.no_contact:
+        contact_rows(args, steps, batch_control_steps)
+
+
+def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) -> None:
+    """The contact-on measurements (module docstring), one block per scene."""
+    free = SimParams()
+    touching = SimParams(**CONTACT_ON)
+    print(f"with contact (contact_k = {touching.contact_k:g} N/m, contact_nu = "
+          f"{touching.contact_nu:g} N·s/m); cost = contact step time / contact-free step time")
+    for scene in ("random", "pressed"):
+        torques = scene_torques(scene, free, np.random.default_rng(0))
+        runners = {
+            "pyelastica": (make_pyelastica_runner(touching, torques, args.control_steps),
+                           args.control_steps * steps),
+            "single-free": (make_softtrack_runner(free, torques, 1, args.control_steps),
+                            args.control_steps * steps),
+            "single": (make_softtrack_runner(touching, torques, 1, args.control_steps),
+                       args.control_steps * steps),
+            "batch-free": (make_softtrack_runner(free, torques, args.batch, batch_control_steps),
+                           batch_control_steps * steps * args.batch),
+            "batch": (make_softtrack_runner(touching, torques, args.batch, batch_control_steps),
+                      batch_control_steps * steps * args.batch),
+        }
+        rates = interleaved_rates(runners, args.repeats)
+        probe = RodBatch(args.batch, touching)
+        tiled = np.broadcast_to(torques[:, None], (50, args.batch) + torques.shape[1:])
+        touched = []
+        for k in range(30 + batch_control_steps):
+            probe.set_element_torques(tiled[k % 50])
+            probe.advance()
+            touched.append(probe.contact_state()[1] > 0)
+        share = float(np.mean(touched[30:]))
+        pyelastica = statistics.median(rates["pyelastica"])
+        print(f" scene '{scene}' (arms touching in {100 * share:.0f} % of control steps):")
+        print(f"  PyElastica + RodRodContact {pyelastica:11,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
+        for name, label in (("single", "1 env"), ("batch", f"{args.batch} envs, per env")):
+            rate = statistics.median(rates[name])
+            cost = median_ratio(rates[f"{name}-free"], rates[name])
+            speedup = median_ratio(rates[name], rates["pyelastica"])
+            print(f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
+                  f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free")
 
 
 if __name__ == "__main__":

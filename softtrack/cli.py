@@ -729,7 +729,7 @@ def robustness(
         list[str] | None,
         typer.Option("--grid", "-g", metavar="FACTOR=L1,L2", show_default=False,
                      help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
-                     "action_delay=0,2 (a field of env.realism, obs_noise, gravity, or a spec "
+                     "action_delay=0,2 (a field of env.realism, obs_noise, gravity, contact (on/off or N/m), or a spec "
                      "path env.*). Repeatable."),
     ] = None,
     full_grid: Annotated[

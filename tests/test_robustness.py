@@ -98,6 +98,19 @@ def test_perturbed_spec_of_a_curriculum_run_drops_the_warmup() -> None:
     assert perturbed_spec(spec, Setting(()), True).env.realism == spec.env.realism
 
 
+def test_contact_factor_switches_both_contact_fields() -> None:
+    """``--grid contact=on,off,2e6``: the "contact on" defaults, off, or a stiffness."""
+    spec = ExperimentSpec()
+    on, off, stiff = (perturbed_spec(spec, Setting((("contact", level),)))
+                      for level in ("on", "off", "2e6"))
+    assert (on.env.physics.contact_k, on.env.physics.contact_nu) == (1e6, 600.0)
+    assert (off.env.physics.contact_k, off.env.physics.contact_nu) == (0.0, 0.0)
+    assert (stiff.env.physics.contact_k, stiff.env.physics.contact_nu) == (2e6, 600.0)
+    assert Setting((("contact", "on"),)).level == 1.0
+    with pytest.raises(SpecError, match="contact_k"):
+        perturbed_spec(spec, Setting((("contact", "1e9"),)))
+
+
 def test_an_unstable_setting_names_itself() -> None:
     with pytest.raises(SpecError) as info:
         perturbed_spec(ExperimentSpec(), Setting((("youngs_modulus_scale", "3"),)))

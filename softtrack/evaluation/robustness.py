@@ -3,7 +3,8 @@
 A *factor* names what is perturbed: a field of ``env.realism`` (docs/environment.md, "Realism"),
 e.g. ``action_delay`` or ``youngs_modulus_scale``; one of the shorthands in
 :data:`FACTOR_ALIASES` (``obs_noise``: the same noise std on the node and target positions, m;
-``gravity``: ``env.physics.gravity``, m/s² or on/off); or any dotted ``env.`` spec path. A
+``gravity``: ``env.physics.gravity``, m/s² or on/off; ``contact``: the arms touch, on/off or a
+stiffness in N/m, docs/physics.md "Contact"); or any dotted ``env.`` spec path. A
 *setting* gives one or more factors a level (:class:`Setting`); :func:`expand_settings` makes
 the settings of ``--grid`` axes, one factor at a time (every other factor nominal) or as their
 full Cartesian product.
@@ -42,6 +43,7 @@ from softtrack.evaluation.tables import metrics_table
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.spec.api import parse_spec
 from softtrack.spec.env_config import env_config
+from softtrack.sim.params import CONTACT_ON
 from softtrack.spec.env_models import RealismSpec
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord
@@ -71,7 +73,20 @@ FACTOR_ALIASES: dict[str, tuple[str, ...]] = {
     "obs_noise": ("env.realism.obs_noise_node_position",
                   "env.realism.obs_noise_target_position"),
     "gravity": ("env.physics.gravity",),
+    "contact": ("env.physics.contact_k", "env.physics.contact_nu"),
 }
+
+
+def _contact_levels(level: str) -> tuple[str, str]:
+    """The (contact_k, contact_nu) texts of a ``contact`` level: ``on`` (the "contact on"
+    defaults, :data:`softtrack.sim.params.CONTACT_ON`), ``off``, or a stiffness in N/m with
+    the default damping."""
+    value = yaml.safe_load(level)
+    if value is True:
+        return repr(CONTACT_ON["contact_k"]), repr(CONTACT_ON["contact_nu"])
+    if value is False or value == 0:
+        return "0.0", "0.0"
+    return level, repr(CONTACT_ON["contact_nu"])
 
 #: The columns in front of the metrics columns, in this order.
 SETTING_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "seed")
@@ -123,9 +138,14 @@ class Setting:
         return math.nan
 
     def overrides(self) -> list[str]:
-        """The ``--set`` overrides of this setting (``dotted.path=level``)."""
-        return [f"{path}={value}" for factor, value in self.levels
-                for path in factor_paths(factor)]
+        """The ``--set`` overrides of this setting (``dotted.path=level``; ``contact=on``
+        sets both contact fields, :func:`_contact_levels`)."""
+        out = []
+        for factor, value in self.levels:
+            paths = factor_paths(factor)
+            values = _contact_levels(value) if factor == "contact" else (value,) * len(paths)
+            out += [f"{path}={text}" for path, text in zip(paths, values, strict=True)]
+        return out
 
 
 def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = False
