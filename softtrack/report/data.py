@@ -54,7 +54,8 @@ _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
 _ROBUSTNESS_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "trajectory",
                        "arm", "rmse_3d", "terminated", "peak_moment", "action_saturation",
-                       "min_arm_distance", "collision_steps")
+                       "min_arm_distance", "collision_steps", "max_penetration",
+                       "contact_steps", "mean_contact_force")
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3, "tqc": 4, "crossq": 5}
 _ALGO_LABELS = {"crossq": "CrossQ"}  # display names that are not the upper-cased algo name
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1, "mpc": 2}
@@ -82,6 +83,7 @@ class RunData:
         validation: ``validation`` (one row per validated checkpoint, episode and arm, m).
         robustness: ``eval_robustness`` (one row per perturbation setting, trajectory,
             episode and arm; :mod:`softtrack.evaluation.robustness`).
+        snapshots: ``eval_snapshots`` (both arms' centreline nodes at a few instants, m).
         problems: one line per unreadable table.
     """
 
@@ -95,6 +97,7 @@ class RunData:
     validation: pd.DataFrame | None = None
     peaks: pd.DataFrame | None = None
     robustness: pd.DataFrame | None = None
+    snapshots: pd.DataFrame | None = None
     problems: tuple[str, ...] = ()
 
     @property
@@ -204,6 +207,7 @@ def load_run(record: RunRecord) -> RunData:
         validation=_read(record, "validation", problems, _VALIDATION_COLUMNS),
         peaks=episode_peaks(moments, element_peaks),
         robustness=_read(record, "eval_robustness", problems, _ROBUSTNESS_COLUMNS),
+        snapshots=_read(record, "eval_snapshots", problems),
         problems=tuple(problems),
     )
 
