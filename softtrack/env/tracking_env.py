@@ -85,7 +85,8 @@ class DualArmTrackingEnv(_TrackingEnv):
     | 78–80 | target velocity direction (zeros when still) |
 
     ## Rewards
-    With dᵢ the distance of tip i to the target centre after the step (m):
+    With dᵢ the distance of tip i to its point after the step (m): the target centre in the
+    ``shared`` task (the study), centre ∓ ``standoff``·x̂ in the ``viewpoints`` task:
     ``r = −(w₁d₁² + w₂d₂²) + Σᵢ [0.5·1(dᵢ ≤ 0.10) + 1.0·1(dᵢ ≤ 0.075)] + 1.5·1(d₁ ≤ 0.05 and
     d₂ ≤ 0.05)``, w₁ = w₂ = 1; thresholds, bonuses and weights are arguments. An optional
     penalty −c_col applies when the arms come closer than 2·radius + margin (off by default).
@@ -102,7 +103,8 @@ class DualArmTrackingEnv(_TrackingEnv):
     ## Info
     ``tip_positions`` (2, 3) m, ``target_position`` (3,) m, ``distances`` (2,) m,
     ``element_torques`` (2 arms, 2 directions, 20 elements) N·m as applied, ``time`` s; with
-    model error (``realism``), ``parameters``: the episode's factors.
+    model error (``realism``), ``parameters``: the episode's factors; with contact on,
+    ``penetration`` (m) and ``contact_force`` (N).
 
     ## Arguments
     Any field of ``SimParams`` (``n_elem``, ``dt``, ``damping``, ``gravity``,
@@ -112,12 +114,17 @@ class DualArmTrackingEnv(_TrackingEnv):
     ``figure8``, ``fixed``), ``episode_duration`` (s) and ``realism`` (observation noise,
     delays, actuator lag, rate and torque limits, model error: fixed or per-episode random
     factors on E, density, radius, damping and torque scale; a mapping of ``RealismConfig``
-    fields, all off by default; docs/environment.md)::
+    fields, all off by default; docs/environment.md); ``task`` (``shared`` or ``viewpoints``)
+    and ``standoff`` (m); ``contact_k`` (N/m) and ``contact_nu`` (N·s/m), the contact between
+    the arms (0: off, the study's ghosts; docs/physics.md)::
 
         gymnasium.make("softtrack/DualArmTracking-v0", target="circle", gravity=True)
+        gymnasium.make("softtrack/DualArmTracking-v0", task="viewpoints",
+                       contact_k=1e6, contact_nu=600.0)
 
     ## Version History
-    * v0: the study's setting (docs/physics.md, docs/environment.md).
+    * v0: the study's setting (docs/physics.md, docs/environment.md); contact and the
+      viewpoints task are arguments whose defaults keep that setting.
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -144,7 +151,9 @@ class SingleArmTrackingEnv(_TrackingEnv):
     As the dual-arm env, with arrays for one arm.
 
     ## Arguments
-    ``arm``: 0 (base at x = −0.1 m, default) or 1 (x = +0.1 m); otherwise as the dual-arm env.
+    ``arm``: 0 (base at x = −0.1 m, default) or 1 (x = +0.1 m); otherwise as the dual-arm env
+    (in the ``viewpoints`` task the arm tracks its own point), except contact: one arm has
+    nothing to touch, and ``contact_k`` > 0 is an error.
 
     ## Version History
     * v0: the study's setting (docs/physics.md, docs/environment.md).

@@ -277,19 +277,6 @@ def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, di
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _kick_nodes(vel, f_elem, damp_f, f_contact, weight_m, inv_m, gravity, dt, n_pad):
-    """v += dt·F/m, F = internal + damping + gravity + contact (node 0 clamped); with no
-    contact force the sum is bit for bit the contact-free kernel's."""
-    for i in range(3):
-        g = -gravity if i == 1 else 0.0
-        for k in range(1, n_pad + 1):
-            f = (f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1]
-                 + g * weight_m[k] + f_contact[i, k])
-            vel[i, k] += dt * (f * inv_m[k])
-        vel[i, 0] = 0.0
-
-
-@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
 def _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len, inv_rest_len, inert,
                    inv_inert, dil_rate, qt, n_local, tq, env_damping, dt, n_pad):
     """ω += dt·J⁻¹·τ·e for every element (element 0 clamped), τ the internal, damping and
@@ -339,6 +326,16 @@ def _rod_work(width):
             np.zeros(width), np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
             np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
             np.zeros((3, width)), np.zeros((2, width)), np.zeros((4, width)))
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _material_work(width):
+    """The work arrays shared by the rods of an environment, inert in the padding:
+    curvatures and cosines (per step), damping coefficients, 1/masses, masses, volumes,
+    inertias, 1/inertias, shear and bend stiffnesses (:func:`_load_material` fills them)."""
+    return (np.zeros((3, width)), np.ones(width), np.zeros(width), np.ones(width),
+            np.zeros(width), np.zeros(width), np.ones((3, width)), np.ones((3, width)),
+            np.zeros((3, width)), np.zeros((3, width)))
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -459,16 +456,8 @@ def _build_advance(n_pad):
             rest_lengths, rest_voronoi, width)
         (pos, vel, dirs, om, tq, lengths, inv_lengths, dil_rate, f_elem, n_local, qt, damp_f,
          couple, kxc, _, _, _) = _rod_work(width)
-        kappa = np.zeros((3, width))
-        cosines = np.ones(width)
-        damp_coef = np.zeros(width)
-        inv_m = np.ones(width)
-        weight_m = np.zeros(width)
-        vol = np.zeros(width)
-        inert = np.ones((3, width))
-        inv_inert = np.ones((3, width))
-        shear_k = np.zeros((3, width))
-        bend_k = np.zeros((3, width))
+        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k,
+         bend_k) = _material_work(width)
         base_pos = np.empty(3)
         base_dirs = np.empty((3, 3))
         half_dt = 0.5 * dt
@@ -534,16 +523,8 @@ def _build_advance_contact(n_pad):
         (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, dil_rate_b, f_elem_b,
          n_local_b, qt_b, damp_f_b, couple_b, kxc_b, f_contact_b, geometry_b,
          anchor_b) = _rod_work(width)
-        kappa = np.zeros((3, width))
-        cosines = np.ones(width)
-        damp_coef = np.zeros(width)
-        inv_m = np.ones(width)
-        weight_m = np.zeros(width)
-        vol = np.zeros(width)
-        inert = np.ones((3, width))
-        inv_inert = np.ones((3, width))
-        shear_k = np.zeros((3, width))
-        bend_k = np.zeros((3, width))
+        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k,
+         bend_k) = _material_work(width)
         base_pos_a = np.empty(3)
         base_dirs_a = np.empty((3, 3))
         base_pos_b = np.empty(3)
