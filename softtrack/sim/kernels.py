@@ -517,12 +517,15 @@ def _build_advance_contact(n_pad):
         n_elem = rest_lengths.shape[0]
         rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
             rest_lengths, rest_voronoi, width)
-        (pos_a, vel_a, dirs_a, om_a, tq_a, lengths_a, inv_lengths_a, dil_rate_a, f_elem_a,
-         n_local_a, qt_a, damp_f_a, couple_a, kxc_a, f_contact_a, geometry_a,
+        # Each rod's angular kick runs right after its forces (contact exerts no couple and
+        # reads no angular velocity), so the arrays only that kick reads (dilatation rates,
+        # n_local, qt, couples) are shared by the two rods: the two rods' work arrays then
+        # fit the L1 cache together.
+        (pos_a, vel_a, dirs_a, om_a, tq_a, lengths_a, inv_lengths_a, dil_rate, f_elem_a,
+         n_local, qt, damp_f_a, couple, kxc, f_contact_a, geometry_a,
          anchor_a) = _rod_work(width)
-        (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, dil_rate_b, f_elem_b,
-         n_local_b, qt_b, damp_f_b, couple_b, kxc_b, f_contact_b, geometry_b,
-         anchor_b) = _rod_work(width)
+        (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, _, f_elem_b, _, _,
+         damp_f_b, _, _, f_contact_b, geometry_b, anchor_b) = _rod_work(width)
         (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k,
          bend_k) = _material_work(width)
         base_pos_a = np.empty(3)
@@ -549,14 +552,20 @@ def _build_advance_contact(n_pad):
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
             _drift(pos_b, vel_b, dirs_b, om_b, half_dt, base_pos_b, base_dirs_b, n_pad)
             for step in range(n_steps):
-                _element_stage(pos_a, vel_a, dirs_a, lengths_a, inv_lengths_a, qt_a, n_local_a,
-                               f_elem_a, dil_rate_a, damp_f_a, kappa, cosines, couple_a, kxc_a,
+                _element_stage(pos_a, vel_a, dirs_a, lengths_a, inv_lengths_a, qt, n_local,
+                               f_elem_a, dil_rate, damp_f_a, kappa, cosines, couple, kxc,
                                rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
                                shear_k, bend_k, damp_coef, n_pad)
-                _element_stage(pos_b, vel_b, dirs_b, lengths_b, inv_lengths_b, qt_b, n_local_b,
-                               f_elem_b, dil_rate_b, damp_f_b, kappa, cosines, couple_b, kxc_b,
+                _kick_elements(om_a, couple, kxc, lengths_a, inv_lengths_a, rest_len,
+                               inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq_a,
+                               env_damping, dt, n_pad)
+                _element_stage(pos_b, vel_b, dirs_b, lengths_b, inv_lengths_b, qt, n_local,
+                               f_elem_b, dil_rate, damp_f_b, kappa, cosines, couple, kxc,
                                rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
                                shear_k, bend_k, damp_coef, n_pad)
+                _kick_elements(om_b, couple, kxc, lengths_b, inv_lengths_b, rest_len,
+                               inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq_b,
+                               env_damping, dt, n_pad)
                 depth, n_pairs = rod_rod_contact(
                     pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, f_contact_a,
                     geometry_a, anchor_a, pos_b, vel_b, lengths_b, inv_lengths_b, f_elem_b,
@@ -568,27 +577,21 @@ def _build_advance_contact(n_pad):
                                          + force_on_b[1] * force_on_b[1]
                                          + force_on_b[2] * force_on_b[2])
                 drift_dt = half_dt if step == n_steps - 1 else dt
+                # v += dt·F/m, F = internal + damping + gravity + contact (written out: as an
+                # inlined helper this loop ran 25 % slower); with no contact force the sum is
+                # bit for bit the contact-free kernel's
                 for i in range(3):
                     g = -gravity if i == 1 else 0.0
                     for k in range(1, n_pad + 1):
-                        f = (f_elem_a[i, k] - f_elem_a[i, k - 1] + damp_f_a[i, k] + damp_f_a[i, k - 1]
-                             + g * weight_m[k] + f_contact_a[i, k])
+                        f = (f_elem_a[i, k] - f_elem_a[i, k - 1] + damp_f_a[i, k]
+                             + damp_f_a[i, k - 1] + g * weight_m[k] + f_contact_a[i, k])
                         vel_a[i, k] += dt * (f * inv_m[k])
-                    vel_a[i, 0] = 0.0
-                _kick_elements(om_a, couple_a, kxc_a, lengths_a, inv_lengths_a, rest_len,
-                               inv_rest_len, inert, inv_inert, dil_rate_a, qt_a, n_local_a,
-                               tq_a, env_damping, dt, n_pad)
-                _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
-                for i in range(3):
-                    g = -gravity if i == 1 else 0.0
-                    for k in range(1, n_pad + 1):
-                        f = (f_elem_b[i, k] - f_elem_b[i, k - 1] + damp_f_b[i, k] + damp_f_b[i, k - 1]
-                             + g * weight_m[k] + f_contact_b[i, k])
+                        f = (f_elem_b[i, k] - f_elem_b[i, k - 1] + damp_f_b[i, k]
+                             + damp_f_b[i, k - 1] + g * weight_m[k] + f_contact_b[i, k])
                         vel_b[i, k] += dt * (f * inv_m[k])
+                    vel_a[i, 0] = 0.0
                     vel_b[i, 0] = 0.0
-                _kick_elements(om_b, couple_b, kxc_b, lengths_b, inv_lengths_b, rest_len,
-                               inv_rest_len, inert, inv_inert, dil_rate_b, qt_b, n_local_b,
-                               tq_b, env_damping, dt, n_pad)
+                _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
                 _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
             penetration[env] = deepest
             contact_force[env] = force_total / max(n_steps, 1)
