@@ -6,6 +6,8 @@
     .venv/bin/python experiments/reproduce_study.py --only ddpg-sbx --report-only
     .venv/bin/python experiments/reproduce_study.py --only td3-sbx-128 --no-report
     .venv/bin/python experiments/reproduce_study.py --robustness --jobs 2   # then the report
+                  (the robustness experiments' grids, then every contact-free controller
+                  with contact on)
 
 ``--only`` takes an experiment name (the spec's ``name``, as in ``models/`` and the report) or
 a spec file under ``experiments/`` (``variants/td3-sbx-128-4e6.yaml``); experiments/README.md
@@ -152,6 +154,19 @@ JOBS: tuple[Job, ...] = (
           f"td3-sbx-128-mirror-dr-warmup-1e6-seed{s}") for s in (0, 1, 2)),
     # sampling MPC (issue 30; evaluated on the three trajectories only: no --random episodes):
     Job(V + "mpc-mppi-64x50.yaml", 0, "mpc-mppi-64x50-seed0"),
+    # arms that touch (issue 37): contact on, the shared target and the viewpoints task
+    *(job for s in (0, 1, 2, 3, 4) for job in (
+        Job(V + "td3-sbx-128-1e6-mirror-fast-contact.yaml", s,
+            f"td3-sbx-128-mirror-fast-contact-1e6-seed{s}"),
+        Job(V + "td3-sbx-128-1e6-mirror-fast-viewpoints.yaml", s,
+            f"td3-sbx-128-mirror-fast-viewpoints-1e6-seed{s}"),
+        Job(V + "independent-td3-sbx-128-1e6-fast-contact.yaml", s,
+            f"independent-td3-sbx-128-fast-contact-1e6-seed{s}"),
+        Job(V + "independent-td3-sbx-128-1e6-fast-viewpoints.yaml", s,
+            f"independent-td3-sbx-128-fast-viewpoints-1e6-seed{s}"),
+    )),
+    Job(V + "mpc-mppi-64x50-contact.yaml", 0, "mpc-mppi-64x50-contact-seed0"),
+    Job(V + "mpc-mppi-64x50-viewpoints.yaml", 0, "mpc-mppi-64x50-viewpoints-seed0"),
     # derived from shipped runs (after all trainings):
     *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
           f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
@@ -170,6 +185,9 @@ REPORTED = (
     "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-smooth-act2",
     "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "td3-sbx-128-mirror-dr-warmup",
     "mpc-mppi-64x50",
+    "td3-sbx-128-mirror-fast-contact", "td3-sbx-128-mirror-fast-viewpoints",
+    "independent-td3-sbx-128-fast-contact", "independent-td3-sbx-128-fast-viewpoints",
+    "mpc-mppi-64x50-contact", "mpc-mppi-64x50-viewpoints",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
@@ -200,6 +218,20 @@ def run_robustness(names: list[str], workers: int) -> None:
         return
     for grid in ROBUSTNESS_GRIDS:
         _softtrack("robustness", *runs, *grid, "--workers", str(workers))
+
+
+def run_contact_robustness(workers: int) -> None:
+    """Every shipped trained controller of a contact-free experiment with contact on
+    (`softtrack robustness --grid contact=on`: what ghost-trained policies lose when the arms
+    are solid); settings already stored are skipped."""
+    runs = []
+    for job in JOBS:
+        path = ROOT / "models" / job.dest
+        if (path.is_dir() and not job.name.startswith("mpc-")
+                and load_experiment(job.spec).env.physics.contact_k == 0.0):
+            runs.append(f"models/{job.dest}")
+    if runs:
+        _softtrack("robustness", *runs, "--grid", "contact=on", "--workers", str(workers))
 
 
 def _softtrack(*args: str, taskset: int | None = None) -> str:
@@ -351,6 +383,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.robustness:
         run_robustness([n for n in ROBUSTNESS if not args.only or n in args.only],
                        max(1, args.jobs))
+        if not args.only:
+            run_contact_robustness(max(1, args.jobs))
     elif not args.report_only:
         runs_dir = resolve_runs_dir(args.runs_dir)
         n = max(1, args.jobs)
