@@ -74,6 +74,10 @@ REPORT_DIR = "reports/study"
 #: (`softtrack report --figures-for`): the study protocol, the best centralized variant and the
 #: independent baseline selected alike. Only their runs keep ``eval_trajectories`` in models/.
 FEATURED = ("td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm")
+#: Experiments whose shipped runs keep their per-step table: the featured ones, and those the
+#: report's contact figures draw (clearance and contact force per step).
+KEEP_STEPS = (*FEATURED, "td3-sbx-128-mirror-fast-contact", "td3-sbx-128-mirror-fast-viewpoints",
+              "mpc-mppi-64x50-contact", "mpc-mppi-64x50-viewpoints")
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
 
@@ -344,11 +348,11 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
 
 def lean(run_dir: Path, name: str) -> None:
     """Drop the per-step tip and target positions (``eval_trajectories``) of a run under
-    ``models/`` whose experiment is not in :data:`FEATURED`: the report draws them for the
-    featured experiments only, and `softtrack evaluate models/<run>` writes them again in
+    ``models/`` whose experiment is not in :data:`KEEP_STEPS`: the report draws them for the
+    featured and contact experiments only, and `softtrack evaluate models/<run>` writes them again in
     seconds."""
     table = run_dir / "tables" / "eval_trajectories.parquet"
-    if name not in FEATURED and table.is_file():
+    if name not in KEEP_STEPS and table.is_file():
         table.unlink()
 
 
