@@ -101,6 +101,23 @@ def test_stability_limit_bounds_the_engine() -> None:
 # ---- physics ------------------------------------------------------------------------------
 
 
+def test_no_touch_is_bit_identical_to_no_contact() -> None:
+    """With contact on, steps in which the arms do not touch are the contact-free engine's,
+    bit for bit (the contact forces live in their own array)."""
+    away = np.zeros((100, 2, 2, 6))
+    away[:, 0, 0], away[:, 1, 0] = 0.1, -0.1  # each arm curls away from the other
+    away[:, :, 1] = 0.05 * np.sin(np.arange(100) / 10.0)[:, None, None]
+    with_contact = RodBatch(1, SimParams(**CONTACT_ON))
+    without = RodBatch(1, SimParams())
+    for k in range(100):
+        for batch in (with_contact, without):
+            batch.set_actions(away[k][None])
+            batch.advance()
+        assert with_contact.contact_state()[1][0] == 0.0
+    assert np.array_equal(with_contact.position, without.position)
+    assert np.array_equal(with_contact.directors, without.directors)
+
+
 def test_pressed_arms_stop_at_their_surfaces() -> None:
     """Every control value pressing the arms together (±1, the largest torques): without
     contact they pass through each other, with the defaults they overlap by ≤ 5 mm."""
