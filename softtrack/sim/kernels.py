@@ -22,6 +22,10 @@ masked to 0 before the log map so they cannot produce NaN).
 Small rotations (all of them, in practice) use Taylor series instead of sin/cos/acos; a rod
 with a large rotation in a step falls back to the trigonometric formulas for that step.
 
+Development note: numba caches each kernel keyed on this file's modification time, and the
+contact stage (:mod:`softtrack.sim.contact`) is inlined into the contact kernel; after editing
+contact.py alone, touch this file (or delete ``__pycache__/*.nbi``) so the kernel recompiles.
+
 Array layout (float64): positions/velocities (env, arm, 3, node), directors
 (env, arm, 3, 3, element) with row r = d_{r+1} in lab coordinates, angular velocities
 (env, arm, 3, element) in the local frame, torques (env, arm, 2, element) = (d₁, d₂) couples.
