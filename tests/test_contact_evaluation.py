@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation.metrics import contact_statistics
-from softtrack.report.contact import contact_summary
+from softtrack.report.contact import centralized_vs_independent, contact_summary
 from softtrack.report.data import group_runs, load_runs
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
@@ -29,11 +29,9 @@ def test_contact_statistics() -> None:
     assert ghost["contact_steps"] == 2 and ghost["max_penetration"] == 0.05
 
 
-@pytest.fixture(scope="module")
-def contact_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
-    tmp = tmp_path_factory.mktemp("contact")
+def _train_and_evaluate(tmp: Path, controller: str = "centralized") -> tuple[Path, str]:
     spec: dict[str, Any] = {
-        "name": "tiny-contact", "seeds": [0],
+        "name": f"tiny-contact-{controller}", "seeds": [0], "controller": controller,
         "env": {"episode_duration": 0.1,
                 "physics": {"contact_k": 1e6, "contact_nu": 600.0},
                 "task": {"name": "viewpoints", "standoff": 0.1}},
@@ -42,7 +40,7 @@ def contact_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
         "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
                      "eval_duration": 0.4},
     }
-    path = tmp / "contact.yaml"
+    path = tmp / f"contact-{controller}.yaml"
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
     runs = tmp / "runs"
     result = runner.invoke(app, ["train", str(path), "--runs-dir", str(runs)])
@@ -51,6 +49,11 @@ def contact_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     result = runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(runs)])
     assert result.exit_code == 0, result.output
     return runs, run_id
+
+
+@pytest.fixture(scope="module")
+def contact_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    return _train_and_evaluate(tmp_path_factory.mktemp("contact"))
 
 
 def test_evaluation_tables_hold_contact(contact_run: tuple[Path, str]) -> None:
@@ -89,3 +92,15 @@ def test_report_has_contact_section(contact_run: tuple[Path, str], tmp_path: Pat
     assert "### Contact between the arms" in text
     assert (out / "figures" / "contact_arms.png").stat().st_size > 10_000
     assert (out / "figures" / "contact_timeline.png").stat().st_size > 5_000
+
+
+@pytest.mark.slow
+def test_centralized_against_independent_rows(contact_run: tuple[Path, str]) -> None:
+    runs, central_id = contact_run
+    _, independent_id = _train_and_evaluate(runs.parent, "independent")
+    store = RunStore(runs)
+    groups = group_runs(load_runs([store.get_run(central_id), store.get_run(independent_id)]))
+    rows = centralized_vs_independent(groups)
+    assert [row[4] for row in rows] == ["circle", "figure8", "rectangle"]
+    assert all(row[0] == "viewpoints" and row[3] == "1 / 1" for row in rows)
+    assert all(cell.startswith(("+", "-")) for row in rows for cell in row[5:])

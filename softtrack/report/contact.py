@@ -3,7 +3,8 @@
 Only for controllers whose evaluations recorded contact (``eval_metrics`` columns
 ``contact_steps`` …, written since contact exists). A table per controller (task, contact on or
 off, the quadratic mean of the two arms' 3-D RMSE against the shared-target floor, contact
-steps, deepest overlap, contact force); a figure of clearance and contact force against time
+steps, deepest overlap, contact force); centralized against independent controllers with
+contact, per cell, with Welch's interval; a figure of clearance and contact force against time
 per featured controller; and a figure that draws both arms with their radius at the instants
 ``eval_snapshots`` kept, so a reader sees whether their surfaces overlap.
 """
@@ -20,12 +21,19 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.patches import Circle
 
+from softtrack.evaluation.statistics import mean_difference
 from softtrack.report import figures as fg
 from softtrack.report.data import Group, RunData, representative_run
 from softtrack.report.document import Context, Doc
 from softtrack.report.text import mean_pm_std
 
-__all__ = ["arms_figure", "contact_section", "contact_summary", "contact_timeline_figure"]
+__all__ = [
+    "arms_figure",
+    "centralized_vs_independent",
+    "contact_section",
+    "contact_summary",
+    "contact_timeline_figure",
+]
 
 _MAX_FIGURE_GROUPS = 4  # controllers drawn in the contact figures (the rest: the table)
 
@@ -117,6 +125,13 @@ def contact_section(doc: Doc, ctx: Context) -> None:
         "0.05 m cannot both reach the centre: touching tips are ≥ 2r apart, so the quadratic "
         "mean is ≥ r (the floor). docs/physics.md, \"Contact between the arms\"."
     )
+    comparison = centralized_vs_independent(ctx.groups)
+    if comparison:
+        doc.p("**Centralized against independent, with contact** (per trajectory and arm: the "
+              "difference of the seed means of 3-D RMSE, centralized − independent, m, with "
+              "Welch's 95 % interval; negative: the centralized controller tracks better):")
+        doc.table(["task", "centralized", "independent", "seeds", "trajectory",
+                   "arm 1: difference [95 % CI]", "arm 2: difference [95 % CI]"], comparison)
     drawn = [g for g in ctx.groups if g.label in set(summary["group"])][:_MAX_FIGURE_GROUPS]
     trajectory = "circle"
     runs = [(g.label, run) for g in drawn
@@ -129,6 +144,45 @@ def contact_section(doc: Doc, ctx: Context) -> None:
     path, rel = ctx.figure("contact_arms.png")
     arms_figure(runs, trajectory, path, ctx.footer(drawn))
     doc.img(rel, "both arms with their radius at four instants")
+
+
+def _cell_values(group: Group, trajectory: str, arm: int) -> list[float]:
+    """One 3-D RMSE per seed of ``group`` on ``trajectory`` and ``arm`` (m)."""
+    values = []
+    for run in group.runs:
+        if run.metrics is None:
+            continue
+        rows = run.metrics[(run.metrics["trajectory"] == trajectory) & (run.metrics["arm"] == arm)]
+        if len(rows):
+            values.append(float(rows["rmse_3d"].iloc[0]))
+    return values
+
+
+def centralized_vs_independent(groups: Sequence[Group]) -> list[list[str]]:
+    """Table rows comparing each centralized group with contact to each independent group of
+    the same task with contact: per trajectory, each arm's difference of seed means with
+    Welch's 95 % interval (:func:`softtrack.evaluation.statistics.mean_difference`)."""
+    def key(group: Group) -> tuple[str, bool] | None:
+        runs = [r for r in group.runs if _has_contact_columns(r)]
+        return (_task(runs[0]), _contact_on(runs[0])) if runs else None
+
+    rows = []
+    for central in (g for g in groups if g.controller == "centralized"):
+        for independent in (g for g in groups if g.controller == "independent"):
+            pair = key(central)
+            if pair is None or not pair[1] or pair != key(independent):
+                continue
+            for trajectory in sorted({str(t) for r in central.runs if r.metrics is not None
+                                      for t in r.metrics["trajectory"]}):
+                cells = []
+                for arm in (0, 1):
+                    a = _cell_values(central, trajectory, arm)
+                    b = _cell_values(independent, trajectory, arm)
+                    cells.append(mean_difference(a, b).text(4) if a and b else "–")
+                rows.append([pair[0], central.label, independent.label,
+                             f"{len(central.runs)} / {len(independent.runs)}", trajectory,
+                             *cells])
+    return rows
 
 
 def contact_timeline_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
