@@ -44,8 +44,9 @@ def _old_run(tmp_path: Path) -> tuple[Path, list[Episode]]:
     write_table(run / "tables" / "eval_moments.parquet",
                 pd.concat([_old_moments("R", e) for e in episodes], ignore_index=True))
     old_trajectories = pd.concat([trajectory_table("R", e) for e in episodes], ignore_index=True)
-    for column in old_trajectories.columns[5:]:
-        old_trajectories[column] = old_trajectories[column].astype(np.float64)
+    for column in old_trajectories.columns:
+        if column.startswith(("tip_", "target_")):  # the old format's float64 positions
+            old_trajectories[column] = old_trajectories[column].astype(np.float64)
     write_table(run / "tables" / "eval_trajectories.parquet", old_trajectories)
     return run, episodes
 

@@ -4,9 +4,10 @@ Only for controllers whose evaluations recorded contact (``eval_metrics`` column
 ``contact_steps`` …, written since contact exists). A table per controller (task, contact on or
 off, the quadratic mean of the two arms' 3-D RMSE against the shared-target floor, contact
 steps, deepest overlap, contact force); centralized against independent controllers with
-contact, per cell, with Welch's interval; a figure of clearance and contact force against time
-per featured controller; and a figure that draws both arms with their radius at the instants
-``eval_snapshots`` kept, so a reader sees whether their surfaces overlap.
+contact, per cell, with Welch's interval; for the first few controllers with contact on, a
+figure of clearance and contact force against time and a figure that draws both arms with
+their radius at the instants ``eval_snapshots`` kept, so a reader sees whether their surfaces
+overlap.
 """
 
 from __future__ import annotations
@@ -132,7 +133,8 @@ def contact_section(doc: Doc, ctx: Context) -> None:
               "Welch's 95 % interval; negative: the centralized controller tracks better):")
         doc.table(["task", "centralized", "independent", "seeds", "trajectory",
                    "arm 1: difference [95 % CI]", "arm 2: difference [95 % CI]"], comparison)
-    drawn = [g for g in ctx.groups if g.label in set(summary["group"])][:_MAX_FIGURE_GROUPS]
+    touching = set(summary.loc[summary["contact"] == "on", "group"])
+    drawn = [g for g in ctx.groups if g.label in touching][:_MAX_FIGURE_GROUPS]
     trajectory = "circle"
     runs = [(g.label, run) for g in drawn
             if (run := representative_run(g, trajectory)) is not None]
