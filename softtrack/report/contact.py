@@ -270,7 +270,7 @@ def arms_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
                 if row == 0:
                     gap = _clearance_at(targets, trajectory, int(step))
                     ax.set_title(f"t = {float(part['t'].iloc[0]):.1f} s"
-                                 + (f", gap {1e3 * gap:.0f} mm" if np.isfinite(gap) else ""),
+                                 + (f", gap {1e3 * gap:.1f} mm" if np.isfinite(gap) else ""),
                                  fontsize=9)
     fg._suptitle(fig, f"Both arms with their radius ({radius:g} m), "
                       f"{fg._traj_title(trajectory)}", 12,
