@@ -191,7 +191,7 @@ def contact_timeline_figure(runs: Sequence[tuple[str, RunData]], trajectory: str
                             path: str | os.PathLike[str], footer: str | None = None) -> Path:
     """Per controller (rows): the arms' surface clearance (mm; < 0: overlap) and the contact
     force between them (N) at every control step of ``trajectory``."""
-    fig = fg._new(11, 1.0 + 2.0 * len(runs))
+    fig = fg._new(11, 1.2 + 2.2 * len(runs))
     axes = fig.subplots(len(runs), 2, squeeze=False)
     for (label, run), (ax_gap, ax_force) in zip(runs, axes, strict=True):
         table = run.trajectories
@@ -200,12 +200,13 @@ def contact_timeline_figure(runs: Sequence[tuple[str, RunData]], trajectory: str
         if rows is None or rows.empty:
             for ax in (ax_gap, ax_force):
                 ax.text(0.5, 0.5, "not recorded", ha="center", transform=ax.transAxes)
-            ax_gap.set_ylabel(label, fontsize=9)
+            ax_gap.set_title(label, fontsize=9, loc="left")
             continue
         t = rows["t"].to_numpy()
         ax_gap.plot(t, 1e3 * rows["clearance"].to_numpy(), lw=0.8, color="tab:blue")
         ax_gap.axhline(0.0, color="0.3", lw=0.8, ls="--")
-        ax_gap.set_ylabel(f"{label}\nclearance (mm)", fontsize=9)
+        ax_gap.set_title(label, fontsize=9, loc="left")
+        ax_gap.set_ylabel("clearance (mm)", fontsize=9)
         ax_force.plot(t, rows["contact_force"].to_numpy(), lw=0.8, color="tab:red")
         ax_force.set_ylabel("contact force (N)", fontsize=9)
         for ax in (ax_gap, ax_force):
