@@ -551,6 +551,9 @@ def resume_runs(
 
     options = options or dispatch.ExecOptions()
     store = RunStore(resolve_runs_dir(runs_dir))
+    if on_progress is not None:
+        for line in dispatch.unresumable_runs(store):
+            on_progress(f"warning: {line}")
     records = dispatch.select_resumable_runs(store, selection)
     if not records:
         return None

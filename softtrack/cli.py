@@ -77,6 +77,13 @@ def _user_errors() -> Iterator[None]:
         yield
     except api.USER_ERRORS as exc:
         _fail(exc)
+    except Exception as exc:
+        from softtrack.store.disk import storage_problem
+
+        problem = storage_problem(exc, "then run the command again")
+        if problem is None:
+            raise
+        _fail(problem)
 
 
 def _version(value: bool) -> None:
@@ -90,6 +97,10 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+def _exit_on_sigterm(signum: int, _frame: object) -> None:
+    raise SystemExit(128 + signum)
+
+
 @app.callback()
 def main(
     version: Annotated[
@@ -97,6 +108,13 @@ def main(
     ] = False,
 ) -> None:
     """Train, evaluate and compare controllers for two soft arms tracking a moving target."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        # SIGTERM unwinds like Ctrl-C, so every command removes its temporary files (training
+        # and the pools install their own clean stop while they run)
+        signal.signal(signal.SIGTERM, _exit_on_sigterm)
 
 
 @app.command()
@@ -209,7 +227,10 @@ def train(
                 spec, overrides or [], runs_dir=runs_dir, seed=seed, on_start=started
             )
     for outcome in outcomes:
-        if outcome.status == "interrupted":
+        if outcome.status == "interrupted" and outcome.error:
+            typer.echo(f"error: run {outcome.run_id} stopped at step {outcome.global_step}: "
+                       f"{outcome.error}", err=True)
+        elif outcome.status == "interrupted":
             typer.echo(
                 f"interrupted: run {outcome.run_id} at step {outcome.global_step}; continue with "
                 f"`softtrack train --resume {outcome.run_id}`",
@@ -592,6 +613,9 @@ def query_command(
     from softtrack.store.query import ResultsDatabase, format_result, format_views
 
     with _user_errors(), ResultsDatabase(runs_dir) as db:
+        for item in db.unreadable:
+            typer.echo(f"warning: run {item.path.name} left out: {item.reason}; {item.fix}",
+                       err=True)
         if views:
             typer.echo(format_views(db.views()))
             return

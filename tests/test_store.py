@@ -216,9 +216,12 @@ def test_read_ignores_stray_temp_files(tmp_path: Path) -> None:
     stray.write_bytes(b"PAR1 half-written garbage")
     assert read_table(path)["return"].tolist() == [1.0]
     assert list_tables(tmp_path) == {"train_episodes": path}
+    live = tmp_path / f".train_episodes.tmp-{os.getppid()}-0badf00d.parquet"
+    live.write_bytes(b"PAR1 a live writer's file")
     append_rows(path, [{"episode": 1, "return": 2.0}])
     assert read_table(path)["return"].tolist() == [1.0, 2.0]
-    assert stray.exists()  # only remove_temp_files deletes leftovers
+    assert not stray.exists()  # a dead writer's leftover is swept by the next write
+    assert live.exists()  # a live process's temporary file is left alone
 
 
 def test_sigkill_during_appends_leaves_readable_table(tmp_path: Path) -> None:

@@ -1,8 +1,8 @@
 """Evaluate stored runs and write their evaluation tables.
 
 ``evaluate_run`` loads a run's policy, runs one deterministic episode per trajectory and
-writes its tables into the run's ``tables/`` (atomically, replacing the rows of the
-trajectories it evaluated and keeping the others):
+writes its tables into the run's ``tables/`` (all of them or none: :func:`~softtrack.store.tables.write_tables`;
+replacing the rows of the trajectories it evaluated and keeping the others):
 
 * ``eval_trajectories.parquet``: tip and target positions at every control step, and the
   arms' clearance, penetration and contact force at that step;
@@ -60,8 +60,14 @@ from softtrack.evaluation.tables import (
 from softtrack.rl.policy import ModelChoice, load_policy
 from softtrack.spec.env_config import env_config
 from softtrack.store.provenance import cpu_kind
-from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
-from softtrack.store.tables import read_table, write_table
+from softtrack.store.runs import (
+    RunRecord,
+    RunStore,
+    RunStoreError,
+    UnreadableRun,
+    resolve_runs_dir,
+)
+from softtrack.store.tables import read_table, write_table, write_tables
 
 __all__ = [
     "ELEMENT_MOMENTS_TABLE",
@@ -91,6 +97,11 @@ def resolve_run(reference: str, runs_dir: str | os.PathLike[str] | None = None) 
     if (path / "run.json").is_file():
         path = path.resolve()
         return RunStore(path.parent).get_run(path.name)
+    if path.is_dir() and (path / "spec.yaml").is_file():
+        raise RunStoreError(
+            f"{path / 'run.json'}: the run record is missing, so the run cannot be used; "
+            f"{UnreadableRun(path, '').fix}"
+        )
     return RunStore(resolve_runs_dir(runs_dir)).get_run(reference)
 
 
@@ -103,19 +114,22 @@ def has_evaluation(record: RunRecord, trajectories: Sequence[str] = EVAL_TRAJECT
     return set(trajectories) <= done
 
 
-def _replace_rows(path: Path, new: pd.DataFrame, trajectories: Sequence[str]) -> None:
-    """Replace the rows of ``trajectories`` in the table at ``path`` by ``new`` (columns of an
-    older table format that ``new`` lacks are dropped); remove the file if no row is left."""
+def _replaced_rows(
+    path: Path, new: pd.DataFrame, trajectories: Sequence[str]
+) -> pd.DataFrame | None:
+    """The table at ``path`` with the rows of ``trajectories`` replaced by ``new`` (columns of
+    an older table format that ``new`` lacks are dropped); ``None`` if no row is left.
+
+    Raises:
+        TableError: the existing file is unreadable (before anything is written).
+    """
     if path.is_file():
         old = read_table(path)
         old = old[~old["trajectory"].isin(list(trajectories))]
         if len(new.columns):
             old = old[[c for c in old.columns if c in new.columns]]
         new = pd.concat([old, new], ignore_index=True) if len(old) else new
-    if len(new):
-        write_table(path, new.reset_index(drop=True))
-    else:
-        path.unlink(missing_ok=True)
+    return new.reset_index(drop=True) if len(new) else None
 
 
 def _episode_setup(
@@ -171,13 +185,17 @@ def evaluate_run(
         frames["eval_metrics"][-1]["cpu"] = cpu
         if on_episode is not None:
             on_episode(record, episode, frames["eval_metrics"][-1])
-    if write:
-        for name, parts in frames.items():
-            _replace_rows(record.table_path(name), pd.concat(parts, ignore_index=True),
-                          trajectories)
+    if write:  # every table or none (a corrupt old table stops it before any write)
+        changes: dict[Path, pd.DataFrame | None] = {
+            record.table_path(name): _replaced_rows(
+                record.table_path(name), pd.concat(parts, ignore_index=True), trajectories
+            )
+            for name, parts in frames.items()
+        }
         stale = record.table_path(ELEMENT_MOMENTS_TABLE)
         if not full_moments and stale.is_file():
-            _replace_rows(stale, pd.DataFrame(), trajectories)
+            changes[stale] = _replaced_rows(stale, pd.DataFrame(), trajectories)
+        write_tables(changes)
     return pd.concat(frames["eval_metrics"], ignore_index=True)
 
 

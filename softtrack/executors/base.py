@@ -100,6 +100,10 @@ def run_job(runs_dir: str | os.PathLike[str], run_id: str, *, threads: int = 1) 
     if record.info.status == "completed":
         print(f"{record.run_id}: already completed", file=sys.stderr)
         return 0
+    problem = record.spec_problem()
+    if problem is not None:  # nothing to train from: the run keeps its status
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     started = record.info.status != "queued" or bool(record.info.global_step)
     try:
         outcome = train_run(store, record, resume=started, show_progress=False)

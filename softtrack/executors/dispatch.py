@@ -203,23 +203,28 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
 
     Each item is an experiment name or a sweep id (its resumable runs: see :func:`resumable`)
     or a run id / unique prefix (that run, unless it is completed or still training; a pruned
-    run too). No items: every resumable run of the store.
+    run too). No items: every resumable run of the store. Runs whose ``spec.yaml`` is missing
+    or unreadable are left out (:func:`unresumable_runs` names them).
 
     Raises:
         RunStoreError: an item matches nothing, or a named run cannot be resumed.
     """
     records = store.list_runs()
     if not selection:
-        return [r for r in records if resumable(r)]
+        return [r for r in records if resumable(r) and r.spec_problem() is None]
     chosen: dict[str, RunRecord] = {}
     for item in selection:
         group = [r for r in records
                  if r.info.name == item or str((r.info.notes or {}).get("sweep", "")).upper()
                  == item.upper()]
         if group:
-            chosen.update((r.run_id, r) for r in group if resumable(r))
+            chosen.update((r.run_id, r) for r in group
+                          if resumable(r) and r.spec_problem() is None)
             continue
         record = store.get_run(item)  # raises RunNotFoundError with the fix
+        problem = record.spec_problem()
+        if problem is not None:
+            raise RunStoreError(problem)
         if record.info.status == "completed":
             raise RunStoreError(f"run {record.run_id} is already completed; nothing to resume")
         if lock_held(record) is True:
@@ -227,6 +232,18 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
                                 f"on {record.info.host}); stop it first")
         chosen[record.run_id] = record
     return sorted(chosen.values(), key=lambda r: r.run_id)
+
+
+def unresumable_runs(store: RunStore) -> list[str]:
+    """One line per run that :func:`select_resumable_runs` leaves out although it would be
+    resumable: its run.json or spec.yaml is missing or unreadable (with what to do)."""
+    lines = [f"run {item.path.name} left out: {item.reason}; {item.fix}"
+             for item in store.list_unreadable()]
+    for record in store.list_runs():
+        problem = record.spec_problem()
+        if problem is not None and resumable(record):
+            lines.append(f"run {record.run_id} left out: {problem}")
+    return lines
 
 
 def new_sweep_id() -> str:

@@ -9,7 +9,9 @@ with :class:`~softtrack.rl.policy_training.PolicyTrainer`, and ends it as
   finished, a checkpoint was saved and the pending episodes written (exit code 128 + signal:
   130 for SIGINT);
 * ``failed``: an exception; run.json's ``error`` has its one-line summary and ``traceback``
-  the full traceback.
+  the full traceback. A full disk or a read-only one (:mod:`softtrack.store.disk`) ends the
+  run ``interrupted`` instead, with the one-line reason in ``error`` and exit code 1: nothing
+  is wrong with the run, and it resumes once there is space.
 
 A caller may watch the validation scores (``on_validation``, used by ``softtrack tune``) and
 stop the run after one (a *pruned* trial): training then stops as after a signal (checkpoint
@@ -52,6 +54,7 @@ from softtrack.rl.policy_training import (
 from softtrack.signals import StopFlag, stop_on_signals
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import remove_temp_files
+from softtrack.store.disk import storage_problem
 from softtrack.store.runs import (
     N_ARMS,
     RunRecord,
@@ -262,6 +265,14 @@ def _train_locked(
         _finish_abruptly(store, record, trainer, progress, k, "interrupted", None)
         raise
     except Exception as exc:  # noqa: BLE001 (recorded in run.json as a failed run)
+        problem = storage_problem(
+            exc, f"then continue with `softtrack train --resume {record.run_id}`"
+        )
+        if problem is not None:  # a full or read-only disk: resumable once fixed
+            fields = _finish_abruptly(store, record, trainer, progress, k, "interrupted",
+                                      problem)
+            step = int(fields.get("global_step", record.info.global_step))
+            return TrainOutcome(record.run_id, "interrupted", step, None, 1, problem)
         text = "".join(traceback.format_exception(exc))
         line = " ".join(f"{type(exc).__name__}: {exc}".split())
         fields = _finish_abruptly(

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
 from pydantic_core import PydanticCustomError
 
 ERROR_TYPE = "softtrack"  # type of the PydanticCustomErrors raised by our own validators
@@ -61,6 +61,27 @@ def _one_line(text: str) -> str:
 def custom_error(message: str, field: str = "") -> PydanticCustomError:
     """A validation error with our own ``problem; fix`` text; ``field`` is appended to its path."""
     return PydanticCustomError(ERROR_TYPE, "{message}", {"message": message, "field": field})
+
+
+#: Range of a whole number in a spec: what a signed 64-bit store column holds.
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+
+def check_int64(value: Any) -> None:
+    """Raise a validation error if ``value`` (or a whole number inside a list or mapping) does
+    not fit a signed 64-bit integer."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        if not INT64_MIN <= value <= INT64_MAX:
+            raise custom_error(
+                f"{value} does not fit a 64-bit integer (at most {INT64_MAX:,}); "
+                "use a smaller number"
+            )
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            check_int64(item)
+    elif isinstance(value, dict):
+        for item in value.values():
+            check_int64(item)
 
 
 # ------------------------------------------------------------------------------------------
@@ -134,3 +155,11 @@ class SpecModel(BaseModel):
     (not re-validated)."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=False)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _fits_the_store(cls, value: Any) -> Any:
+        """Every whole number fits a signed 64-bit integer, as run.json and the tables hold
+        them (``total_timesteps`` of 2**63 would train, then break every query)."""
+        check_int64(value)
+        return value

@@ -56,8 +56,70 @@ _Loader.add_implicit_resolver(
 )
 
 
+#: Largest number of values a spec may expand to with its aliases (``*name``) resolved; a
+#: spec holds a few hundred, a "billion laughs" alias bomb billions.
+MAX_YAML_VALUES = 100_000
+#: Deepest nesting of lists and mappings a spec may have (a spec nests about 5 deep).
+MAX_YAML_DEPTH = 64
+
+
+def _check_yaml_size(text: str, label: str) -> None:
+    """Reject, before building anything, YAML nested deeper than :data:`MAX_YAML_DEPTH` or
+    expanding (aliases resolved) to more than :data:`MAX_YAML_VALUES` values.
+
+    Walks the parser's events, which needs neither recursion nor the expanded data.
+    """
+    open_sizes: list[int] = []  # values inside each open collection so far
+    open_anchors: list[str | None] = []
+    anchored: dict[str, int] = {}  # anchor -> number of values it expands to
+    total = 0
+
+    def close(size: int, anchor: str | None) -> None:
+        nonlocal total
+        if anchor is not None:
+            anchored[anchor] = size
+        if open_sizes:
+            open_sizes[-1] += size
+        else:
+            total += size
+        if max(total, open_sizes[-1] if open_sizes else 0) > MAX_YAML_VALUES:
+            raise SpecError(
+                label,
+                f"the YAML expands to more than {MAX_YAML_VALUES:,} values (aliases resolved)",
+                "a spec holds a few hundred values; remove the repeated aliases (*name)",
+            )
+
+    try:
+        for event in yaml.parse(text, Loader=_Loader):
+            if isinstance(event, yaml.CollectionStartEvent):
+                if len(open_sizes) >= MAX_YAML_DEPTH:
+                    raise SpecError(
+                        label,
+                        f"the YAML nests lists/mappings more than {MAX_YAML_DEPTH} deep",
+                        "a spec nests about 5 deep; fix the brackets",
+                        line=event.start_mark.line + 1,
+                    )
+                open_sizes.append(1)
+                open_anchors.append(event.anchor)
+            elif isinstance(event, yaml.CollectionEndEvent):
+                close(open_sizes.pop(), open_anchors.pop())
+            elif isinstance(event, yaml.ScalarEvent):
+                close(1, event.anchor)
+            elif isinstance(event, yaml.AliasEvent):
+                if event.anchor not in anchored:  # unknown or recursive: the composer says which
+                    return
+                close(anchored[event.anchor], None)
+    except yaml.YAMLError:
+        return  # malformed: _parse_yaml reports it with its line
+
+
 def _parse_yaml(text: str, label: str) -> tuple[Any, dict[tuple[Any, ...], int]]:
-    """Parse one YAML document; returns the data and a map field-path → 1-based line."""
+    """Parse one YAML document; returns the data and a map field-path → 1-based line.
+
+    Raises:
+        SpecError: malformed YAML, or YAML too deep or too large (:func:`_check_yaml_size`).
+    """
+    _check_yaml_size(text, label)
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
@@ -73,7 +135,7 @@ def _parse_yaml(text: str, label: str) -> tuple[Any, dict[tuple[Any, ...], int]]
             "fix the YAML syntax at that line",
             line=line,
         ) from None
-    except yaml.YAMLError as exc:
+    except (yaml.YAMLError, RecursionError) as exc:
         raise SpecError(label, f"malformed YAML: {exc}", "fix the YAML syntax") from None
     finally:
         loader.dispose()
@@ -124,7 +186,7 @@ def _suggest(name: str, valid: Iterable[str]) -> str:
 
 
 def _parse_override(text: str) -> tuple[tuple[str, ...], Any]:
-    label = f"--set {text}"
+    label = f"--set {text if len(text) <= 80 else text[:77] + '...'}"
     key, sep, raw = text.partition("=")
     key = key.strip()
     if not sep or not _OVERRIDE_KEY.match(key):
@@ -149,9 +211,10 @@ def _parse_override(text: str) -> tuple[tuple[str, ...], Any]:
                 label, f"unknown field {part!r}", _suggest(part, model.model_fields), field=key
             )
         model = _sub_model(model, part)
+    _check_yaml_size(raw, label)
     try:
         value = yaml.load(raw, Loader=_Loader) if raw.strip() else None
-    except yaml.YAMLError as exc:
+    except (yaml.YAMLError, RecursionError) as exc:
         problem = getattr(exc, "problem", None) or str(exc)
         raise SpecError(
             label,

@@ -5,6 +5,8 @@ even if the writer is killed with SIGKILL or the machine loses power (the data i
 before the rename and the directory after it). A killed writer can leave its temporary file
 behind; temporary names start with ``.`` and contain ``.tmp-`` (see :func:`is_temp_file`), so
 every reader in :mod:`softtrack.store` skips them and :func:`remove_temp_files` cleans them up.
+Temporary names carry the writer's pid, so :func:`remove_stale_temp_files` can sweep those of
+dead writers before the next write of the same file.
 """
 
 from __future__ import annotations
@@ -24,7 +26,10 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "fsync_dir",
+    "fsync_file",
     "is_temp_file",
+    "remove_stale_temp_files",
     "remove_temp_files",
     "temp_name",
 ]
@@ -32,11 +37,56 @@ __all__ = [
 _TEMP_MARK = ".tmp-"
 
 
-def temp_name(path: Path) -> Path:
-    """A fresh temporary sibling of ``path`` keeping its suffix: ``.model.tmp-3fa29c1b.zip``."""
+def _split(path: Path) -> tuple[str, str]:
     suffix = "".join(path.suffixes[-1:])
-    stem = path.name[: len(path.name) - len(suffix)] if suffix else path.name
-    return path.with_name(f".{stem}{_TEMP_MARK}{secrets.token_hex(4)}{suffix}")
+    return (path.name[: len(path.name) - len(suffix)] if suffix else path.name), suffix
+
+
+def temp_name(path: Path) -> Path:
+    """A fresh temporary sibling of ``path`` keeping its suffix and naming the writing
+    process: ``.model.tmp-4711-3fa29c1b.zip`` (pid 4711)."""
+    stem, suffix = _split(path)
+    return path.with_name(f".{stem}{_TEMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{suffix}")
+
+
+def _writer_alive(name: str) -> bool:
+    """Whether the process named in a temporary file's name still runs (names without a pid,
+    from older versions, count as dead)."""
+    pid_text = name.partition(_TEMP_MARK)[2].split("-", 1)[0]
+    if not pid_text.isdigit() or "-" not in name.partition(_TEMP_MARK)[2]:
+        return False
+    pid = int(pid_text)
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
+    """Delete the temporary siblings of ``path`` left by writers that died (killed before
+    their cleanup could run); those of live processes stay. Returns the removed paths."""
+    path = Path(path)
+    stem, suffix = _split(path)
+    prefix = f".{stem}{_TEMP_MARK}"
+    removed: list[Path] = []
+    try:
+        siblings = list(path.parent.iterdir())
+    except OSError:
+        return removed
+    for sibling in siblings:
+        name = sibling.name
+        if name.startswith(prefix) and name.endswith(suffix) and not _writer_alive(name):
+            if sibling.is_dir():
+                shutil.rmtree(sibling, ignore_errors=True)
+            else:
+                sibling.unlink(missing_ok=True)
+            removed.append(sibling)
+    return removed
 
 
 def is_temp_file(path: str | os.PathLike[str]) -> bool:
@@ -45,7 +95,8 @@ def is_temp_file(path: str | os.PathLike[str]) -> bool:
     return name.startswith(".") and _TEMP_MARK in name
 
 
-def _fsync_path(path: Path) -> None:
+def fsync_file(path: Path) -> None:
+    """Flush ``path``'s data to the disk."""
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
@@ -53,9 +104,10 @@ def _fsync_path(path: Path) -> None:
         os.close(fd)
 
 
-def _fsync_dir(path: Path) -> None:
+def fsync_dir(path: Path) -> None:
+    """Flush a directory's entries (a rename in it) to the disk, where supported."""
     try:
-        _fsync_path(path)
+        fsync_file(path)
     except OSError:  # not supported on some platforms/file systems; the rename is still atomic
         pass
 
@@ -80,10 +132,10 @@ def atomic_path(path: str | os.PathLike[str], *, fsync: bool = True) -> Iterator
         if not tmp.exists():
             raise FileNotFoundError(f"the writer did not create {tmp}")
         if fsync:
-            _fsync_path(tmp)
+            fsync_file(tmp)
         os.replace(tmp, path)
         if fsync:
-            _fsync_dir(path.parent)
+            fsync_dir(path.parent)
     except BaseException:
         try:
             tmp.unlink()
@@ -114,11 +166,11 @@ def atomic_dir(path: str | os.PathLike[str], *, fsync: bool = True) -> Iterator[
         if fsync:
             for root, _dirs, files in os.walk(tmp):
                 for name in files:
-                    _fsync_path(Path(root) / name)
-                _fsync_dir(Path(root))
+                    fsync_file(Path(root) / name)
+                fsync_dir(Path(root))
         os.rename(tmp, path)  # fails if path appeared meanwhile (non-empty dir) or is a file
         if fsync:
-            _fsync_dir(path.parent)
+            fsync_dir(path.parent)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -2,7 +2,12 @@
 
 :func:`connect` opens an in-memory DuckDB database over a runs directory (see
 :func:`~softtrack.store.runs.resolve_runs_dir`); nothing is copied and nothing is written to
-the runs. It holds:
+the runs. The database is **read-only** (:meth:`ResultsDatabase.query`): it runs only read
+statements (SELECT, WITH, VALUES, EXPLAIN, DESCRIBE, SHOW, SUMMARIZE), and once the views exist
+DuckDB's file system access is switched off except for reading the store's Parquet files,
+extensions can be neither installed nor loaded, and the configuration is locked; so ``COPY``,
+``ATTACH``, ``EXPORT``, ``INSTALL``, ``read_csv('/etc/passwd')`` and the like are refused with
+one line and nothing is read or written outside the views. It holds:
 
 ``runs``
     One row per run (a sub-directory with a readable ``run.json``, as ``softtrack runs``
@@ -319,6 +324,30 @@ def _first_line(exc: BaseException) -> str:
     return text or type(exc).__name__
 
 
+#: Statement types :meth:`ResultsDatabase.query` runs (DESCRIBE, SHOW, SUMMARIZE and VALUES
+#: parse as SELECT).
+_READ_STATEMENTS = frozenset({"SELECT", "EXPLAIN"})
+
+
+def _check_read_only(sql: str) -> None:
+    """Raise :class:`QueryError` for a statement that is not a read (COPY, ATTACH, SET, ...);
+    a syntax error is left to the query itself."""
+    try:
+        statements = duckdb.extract_statements(sql)
+    except duckdb.Error:
+        return
+    for statement in statements:
+        if str(statement.type).rsplit(".", 1)[-1] not in _READ_STATEMENTS:
+            words = statement.query.split()
+            kind = words[0].upper() if words else str(statement.type)
+            raise QueryError(
+                f"query: {kind} statements are not allowed: a results database is read-only "
+                "(SELECT, WITH, EXPLAIN, DESCRIBE, SUMMARIZE); to save a result use "
+                "--format csv or json and redirect it, e.g. `softtrack query SQL --format csv "
+                "> result.csv`"
+            )
+
+
 class ResultsDatabase:
     """An in-memory DuckDB database over the runs of ``runs_dir`` (see the module docstring).
 
@@ -338,7 +367,10 @@ class ResultsDatabase:
                 f"query: runs directory {root} {what}; pass --runs-dir DIR or set "
                 "SOFTTRACK_RUNS_DIR (the shipped runs: --runs-dir models)"
             )
-        self.records = RunStore(root).list_runs()
+        store = RunStore(root)
+        self.records = store.list_runs()
+        #: runs left out because their run.json is missing or unreadable
+        self.unreadable = store.list_unreadable()
         if not self.records:
             raise QueryError(
                 f"query: {root} holds no runs (no sub-directory with a readable run.json); "
@@ -351,6 +383,7 @@ class ResultsDatabase:
             self._views: dict[str, ViewInfo] = {}
             self._create_runs_views()
             self._create_table_views()
+            self._sandbox()
         except BaseException:
             self.connection.close()
             raise
@@ -371,6 +404,7 @@ class ResultsDatabase:
     def _create_table_views(self) -> None:
         by_table: dict[str, list[_TableFile]] = {}
         broken: dict[str, str] = {}
+        self._files: set[str] = set()
         for record in self.records:
             for name, paths in _table_files(record).items():
                 for path in paths:
@@ -394,6 +428,7 @@ class ResultsDatabase:
             if name in broken:
                 self._views[view] = ViewInfo(view, description, (), runs, broken[name])
                 continue
+            self._files.update(str(f.path) for f in files)
             try:
                 self.connection.execute(f"CREATE VIEW {_ident(view)} AS {_view_sql(files)}")
             except duckdb.Error as exc:
@@ -404,6 +439,17 @@ class ResultsDatabase:
                 )
                 continue
             self._add_view(view, description, runs)
+
+    def _sandbox(self) -> None:
+        """No file access but reading the views' Parquet files, no extensions, locked settings."""
+        con = self.connection
+        files = sorted(self._files)
+        if files:
+            con.execute("SET allowed_paths = ?", [files])
+        for setting in ("enable_external_access", "autoinstall_known_extensions",
+                        "autoload_known_extensions", "allow_community_extensions"):
+            con.execute(f"SET {setting} = false")
+        con.execute("SET lock_configuration = true")
 
     def _add_view(self, name: str, description: str, runs: int) -> None:
         rows = self.connection.execute(
@@ -430,6 +476,7 @@ class ResultsDatabase:
         if not sql.strip():
             raise QueryError('query: no SQL given; e.g. `softtrack query "SELECT * FROM runs"`')
         try:
+            _check_read_only(sql)
             cursor = self.connection.execute(sql)
             if cursor.description is None:
                 return pd.DataFrame()
@@ -455,6 +502,9 @@ class ResultsDatabase:
         context = [ln for ln in lines[1:] if not ln.startswith("LINE ") and set(ln) != {"^"}]
         where = next((ln for ln in lines[1:] if ln.startswith("LINE ")), None)
         detail = first + "".join(f"; {ln}" for ln in context)
+        if isinstance(exc, duckdb.PermissionException) or "configuration has been locked" in first:
+            return (f"query: refused, a query reads only the store's views ({first}); "
+                    f"{listing}")
         if isinstance(exc, duckdb.ParserException):
             at = f" ({where})" if where else ""
             return f"query: {detail}{at}; fix the SQL (DuckDB's dialect: duckdb.org/docs/sql)"
@@ -483,6 +533,10 @@ class ResultsDatabase:
 
 def connect(runs_dir: str | os.PathLike[str] | None = None) -> duckdb.DuckDBPyConnection:
     """An in-memory DuckDB connection with the views over ``runs_dir`` (module docstring).
+
+    Its file access is limited to reading (and, a raw connection being unfiltered, writing)
+    the store's Parquet files; use :func:`query` or :class:`ResultsDatabase` for SQL you do not
+    control: they refuse every statement but a read.
 
     Raises:
         QueryError: the directory does not exist or holds no runs.

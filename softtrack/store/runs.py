@@ -26,10 +26,12 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from softtrack.spec import ExperimentSpec, chain_comment, load_spec, spec_hash, spec_to_yaml
+from softtrack.spec.fields import check_int64
 from softtrack.store.atomic import atomic_write_text, is_temp_file
+from softtrack.store.disk import FULL_ERRNOS
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.layout import PolicyDir
 from softtrack.store.provenance import (
@@ -51,6 +53,7 @@ __all__ = [
     "RunStatus",
     "RunStore",
     "RunStoreError",
+    "UnreadableRun",
     "git_info",
     "library_versions",
     "lock_held",
@@ -163,6 +166,14 @@ class RunInfo(BaseModel):
     )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
 
+    @field_validator("seed", "total_timesteps", "global_step", "arm_total_timesteps",
+                     "arm_steps", "pid", mode="after")
+    @classmethod
+    def _fits_int64(cls, value: Any) -> Any:
+        """Counters fit the store's 64-bit integer columns (``softtrack query``)."""
+        check_int64(value)
+        return value
+
     @property
     def policy_budget(self) -> int:
         """The budget of one policy, env steps: an independent run's per-arm budget
@@ -244,9 +255,49 @@ class RunRecord:
             return {}
         return data if isinstance(data, dict) else {}
 
+    def spec_problem(self) -> str | None:
+        """Why ``spec.yaml`` cannot be read at all (missing, not a file, not UTF-8), as a line
+        that says what to do; ``None`` if it reads (whether it validates is :meth:`load_spec`'s
+        business)."""
+        path = self.spec_path
+        try:
+            path.read_bytes().decode("utf-8")
+        except FileNotFoundError:
+            problem = "is missing"
+        except UnicodeDecodeError:
+            problem = "is not UTF-8 text"
+        except OSError as exc:
+            problem = f"cannot be read ({exc.strerror or exc})"
+        else:
+            return None
+        return (f"{path}: the run's spec {problem}; restore it (a copy of the run, or the "
+                f"experiment's YAML) and resume again; run {self.run_id} keeps its status")
+
     def load_spec(self) -> ExperimentSpec:
-        """The run's fully resolved spec (raises ``SpecError`` if it no longer validates)."""
+        """The run's fully resolved spec.
+
+        Raises:
+            RunStoreError: ``spec.yaml`` is missing or unreadable (:meth:`spec_problem`).
+            SpecError: it no longer validates.
+        """
+        problem = self.spec_problem()
+        if problem is not None:
+            raise RunStoreError(problem)
         return load_spec(self.spec_path)
+
+
+@dataclass(frozen=True)
+class UnreadableRun:
+    """A run directory whose ``run.json`` is missing or unreadable (``softtrack runs`` lists it
+    as ``unreadable``; nothing else can use it until run.json is restored)."""
+
+    path: Path
+    reason: str
+
+    @property
+    def fix(self) -> str:
+        return (f"restore {self.path / 'run.json'} from a backup or copy, or move the directory "
+                "out of the runs directory")
 
 
 def resolve_runs_dir(option: str | os.PathLike[str] | None = None) -> Path:
@@ -350,8 +401,18 @@ class RunStore:
             for p in self.root.iterdir()
             if key and p.name.upper().startswith(key) and (p / "run.json").is_file()
         ]
+        if not matches and key:  # a directory named otherwise (models/<name>): its run.json id
+            matches = [
+                item.path for item in self._scan()
+                if isinstance(item, RunRecord) and item.info.run_id.upper().startswith(key)
+            ]
         if len(matches) == 1:
             return matches[0]
+        if not matches and run_id and exact.is_dir() and (exact / "spec.yaml").is_file():
+            raise RunStoreError(
+                f"{exact / 'run.json'}: the run record is missing, so run {run_id} cannot be "
+                f"used; {UnreadableRun(exact, '').fix}"
+            )
         hint = f"list the runs with `softtrack runs --runs-dir {self.root}`"
         if len(matches) > 1:
             raise RunNotFoundError(
@@ -368,7 +429,19 @@ class RunStore:
             raise RunStoreError(f"{path / 'run.json'}: unreadable run record ({first})") from None
 
     def _write(self, path: Path, info: RunInfo) -> None:
-        atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")
+        text = info.model_dump_json(indent=2) + "\n"
+        try:
+            atomic_write_text(path / "run.json", text)
+        except OSError as exc:
+            if exc.errno not in FULL_ERRNOS or not (path / "run.json").is_file():
+                raise
+            # a full disk has no room for the new copy, but rewriting the old file in place
+            # reuses its blocks: the run's status is worth that small risk
+            with open(path / "run.json", "r+b") as fh:
+                fh.write(text.encode("utf-8"))
+                fh.truncate()
+                fh.flush()
+                os.fsync(fh.fileno())
 
     def get_run(self, run_id: str) -> RunRecord:
         """The run with this id, or with a unique id prefix (case-insensitive).
@@ -381,18 +454,31 @@ class RunStore:
         return RunRecord(path.name, path, self._read(path))
 
     def list_runs(self) -> list[RunRecord]:
-        """All complete runs, oldest first. Unreadable or unfinished directories are skipped."""
+        """All complete runs, oldest first. Unreadable or unfinished directories are skipped
+        (:meth:`list_unreadable` names them)."""
+        return [item for item in self._scan() if isinstance(item, RunRecord)]
+
+    def list_unreadable(self) -> list[UnreadableRun]:
+        """Directories that hold a run (a ``spec.yaml`` or a ``run.json``) whose ``run.json`` is
+        missing or unreadable, with the reason, by name."""
+        return [item for item in self._scan() if isinstance(item, UnreadableRun)]
+
+    def _scan(self) -> list[RunRecord | UnreadableRun]:
         if not self.root.is_dir():
             return []
-        records = []
+        found: list[RunRecord | UnreadableRun] = []
         for path in sorted(self.root.iterdir()):
-            if not path.is_dir() or is_temp_file(path) or not (path / "run.json").is_file():
+            if not path.is_dir() or is_temp_file(path):
+                continue
+            if not (path / "run.json").is_file():
+                if (path / "spec.yaml").is_file():
+                    found.append(UnreadableRun(path, "run.json is missing"))
                 continue
             try:
-                records.append(RunRecord(path.name, path, self._read(path)))
-            except RunStoreError:
-                continue
-        return records
+                found.append(RunRecord(path.name, path, self._read(path)))
+            except RunStoreError as exc:
+                found.append(UnreadableRun(path, str(exc).split(": ", 1)[-1]))
+        return found
 
     # ---- updates -----------------------------------------------------------------------
     def update_run(self, run_id: str, **fields: Any) -> RunRecord:

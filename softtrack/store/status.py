@@ -21,6 +21,7 @@ import pandas as pd
 from softtrack.store.runs import (
     RunRecord,
     RunStore,
+    UnreadableRun,
     lock_held,
     parse_time,
     pid_alive,
@@ -41,6 +42,7 @@ __all__ = [
     "format_runs_table",
     "is_lost",
     "list_run_summaries",
+    "unreadable_summary",
     "run_summary",
     "stale_after_s",
     "training_seconds",
@@ -244,7 +246,23 @@ def list_run_summaries(
     store = RunStore(resolve_runs_dir(runs_dir))
     now = datetime.now(UTC)
     rows = [run_summary(record, now=now) for record in store.list_runs()]
-    return [r for r in rows if r["status"] == "failed"] if failed else rows
+    if failed:
+        return [r for r in rows if r["status"] == "failed"]
+    return rows + [unreadable_summary(item) for item in store.list_unreadable()]
+
+
+def unreadable_summary(item: UnreadableRun) -> dict[str, Any]:
+    """The ``softtrack runs`` row of a run whose run.json is missing or unreadable: status
+    ``unreadable``, the directory name as its id and the reason as its error."""
+    return {
+        "run_id": item.path.name, "name": "", "algo": "", "controller": "", "seed": None,
+        "status": "unreadable", "stored_status": None, "stale": False, "sweep": None,
+        "global_step": None, "total_timesteps": None, "final_return": None,
+        "final_return_episodes": 0, "steps_per_second": None, "cpu": None, "created": None,
+        "started": None, "ended": None, "spec_hash": None, "git_commit": None,
+        "git_dirty": None, "error": f"{item.reason}; {item.fix}", "traceback": None,
+        "path": str(item.path),
+    }
 
 
 # ---- text output ----------------------------------------------------------------------------
@@ -290,9 +308,9 @@ def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
                 s["name"],
                 s["algo"],
                 s["controller"],
-                str(s["seed"]),
+                "" if s["seed"] is None else str(s["seed"]),
                 status,
-                f"{s['global_step']}/{s['total_timesteps']}",
+                "" if s["global_step"] is None else f"{s['global_step']}/{s['total_timesteps']}",
                 "" if final is None else f"{final:.2f}",
                 _time_cell(s.get("started")),
                 _time_cell(s.get("ended")),
@@ -307,4 +325,6 @@ def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
             for i, cell in enumerate(row)
         ]
         lines.append("  ".join(cells).rstrip())
+    lines += [f"{s['run_id']}: unreadable: {s['error']}"
+              for s in summaries if s["status"] == "unreadable"]
     return "\n".join(lines)

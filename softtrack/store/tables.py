@@ -30,7 +30,14 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from softtrack.store.atomic import atomic_path, is_temp_file
+from softtrack.store.atomic import (
+    atomic_path,
+    fsync_dir,
+    fsync_file,
+    is_temp_file,
+    remove_stale_temp_files,
+    temp_name,
+)
 
 __all__ = [
     "TRAIN_EPISODES_COLUMNS",
@@ -41,6 +48,7 @@ __all__ = [
     "read_arrow",
     "read_table",
     "write_table",
+    "write_tables",
 ]
 
 #: Columns of ``tables/train_episodes.parquet``: the run id, the episode index (0-based, in
@@ -84,7 +92,7 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def _write(path: Path, table: pa.Table) -> None:
+def _write_parquet(table: pa.Table, path: Path) -> None:
     """Write with zstd, each column in the encoding that compresses it best: floats
     byte-stream-split, integers delta-packed (step counters shrink to almost nothing),
     strings dictionary-encoded; any reader (pandas, DuckDB, Polars) reads them."""
@@ -97,9 +105,52 @@ def _write(path: Path, table: pa.Table) -> None:
             encodings[field.name] = "DELTA_BINARY_PACKED"
         elif not pa.types.is_nested(field.type):
             dictionary.append(field.name)
+    pq.write_table(table, path, compression="zstd", use_dictionary=dictionary,
+                   column_encoding=encodings or None)
+
+
+def _write(path: Path, table: pa.Table) -> None:
+    """Replace ``path`` atomically, first sweeping temporaries of dead earlier writers."""
+    remove_stale_temp_files(path)
     with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression="zstd", use_dictionary=dictionary,
-                       column_encoding=encodings or None)
+        _write_parquet(table, tmp)
+
+
+def write_tables(
+    tables: Mapping[str | os.PathLike[str], pd.DataFrame | pa.Table | None],
+) -> None:
+    """Write (or, for ``None``, delete) several tables as one change: every new file is
+    written to a temporary sibling first, and only when all are written are they renamed over
+    the old ones; an error or a signal before that leaves every table as it was (and no
+    temporary file behind).
+
+    Args:
+        tables: ``{path: new content}`` (a DataFrame, its index dropped, or an Arrow table),
+            ``None`` to remove the table.
+    """
+    written: list[tuple[Path, Path]] = []
+    try:
+        for target, data in tables.items():
+            path = Path(target)
+            if data is None:
+                continue
+            remove_stale_temp_files(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = temp_name(path)
+            written.append((tmp, path))
+            _write_parquet(_to_arrow(data), tmp)
+            fsync_file(tmp)
+        for tmp, path in written:
+            os.replace(tmp, path)
+        for target, data in tables.items():
+            if data is None:
+                Path(target).unlink(missing_ok=True)
+        for directory in {path.parent for _, path in written}:
+            fsync_dir(directory)
+    except BaseException:
+        for tmp, _ in written:
+            tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_table(

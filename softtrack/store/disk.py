@@ -1,0 +1,112 @@
+"""One-line messages for the storage faults a user fixes outside softtrack: a full disk (or
+quota), a read-only file system, a directory without write permission.
+
+:func:`storage_problem` turns such an ``OSError`` (also pyarrow's, which carry the errno in
+their text) into a line that names the directory, the free space and an estimate of the space
+the write needed, or ``None`` for any other error (a bug: let its traceback show).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+import shutil
+from pathlib import Path
+
+from softtrack.store.atomic import is_temp_file
+
+__all__ = ["FULL_ERRNOS", "READ_ONLY_ERRNOS", "storage_problem"]
+
+#: "No space left on device" and "Disk quota exceeded".
+FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT})
+#: A read-only file system, or a directory this user may not write.
+READ_ONLY_ERRNOS = frozenset({errno.EROFS, errno.EACCES, errno.EPERM})
+
+_ERRNO_IN_TEXT = re.compile(r"\[errno (\d+)\]", re.IGNORECASE)
+_PATH_IN_TEXT = re.compile(r"(/[^\s'\"]+)")
+
+
+def _errno(exc: BaseException) -> int | None:
+    """The errno of ``exc`` or of an OSError it was raised from (pyarrow keeps it in the text)."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        if isinstance(seen, OSError):
+            if seen.errno is not None:
+                return int(seen.errno)
+            found = _ERRNO_IN_TEXT.search(str(seen))
+            if found:
+                return int(found.group(1))
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+def _path(exc: BaseException) -> Path | None:
+    seen: BaseException | None = exc
+    while seen is not None:
+        name = getattr(seen, "filename", None)
+        if name:
+            return Path(os.fsdecode(name))
+        found = _PATH_IN_TEXT.search(str(seen))
+        if found:
+            return Path(found.group(1))
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
+def _size(path: Path) -> int:
+    if path.is_file():
+        return path.stat().st_size
+    total = 0
+    for root, _dirs, files in os.walk(path):
+        for name in files:
+            try:
+                total += (Path(root) / name).stat().st_size
+            except OSError:
+                pass
+    return total
+
+
+def _needed(path: Path) -> int | None:
+    """What the failed write needed, estimated by the size of what it was replacing: the
+    largest finished sibling of a temporary file or checkpoint directory (or the file itself)."""
+    directory = path if path.is_dir() and not is_temp_file(path) else path.parent
+    if not directory.is_dir():
+        return None
+    siblings = [p for p in directory.iterdir() if not is_temp_file(p)]
+    sizes = [_size(p) for p in siblings if p.is_dir() or p.suffix == path.suffix]
+    return max(sizes) if sizes and max(sizes) > 0 else None
+
+
+def _mb(size: int) -> str:
+    return f"{size / 1e6:.1f} MB" if size < 1e9 else f"{size / 1e9:.2f} GB"
+
+
+def _existing_dir(path: Path) -> Path:
+    directory = path if path.is_dir() and not is_temp_file(path) else path.parent
+    while not directory.exists() and directory != directory.parent:
+        directory = directory.parent
+    return directory
+
+
+def storage_problem(exc: BaseException, then: str = "") -> str | None:
+    """A one-line message for a full disk or a read-only/unwritable directory behind ``exc``,
+    ending with ``then`` (what to do once it is fixed); ``None`` for any other error."""
+    code = _errno(exc)
+    if code not in FULL_ERRNOS and code not in READ_ONLY_ERRNOS:
+        return None
+    path = _path(exc)
+    directory = _existing_dir(path) if path is not None else Path.cwd()
+    after = f"; {then}" if then else ""
+    if code in FULL_ERRNOS:
+        try:
+            free = f"{_mb(shutil.disk_usage(directory).free)} free"
+        except OSError:
+            free = "free space unknown"
+        need = _needed(path) if path is not None else None
+        needed = f", about {_mb(need)} needed" if need else ""
+        what = "disk quota exceeded" if code == errno.EDQUOT else "no space left on the device"
+        return f"{what} writing in {directory} ({free}{needed}): free some space{after}"
+    what = "is on a read-only file system" if code == errno.EROFS else "is not writable"
+    return (f"{directory} {what} ({os.strerror(code)}): softtrack needs to write there; "
+            f"use a writable runs directory (--runs-dir DIR or SOFTTRACK_RUNS_DIR){after}")
