@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup quickstart test test-all bench
+.PHONY: setup quickstart test test-all bench faults
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,11 @@ test: setup
 
 test-all: setup
 	$(BIN)/python -m pytest -q -n 2
+
+# the fault-injection sweep (docs/faults.md): kills, full and read-only disks, corrupt files,
+# hostile queries and specs; ends with its tally of lost / traceback / degraded faults
+faults: setup
+	$(BIN)/python -m pytest -q -n 2 -m faults -p no:randomly
 
 bench: setup
 	taskset -c 0 $(BIN)/python benchmarks/bench_engine.py

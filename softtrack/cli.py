@@ -71,16 +71,20 @@ def _fail(exc: BaseException | str) -> NoReturn:
 
 
 @contextmanager
-def _user_errors() -> Iterator[None]:
-    """Turn the user errors of softtrack into one stderr line and exit code 2."""
+def _user_errors(runs_dir: str | None = None) -> Iterator[None]:
+    """Turn the user errors of softtrack, and a full or read-only disk, into one stderr line
+    and exit code 2 (``runs_dir``: the command's ``--runs-dir``, named when a library's
+    error does not say which file it was writing)."""
     try:
         yield
     except api.USER_ERRORS as exc:
         _fail(exc)
     except Exception as exc:
         from softtrack.store.disk import storage_problem
+        from softtrack.store.runs import resolve_runs_dir
 
-        problem = storage_problem(exc, "then run the command again")
+        problem = storage_problem(exc, "then run the command again",
+                                  resolve_runs_dir(runs_dir))
         if problem is None:
             raise
         _fail(problem)
@@ -218,7 +222,7 @@ def train(
     def started(record: RunRecord) -> None:
         typer.echo(record.run_id)
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         if resume is not None:
             outcomes = [api.resume(resume, runs_dir=runs_dir, on_start=started)]
         else:
@@ -397,7 +401,7 @@ def sweep(
         for record in records:
             typer.echo(record.run_id)
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         outcome = api.sweep(
             specs, grid or [], overrides or [], seeds=seeds, runs_dir=runs_dir,
             options=options, on_created=created, on_progress=_progress,
@@ -430,7 +434,7 @@ def resume_command(
         for record in records:
             typer.echo(record.run_id)
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         outcome = api.resume_runs(
             selection or [], runs_dir=runs_dir, options=options, on_selected=selected,
             on_progress=_progress,
@@ -503,7 +507,7 @@ def tune_command(
         _fail(f"tune: give a SPEC to tune, or --best STUDY, or --status STUDY; {example}")
     if out is not None and best is None:
         _fail("tune: --out goes with --best STUDY (the spec file to write)")
-    with _user_errors():
+    with _user_errors(runs_dir):
         if status is not None:
             typer.echo(api.tune_status(status, storage=storage, runs_dir=runs_dir))
             return
@@ -526,6 +530,9 @@ def tune_command(
                    f"--status {outcome.study}` (logs: {outcome.log})", err=True)
         return
     typer.echo(outcome.summary, err=True)
+    for where, code in outcome.crashed:
+        typer.echo(f"error: a tune worker ended with exit code {code} (log: {where}); "
+                   f"its trial is retried when the study continues", err=True)
     if outcome.missing:
         again = f"softtrack tune {spec} --trials {trials} --study {outcome.study}"
         typer.echo(f"  {outcome.missing} trial{'s' if outcome.missing != 1 else ''} missing; "
@@ -556,7 +563,7 @@ def runs(
     heartbeat is stale, or its pid is dead on this host) shows as `lost`; `softtrack resume`
     continues it.
     """
-    with _user_errors():
+    with _user_errors(runs_dir):
         summaries = api.list_run_summaries(runs_dir, failed=failed)
     if output_format is OutputFormat.json:
         typer.echo(json.dumps(summaries, indent=2, ensure_ascii=False))
@@ -695,7 +702,7 @@ def evaluate(
     else:
         chosen = [] if trajectory is TrajectoryChoice.none else [trajectory.value]
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
                      random_episodes=random, on_random=_print_random, model=model.value,
                      full_moments=full_moments, on_created=_print_created)
@@ -805,7 +812,7 @@ def robustness(
             typer.echo(f"{record.run_id}  {setting.key:28s} {name:9s}  3-D RMSE arm 1 / arm 2: "
                        f"{rmse} m{note}")
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         outcome = api.robustness(references, grid or [], full_grid=full_grid,
                                  trajectories=chosen, episodes=episodes,
                                  keep_realism=keep_realism, redo=redo, runs_dir=runs_dir,
@@ -836,7 +843,7 @@ def export(
     `softtrack evaluate DEST` and `softtrack report NAME --runs-dir PARENT_OF_DEST` use it as
     any run.
     """
-    with _user_errors():
+    with _user_errors(runs_dir):
         path = api.export(run, dest, runs_dir=runs_dir)
     size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
     typer.echo(f"exported: {path} ({size / 1e6:.1f} MB)")
@@ -899,7 +906,7 @@ def report(
     """
     import sys
 
-    with _user_errors():
+    with _user_errors(runs_dir):
         # an empty selection is a one-line error (EmptySelectionError), like every command's
         index = api.report(selection or [], out, runs_dir=runs_dir,
                            command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode,
@@ -933,7 +940,7 @@ def quickstart(
     (without its stored evaluation) and evaluated there, so the report shows this machine's
     evaluation.
     """
-    with _user_errors():
+    with _user_errors(runs_dir):
         spec_path = api.quickstart_spec_path()
         shipped = None if no_pretrained else (
             Path(pretrained) if pretrained is not None else api.quickstart_pretrained_path())

@@ -17,10 +17,13 @@ from softtrack.store.provenance import portable_command, portable_path
         (["{cwd}/softtrack/cli.py", "train", "{cwd}/experiments/x.yaml", "--seed", "0",
           "--runs-dir", "runs"],
          ["softtrack", "train", "experiments/x.yaml", "--seed", "0", "--runs-dir", "runs"]),
-        (["/usr/local/bin/softtrack", "train", "/elsewhere/specs/x.yaml", "--runs-dir=/scratch/r"],
-         ["softtrack", "train", "x.yaml", "--runs-dir=r"]),
-        (["softtrack", "train", "../other/x.yaml", "--set", "seeds=[0, 1]"],
-         ["softtrack", "train", "x.yaml", "--set", "seeds=[0, 1]"]),
+        (["/usr/local/bin/softtrack", "train", "{cwd}/../specs/x.yaml",
+          "--runs-dir={cwd}/../scratch/r"],
+         ["softtrack", "train", "../specs/x.yaml", "--runs-dir=../scratch/r"]),
+        (["softtrack", "train", "../other/x.yaml", "--set", "seeds=[0, 1]", "--runs-dir",
+          "~/runs"],
+         ["softtrack", "train", "../other/x.yaml", "--set", "seeds=[0, 1]", "--runs-dir",
+          "~/runs"]),
         (["{cwd}/experiments/reproduce_study.py", "--jobs", "2"],
          ["reproduce_study.py", "--jobs", "2"]),
         ([], []),
@@ -37,5 +40,6 @@ def test_portable_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(tmp_path)
     assert portable_path(tmp_path / "experiments" / "a.yaml") == "experiments/a.yaml"
     assert portable_path("experiments/./a.yaml") == "experiments/a.yaml"
-    assert portable_path("/somewhere/else/b.yaml") == "b.yaml"
+    assert portable_path(tmp_path.parent / "else" / "b.yaml") == "../else/b.yaml"
+    assert portable_path("../else/./b.yaml") == "../else/b.yaml"
     assert portable_path(tmp_path) == "."

@@ -248,6 +248,7 @@ def test_missing_and_empty_runs_dir(tmp_path: Path) -> None:
         query("SELECT 1", tmp_path / "absent")
 
 
+@pytest.mark.faults("held")
 def test_corrupt_parquet_file(runs_dir: Path) -> None:
     bad = runs_dir / "a-seed1" / "tables" / "train_episodes.parquet"
     bad.write_bytes(b"not parquet at all")

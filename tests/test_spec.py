@@ -358,6 +358,7 @@ def _case(tmp_path: Path, case: str) -> tuple[Path, list[str], list[str]]:
     return path, overrides, fragments
 
 
+@pytest.mark.faults("held")
 @pytest.mark.parametrize("case", sorted(ERROR_CASES))
 def test_error_is_one_line_naming_file_and_field(tmp_path: Path, case: str) -> None:
     path, overrides, fragments = _case(tmp_path, case)
@@ -371,6 +372,7 @@ def test_error_is_one_line_naming_file_and_field(tmp_path: Path, case: str) -> N
     assert "; " in message  # problem; fix
 
 
+@pytest.mark.faults("held")
 @pytest.mark.parametrize("case", sorted(ERROR_CASES))
 def test_cli_validate_error_exit_code_2(tmp_path: Path, case: str) -> None:
     path, overrides, fragments = _case(tmp_path, case)
@@ -386,6 +388,7 @@ def test_cli_validate_error_exit_code_2(tmp_path: Path, case: str) -> None:
     assert sorted(tmp_path.iterdir()) == before  # nothing written
 
 
+@pytest.mark.faults("held")
 def test_subprocess_error_has_no_traceback(tmp_path: Path) -> None:
     path = write(tmp_path, "algo:\n  learnig_rate: 0.001\n")
     env = dict(os.environ, PYTHONPATH=str(REPO))
@@ -727,6 +730,7 @@ BASE_ERRORS = {
 }
 
 
+@pytest.mark.faults("held")
 @pytest.mark.parametrize("case", sorted(BASE_ERRORS))
 def test_base_errors_are_one_line_naming_file_field_and_fix(tmp_path: Path, case: str) -> None:
     leaf_text, mid_text, fragments, (file, line) = BASE_ERRORS[case]

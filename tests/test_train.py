@@ -21,6 +21,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.store.runs import RunStore
+from softtrack.store.status import complete_episodes
 from softtrack.store.tables import read_table
 
 runner = CliRunner()
@@ -67,7 +68,10 @@ def _check_episodes(df: pd.DataFrame, run_id: str, final_step: int) -> None:
     assert (np.diff(df["global_step"].to_numpy()) >= 0).all()
     assert 0 < df["global_step"].min() and df["global_step"].max() <= final_step
     assert np.isfinite(df["return"]).all()
-    assert (df["length"] == EPISODE_STEPS).all()
+    whole = complete_episodes(df)
+    assert (whole["length"] == EPISODE_STEPS).all()
+    cut = df.drop(whole.index)  # episodes a stop cut short at the checkpoint resumed from
+    assert ((0 < cut["length"]) & (cut["length"] < EPISODE_STEPS)).all()
     assert (df["run_id"] == run_id).all()
     assert (np.diff(df["wall_time"].to_numpy()) >= 0).all()
 
@@ -305,7 +309,9 @@ def _resume_and_check(
     assert record.info.status == "completed" and total <= final < total + chunk
     df = _episodes(record.path)
     _check_episodes(df, run_id, final)
-    assert len(df) == _expected_episodes(split, final, n_envs)
+    assert len(complete_episodes(df)) == _expected_episodes(split, final, n_envs)
+    under_way = n_envs if (split // n_envs) % EPISODE_STEPS else 0  # at the checkpoint
+    assert len(df) - len(complete_episodes(df)) == under_way
     assert record.model_path.is_file()
     sessions = record.info.sessions
     assert [s["status"] for s in sessions] == [first_session, "completed"]
@@ -315,6 +321,7 @@ def _resume_and_check(
     assert sessions[0]["ended"] <= sessions[1]["started"] <= sessions[1]["ended"]
 
 
+@pytest.mark.faults("held")
 @pytest.mark.parametrize("algo, backend", [("td3", "sb3"), ("ppo", "sb3"), SBX_TD3])
 def test_interrupt_and_resume(tmp_path: Path, algo: str, backend: str) -> None:
     total, n_envs = 2400, 4
@@ -337,6 +344,7 @@ def test_interrupt_and_resume(tmp_path: Path, algo: str, backend: str) -> None:
     _resume_and_check(runs_dir, run_id, split, total, n_envs, chunk)
 
 
+@pytest.mark.faults("held")
 def test_sigkill_then_resume(tmp_path: Path) -> None:
     total, n_envs = 2400, 4
     spec = _spec(tmp_path, "td3", total_timesteps=total, n_envs=n_envs, checkpoint_interval=200)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -235,6 +236,7 @@ def test_two_workers_pull_from_one_study(tmp_path: Path) -> None:
     assert "3/3 finished" in result.stderr
 
 
+@pytest.mark.faults("held")
 def test_interrupted_study_resumes_its_run(tmp_path: Path) -> None:
     """SIGINT during a trial: the trial fails as interrupted, its run is interrupted with a
     checkpoint, and `softtrack tune` again resumes that run under a retry trial."""
@@ -277,6 +279,7 @@ def test_interrupted_study_resumes_its_run(tmp_path: Path) -> None:
     assert len(RunStore(runs_dir).list_runs()) == 1
 
 
+@pytest.mark.faults("held")
 def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     """A trial left RUNNING by a killed worker (its run `lost`: the pid is gone) is failed and
     retried by the next `softtrack tune`, which resumes its run; it is not counted."""
@@ -296,6 +299,7 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     store.update_run(record.run_id, pid=dead.pid)
+    trial.set_user_attr("worker", f"{socket.gethostname()}:{dead.pid}")  # it died
 
     result = _tune(str(spec_path), "--trials", "1", "--study", "d", "--runs-dir", str(runs_dir))
     assert result.exit_code == 0, result.output

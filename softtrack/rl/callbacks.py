@@ -51,6 +51,7 @@ __all__ = [
     "RandomisationWarmup",
     "TrainingClock",
     "final_progress_line",
+    "unfinished_episodes",
     "progress_line",
     "save_checkpoint",
 ]
@@ -141,12 +142,47 @@ class EpisodeLogger(BaseCallback):
             self.flush()
         return True
 
+    def add_truncated(self, episodes: list[dict[str, Any]], step: int, wall_time: float) -> None:
+        """Queue rows for episodes cut short at a checkpoint that training resumes from
+        (:func:`unfinished_episodes` of that checkpoint), marked ``truncated`` with their
+        partial return, so the episodes cover every env step."""
+        for episode in episodes:
+            self.pending.append(
+                {
+                    "run_id": self.record.run_id,
+                    "episode": self.next_episode,
+                    "global_step": int(step),
+                    "return": float(episode["return"]),
+                    "length": int(episode["length"]),
+                    "wall_time": float(wall_time),
+                    "truncated": True,
+                    **self.columns,
+                }
+            )
+            self.next_episode += 1
+
     def flush(self) -> None:
         """Append the pending episodes to the table (atomic replace)."""
         if self.pending:
             append_rows(self.path, self.pending)
             self.pending = []
         self._last_flush = time.monotonic()
+
+
+def unfinished_episodes(env: Any) -> list[dict[str, float | int]]:
+    """The episodes under way in each env of ``env`` (found through its ``VecMonitor``): their
+    return so far and length, control steps; empty where none is under way or no monitor."""
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    while env is not None and not isinstance(env, VecMonitor):
+        env = getattr(env, "venv", None)
+    if env is None:
+        return []
+    return [
+        {"return": float(ret), "length": int(length)}
+        for ret, length in zip(env.episode_returns, env.episode_lengths, strict=True)
+        if int(length) > 0
+    ]
 
 
 def save_checkpoint(
@@ -181,6 +217,7 @@ def save_checkpoint(
                 "episodes": episodes.next_episode,
                 "wall_time": clock.elapsed(),
                 "saved": utc_now(),
+                "unfinished_episodes": unfinished_episodes(model.get_env()),
             },
             fsync=False,
         )

@@ -7,7 +7,8 @@ was requested (signal), a checkpoint. The run's status is left to :mod:`softtrac
 
 Resuming restores the step count, replay buffer and normalisation statistics, and drops the
 policy's rows of ``train_episodes`` written after that checkpoint (for an arm: only that arm's
-rows), so the policy's episodes have no gaps or duplicates. Without a loadable checkpoint the
+rows), so the policy's episodes have no gaps or duplicates; the episodes the checkpoint cut
+short become rows marked ``truncated`` (partial return), so every env step lies in a row. Without a loadable checkpoint the
 policy starts over: its rows and checkpoints are deleted first.
 """
 
@@ -267,6 +268,10 @@ class PolicyTrainer:
             next_episode = 0
         training = spec.training
         episodes = EpisodeLogger(record, clock, next_episode, columns=job.columns)
+        if state is not None and state.get("unfinished_episodes"):
+            episodes.add_truncated(state["unfinished_episodes"], int(self.model.num_timesteps),
+                                   float(state.get("wall_time", clock_offset)))
+            episodes.flush()
         self.episodes = episodes
         validator = self._validator(state, clock)
         checkpointer = Checkpointer(

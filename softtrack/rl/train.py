@@ -266,7 +266,7 @@ def _train_locked(
         raise
     except Exception as exc:  # noqa: BLE001 (recorded in run.json as a failed run)
         problem = storage_problem(
-            exc, f"then continue with `softtrack train --resume {record.run_id}`"
+            exc, f"then continue with `softtrack train --resume {record.run_id}`", record.path
         )
         if problem is not None:  # a full or read-only disk: resumable once fixed
             fields = _finish_abruptly(store, record, trainer, progress, k, "interrupted",

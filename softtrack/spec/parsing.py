@@ -97,7 +97,7 @@ def _check_yaml_size(text: str, label: str) -> None:
                         label,
                         f"the YAML nests lists/mappings more than {MAX_YAML_DEPTH} deep",
                         "a spec nests about 5 deep; fix the brackets",
-                        line=event.start_mark.line + 1,
+                        line=event.start_mark.line + 1 if event.start_mark else None,
                     )
                 open_sizes.append(1)
                 open_anchors.append(event.anchor)

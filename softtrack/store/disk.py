@@ -89,13 +89,18 @@ def _existing_dir(path: Path) -> Path:
     return directory
 
 
-def storage_problem(exc: BaseException, then: str = "") -> str | None:
+def storage_problem(
+    exc: BaseException, then: str = "", where: str | os.PathLike[str] | None = None
+) -> str | None:
     """A one-line message for a full disk or a read-only/unwritable directory behind ``exc``,
-    ending with ``then`` (what to do once it is fixed); ``None`` for any other error."""
+    ending with ``then`` (what to do once it is fixed); ``None`` for any other error.
+
+    ``where``: the directory being written when the error does not name its file (a library
+    writing through its own file object), e.g. the run's directory."""
     code = _errno(exc)
     if code not in FULL_ERRNOS and code not in READ_ONLY_ERRNOS:
         return None
-    path = _path(exc)
+    path = _path(exc) or (Path(where) if where is not None else None)
     directory = _existing_dir(path) if path is not None else Path.cwd()
     after = f"; {then}" if then else ""
     if code in FULL_ERRNOS:

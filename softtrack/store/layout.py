@@ -114,6 +114,10 @@ class PolicyDir:
         """``state.json`` of a finished arm (not written for the centralized policy)."""
         return self.path / "state.json"
 
+    def read_state(self) -> dict[str, Any] | None:
+        """A finished arm's ``state.json`` (``None`` if missing or unreadable)."""
+        return _read_json(self.state_path)
+
     @property
     def checkpoints_dir(self) -> Path:
         return self.path / "checkpoints"

@@ -40,25 +40,21 @@ _PROGRAMS = ("softtrack", "softtrack/cli.py", "softtrack/__main__.py")
 
 
 def portable_path(path: str | os.PathLike[str], cwd: str | os.PathLike[str] | None = None) -> str:
-    """``path`` as it can be recorded in committed files: relative to ``cwd`` (default: the
-    current directory) when it lies inside it, else only its file name; never absolute.
+    """``path`` as it can be recorded in committed files: never absolute. A relative path (or
+    one starting with ``~``) stays as given, normalised; an absolute one becomes relative to
+    ``cwd`` (default: the current directory), with ``..`` where it lies outside.
 
-    In a checkout at ``REPO``: ``REPO/experiments/study/td3-64-1e7.yaml`` →
-    ``experiments/study/td3-64-1e7.yaml``, ``../other/x.yaml`` → ``x.yaml``;
-    ``experiments/study/td3-64-1e7.yaml`` stays as it is.
+    In a checkout at ``/work/REPO``: ``/work/REPO/experiments/a.yaml`` →
+    ``experiments/a.yaml``, ``/work/scratch/runs`` → ``../scratch/runs``, ``../other/x.yaml``
+    and ``~/runs`` stay as they are.
     """
     text = os.fspath(path)
+    if text.startswith("~"):
+        return text
     base = os.path.abspath(os.fspath(cwd) if cwd is not None else os.getcwd())
-    full = os.path.normpath(os.path.join(base, text))
-    if full == base:
-        return "."
-    if os.path.commonpath([full, base]) == base:
-        return os.path.relpath(full, base)
-    return os.path.basename(full) or text
-
-
-def _looks_like_path(arg: str) -> bool:
-    return os.path.isabs(arg) or arg.startswith("~") or ".." in arg.split(os.sep)
+    if not os.path.isabs(text):
+        return os.path.normpath(text)
+    return os.path.relpath(os.path.normpath(text), base)
 
 
 def portable_command(
@@ -67,9 +63,9 @@ def portable_command(
     """A command line as run.json and reports record it: the program ``softtrack`` (however it
     was started: ``.venv/bin/softtrack``, ``python -m softtrack.cli``, ``/abs/softtrack/cli.py``;
     another program keeps only its file name) and no absolute path among the arguments (each
-    is made relative to ``cwd`` when inside it, else reduced to its file name, also in
-    ``--option=PATH``), e.g. ``["softtrack", "train", "experiments/study/td3-64-1e7.yaml",
-    "--seed", "0"]``.
+    is made relative to ``cwd``, also in ``--option=PATH``: :func:`portable_path`), e.g.
+    ``["softtrack", "train", "experiments/study/td3-64-1e7.yaml", "--runs-dir",
+    "../scratch/runs"]``.
     """
     if not argv:
         return []
@@ -82,10 +78,10 @@ def portable_command(
     for arg in argv[1:]:
         arg = os.fspath(arg)
         option, eq, value = arg.partition("=")
-        if arg.startswith("-") and eq and _looks_like_path(value):
-            out.append(f"{option}={portable_path(os.path.expanduser(value), cwd)}")
-        elif not arg.startswith("-") and _looks_like_path(arg):
-            out.append(portable_path(os.path.expanduser(arg), cwd))
+        if arg.startswith("-") and eq and os.path.isabs(value):
+            out.append(f"{option}={portable_path(value, cwd)}")
+        elif not arg.startswith("-") and os.path.isabs(arg):
+            out.append(portable_path(arg, cwd))
         else:
             out.append(arg)
     return out

@@ -107,7 +107,7 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("git_commit", pa.string(), "commit of the code when the run was created"),
     ("git_dirty", pa.bool_(), "the checkout had uncommitted changes"),
     ("created", pa.timestamp("us"), "creation time (UTC)"),
-    ("started", pa.timestamp("us"), "time training (last) started (UTC)"),
+    ("started", pa.timestamp("us"), "time training first started (UTC)"),
     ("ended", pa.timestamp("us"), "time the run ended (UTC)"),
     ("host", pa.string(), "host of the (last) training process"),
     ("cpu", pa.string(), "CPU of the (last) training process"),
@@ -120,7 +120,8 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
 TABLE_DESCRIPTIONS: dict[str, str] = {
     "train_episodes": "one row per finished training episode: episode, global_step at its "
     "end, return, length, wall_time (s since training started); independent runs add arm and "
-    "count episode and global_step per arm",
+    "count episode and global_step per arm; truncated is true for an episode a stop cut "
+    "short at the checkpoint training resumed from (partial return), NULL otherwise",
     "validation": "validation during training: one row per validation point (global_step, "
     "wall_time: training seconds), episode and arm, with the tracking metrics (rmse_3d, ..., "
     "*_steady for t >= 1 s) and the columns of eval_metrics; trajectory 'random' for the "

@@ -117,7 +117,10 @@ class RunInfo(BaseModel):
         "queued", description="queued, running, completed, failed, interrupted"
     )
     created: str = Field(description="creation time, ISO 8601 UTC")
-    started: str | None = Field(None, description="time training (last) started, ISO 8601 UTC")
+    started: str | None = Field(
+        None, description="time training first started, ISO 8601 UTC (each session's start: "
+        "sessions)"
+    )
     ended: str | None = Field(None, description="time the run ended, ISO 8601 UTC")
     heartbeat: str | None = Field(None, description="last sign of life of the training process")
     total_timesteps: int = Field(
@@ -209,6 +212,20 @@ class RunRecord:
     def model_path(self) -> Path:
         """The final model (SB3 zip)."""
         return self.path / "model.zip"
+
+    def saved_steps(self) -> int:
+        """Env steps the run's saved files hold (over its policies): a finished arm's
+        ``state.json`` step, else the step of the policy's newest checkpoint; 0 for none."""
+        total = 0
+        for policy in PolicyDir.all_of_run(self.path, self.info.controller == "independent"):
+            state = policy.read_state() if policy.arm is not None else None
+            if state is not None:
+                total += int(state.get("global_step", 0))
+                continue
+            checkpoints = policy.list_checkpoints()
+            if checkpoints:
+                total += int(checkpoints[-1].name.removeprefix("step-"))
+        return total
 
     def policy_dir(self, arm: int | None = None) -> PolicyDir:
         """The files of the centralized policy (``arm=None``) or of arm ``arm``'s policy."""
@@ -504,12 +521,16 @@ class RunStore:
         return RunRecord(path.name, path, info)
 
     def mark_running(self, run_id: str) -> RunRecord:
-        """status=running, started/heartbeat=now, this host and pid, error cleared, and a new
-        entry in ``sessions`` (call it with the run's lock held)."""
+        """status=running, heartbeat=now (and started, the first time), this host and pid,
+        error cleared, and a new entry in ``sessions`` (call it with the run's lock held). An
+        open last session (its process died unrecorded) is closed as ``lost`` at the larger of
+        run.json's step and the steps its checkpoints saved (:meth:`RunRecord.saved_steps`)."""
         now = utc_now()
-        info = self.get_run(run_id).info
+        record = self.get_run(run_id)
+        info = record.info
         sessions = _close_last_session(  # open: its process died unrecorded
-            info.sessions, ended=info.heartbeat, end_step=info.global_step, status="lost"
+            info.sessions, ended=info.heartbeat,
+            end_step=max(info.global_step, record.saved_steps()), status="lost",
         )
         commit, dirty = git_info()
         session = {
@@ -523,7 +544,7 @@ class RunStore:
         return self.update_run(
             run_id,
             status="running",
-            started=now,
+            started=info.started or now,
             heartbeat=now,
             ended=None,
             error=None,

@@ -34,6 +34,7 @@ __all__ = [
     "DEFAULT_HEARTBEAT_INTERVAL_S",
     "RUN_TABLE_COLUMNS",
     "effective_status",
+    "complete_episodes",
     "episodes_by_arm",
     "final_stage_fraction",
     "final_stage_return",
@@ -70,10 +71,20 @@ def final_stage_fraction(raw_spec: dict[str, Any]) -> float:
     return value if 0 < value <= 1 else DEFAULT_FINAL_STAGE_FRACTION
 
 
+def complete_episodes(train: pd.DataFrame) -> pd.DataFrame:
+    """The rows of a ``train_episodes`` table that are whole episodes: without those marked
+    ``truncated`` (an episode cut by a stop, whose return is partial; ``truncated`` null or
+    absent means whole)."""
+    if "truncated" not in train:
+        return train
+    return train[~train["truncated"].fillna(False).astype(bool).to_numpy()]
+
+
 def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
-    """A ``train_episodes`` table split by policy: ``{None: all}`` without an ``arm`` column,
-    else ``{0: arm 1's rows, 1: arm 2's}`` (and ``None`` for rows with no arm: a null or
-    negative ``arm``, a centralized policy's)."""
+    """A ``train_episodes`` table's whole episodes (:func:`complete_episodes`) split by policy:
+    ``{None: all}`` without an ``arm`` column, else ``{0: arm 1's rows, 1: arm 2's}`` (and
+    ``None`` for rows with no arm: a null or negative ``arm``, a centralized policy's)."""
+    train = complete_episodes(train)
     if "arm" not in train:
         return {None: train}
     arm = pd.to_numeric(train["arm"], errors="coerce").fillna(-1).astype(int)

@@ -57,7 +57,9 @@ __all__ = [
 #: An independent run's rows have one more column, ``arm`` (int 0 or 1): its rows are arm 0's
 #: episodes, then arm 1's, and ``episode`` and ``global_step`` count per arm (the arm's episodes
 #: and env steps). A centralized run's table has no ``arm`` column; readers treat an absent,
-#: null or negative ``arm`` as "the centralized policy".
+#: null or negative ``arm`` as "the centralized policy". Rows with ``truncated`` true are
+#: episodes a stop cut short at the checkpoint training resumed from (partial return); the
+#: column is absent or null for whole episodes.
 TRAIN_EPISODES_COLUMNS = ("run_id", "episode", "global_step", "return", "length", "wall_time")
 
 
@@ -116,9 +118,7 @@ def _write(path: Path, table: pa.Table) -> None:
         _write_parquet(table, tmp)
 
 
-def write_tables(
-    tables: Mapping[str | os.PathLike[str], pd.DataFrame | pa.Table | None],
-) -> None:
+def write_tables(tables: Mapping[Path, pd.DataFrame | pa.Table | None]) -> None:
     """Write (or, for ``None``, delete) several tables as one change: every new file is
     written to a temporary sibling first, and only when all are written are they renamed over
     the old ones; an error or a signal before that leaves every table as it was (and no
@@ -130,8 +130,7 @@ def write_tables(
     """
     written: list[tuple[Path, Path]] = []
     try:
-        for target, data in tables.items():
-            path = Path(target)
+        for path, data in tables.items():
             if data is None:
                 continue
             remove_stale_temp_files(path)
@@ -142,9 +141,9 @@ def write_tables(
             fsync_file(tmp)
         for tmp, path in written:
             os.replace(tmp, path)
-        for target, data in tables.items():
+        for path, data in tables.items():
             if data is None:
-                Path(target).unlink(missing_ok=True)
+                path.unlink(missing_ok=True)
         for directory in {path.parent for _, path in written}:
             fsync_dir(directory)
     except BaseException:

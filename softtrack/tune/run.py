@@ -103,6 +103,8 @@ class TuneOutcome:
     detached: bool = False
     stop_signal: int | None = None
     log: str | None = None
+    #: workers that ended with an error: ``(name, exit code)`` (not a stop by signal)
+    crashed: list[tuple[str, int]] = field(default_factory=list)
 
     @property
     def missing(self) -> int:
@@ -115,7 +117,7 @@ class TuneOutcome:
             return 0
         if self.stop_signal is not None:
             return 128 + self.stop_signal
-        return 1 if self.missing else 0
+        return 1 if self.missing or self.crashed else 0
 
 
 def _storage_url(storage: str | None, runs_dir: Path) -> str:
@@ -187,13 +189,18 @@ def tune(
             code = work(ts, str(root), log=say, show_progress=show_progress)
             if code >= 128:
                 outcome.stop_signal = code - 128
+            elif code:
+                outcome.crashed.append(("worker", code))
         else:
             from softtrack.executors.local import LocalPool
 
             pool = LocalPool(workers)
             root.mkdir(parents=True, exist_ok=True)
-            pool.run(jobs, on_tick=_ticker(ts, on_progress))
+            codes = pool.run(jobs, on_tick=_ticker(ts, on_progress))
             outcome.stop_signal = pool.stop_signal
+            if pool.stop_signal is None:
+                outcome.crashed = [(str(job.log_path()), codes[job.key]) for job in jobs
+                                   if codes.get(job.key, 0) != 0]
             outcome.log = ", ".join(str(j.log_path()) for j in jobs)
     else:
         outcome.log = _run_on_slurm(ts, root, url, options, workers, on_progress)

@@ -394,10 +394,14 @@ def _attrs(**values: Any) -> dict[str, Any]:
 
 
 def enqueue_retry(study: Any, trial: Any, *, died: bool) -> None:
-    """Put a ticket for failed ``trial``'s slot: the same values and run (a retry), or, once
-    its workers died :data:`MAX_DEATHS` times, a fresh ticket."""
+    """Put a ticket for failed ``trial``'s slot: the same values and run (a retry), or a fresh
+    ticket once its workers died :data:`MAX_DEATHS` times or when the trial died before all
+    its values were drawn (a retry would draw the missing ones anew, and its values would no
+    longer be those of the run)."""
     deaths = int(trial.user_attrs.get("deaths", 0)) + int(died)
-    if deaths > MAX_DEATHS:
+    tuned = (study.user_attrs.get(STUDY_ATTR) or {}).get("spec", {}).get("tune") or {}
+    complete = set(tuned.get("params", {})) <= set(trial.params)
+    if deaths > MAX_DEATHS or not complete:
         study.enqueue_trial({}, user_attrs={"replaces": trial.number})
         return
     study.enqueue_trial(dict(trial.params), user_attrs=_attrs(
@@ -414,6 +418,16 @@ def _replace_dead(study: Any, trial: Any) -> None:
     enqueue_retry(study, trial, died=True)
 
 
+def _worker_alive(worker: str) -> bool:
+    """Whether a trial's ``worker`` (``host:pid``) is a live process on this host (a retry's
+    run still looks lost between the moment a worker takes the ticket and the moment it
+    locks the run; only the worker's own death makes the trial lost)."""
+    from softtrack.store.runs import pid_alive
+
+    host, _, pid = worker.rpartition(":")
+    return host == socket.gethostname() and pid.isdigit() and pid_alive(int(pid))
+
+
 def _fail_lost_trials(ts: TuneStudy, store: RunStore) -> None:
     """Fail the running trials whose worker died, each replaced by a retry: by Optuna's
     heartbeat, and by their run being ``lost`` in the store."""
@@ -424,7 +438,7 @@ def _fail_lost_trials(ts: TuneStudy, store: RunStore) -> None:
         optuna.storages.fail_stale_trials(ts.study)
     for t in ts.trials("RUNNING"):
         run_id = t.user_attrs.get("run_id")
-        if not run_id:
+        if not run_id or _worker_alive(str(t.user_attrs.get("worker", ""))):
             continue
         try:
             lost = is_lost(store.get_run(str(run_id)))

@@ -130,10 +130,24 @@ def _note_trial(store: RunStore, record: RunRecord, ts: TuneStudy, number: int) 
     return store.update_run(record.run_id, notes={**notes, "tune": tune})
 
 
-def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec,
-               store: RunStore) -> tuple[RunRecord, str]:
+def _same_values(ts: TuneStudy, values: dict[str, Any], record: RunRecord) -> bool:
+    """Whether ``record`` was trained with the trial's ``values`` (its spec hash is that of
+    the trial's spec under the run's own name)."""
+    from softtrack.spec import spec_hash
+
+    try:
+        return spec_hash(trial_spec(ts, values, record.info.name)) == record.info.spec_hash
+    except SpecError:
+        return False
+
+
+def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec, store: RunStore,
+               values: dict[str, Any], log: Log = _stderr) -> tuple[RunRecord, str]:
     """The trial's run and what to do with it: ``train``, ``resume``, ``score`` (completed),
-    ``pruned``, ``failed`` (raised before) or ``busy`` (still training elsewhere)."""
+    ``pruned``, ``failed`` (raised before) or ``busy`` (still training elsewhere).
+
+    A retry's run is used only if it was trained with the trial's values; otherwise (or if it
+    is gone) the trial gets a fresh run of its own."""
     from softtrack.store.status import effective_status
 
     run_id = trial.user_attrs.get("run_id")
@@ -141,6 +155,10 @@ def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec,
         try:
             record = store.get_run(str(run_id))
         except RunStoreError:
+            record = None
+        if record is not None and not _same_values(ts, values, record):
+            log(f"trial {trial.number}: run {record.run_id} was trained with other values; "
+                "starting a fresh run for this trial")
             record = None
         if record is not None:
             record = _note_trial(store, record, ts, trial.number)
@@ -183,7 +201,7 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
         record_name = trial_name(ts.spec.name, number)
         spec = trial_spec(ts, values, record_name)
         check_supported(spec, f"study {ts.name} trial {number}")
-        record, action = _trial_run(ts, trial, spec, store)
+        record, action = _trial_run(ts, trial, spec, store, values, log)
         spec = record.load_spec()
     except (SpecError, RunStoreError) as exc:
         log(f"trial {number}: failed: {exc}")
@@ -206,9 +224,16 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
         ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
         return "pruned", 0
     if action in ("train", "resume"):
+        taken_over: list[bool] = []
+
         def on_validation(step: int, score: float) -> bool:
-            trial.report(score if math.isfinite(score) else math.inf, _report_step(spec, step))
-            return bool(trial.should_prune())
+            try:
+                trial.report(score if math.isfinite(score) else math.inf,
+                             _report_step(spec, step))
+                return bool(trial.should_prune())
+            except optuna.exceptions.UpdateFinishedTrialError:
+                taken_over.append(True)  # failed by another process: stop, keep the run
+                return True
 
         try:
             outcome = train_run(store, record, resume=action == "resume",
@@ -218,6 +243,13 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
             log(f"trial {number}: failed: {line}")
             _fail(ts, trial, "error", line)
             enqueue_fresh(ts.study, replaces=number)
+            return "failed", 1
+        if taken_over:
+            notes = store.get_run(record.run_id).info.notes
+            store.update_run(record.run_id,
+                             notes={k: v for k, v in notes.items() if k != "pruned"})
+            log(f"trial {number}: failed by another process while training (its heartbeat "
+                f"was late); run {record.run_id} stopped at a checkpoint for the retry")
             return "failed", 1
         if outcome.status == "interrupted":
             log(f"trial {number}: interrupted at step {outcome.global_step:,}; run "

@@ -1,0 +1,577 @@
+"""Fault injection (``make faults``): each test injects one fault that once lost or corrupted
+data, printed a traceback where one line belongs, or degraded the store, and checks that
+softtrack now keeps every byte and says in one line what is wrong (docs/faults.md).
+
+The marker's kind is what the fault did before the fix: ``lost``, ``traceback``, ``degraded``
+(or ``held`` for the faults that already held, marked in their own modules). Disk faults are
+injected by raising the operating system's error where softtrack writes; with root and mount
+rights the same faults also run against a real full or read-only tmpfs.
+"""
+
+from __future__ import annotations
+
+import errno
+import hashlib
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.store.atomic import is_temp_file
+from softtrack.store.runs import RunStore
+from softtrack.store.tables import read_table
+
+runner = CliRunner()
+EVAL_DURATION = 0.2  # s: 100 control steps per trajectory
+
+
+# ---- helpers --------------------------------------------------------------------------------
+def _spec_data(**training: Any) -> dict[str, Any]:
+    return {
+        "name": "tiny",
+        "seeds": [0],
+        "env": {"episode_duration": 0.1},
+        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
+                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
+        "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
+                     "heartbeat_interval": 0.5, "eval_duration": EVAL_DURATION, **training},
+    }
+
+
+def _spec(tmp_path: Path, name: str = "tiny", **training: Any) -> Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump({**_spec_data(**training), "name": name}), encoding="utf-8")
+    return path
+
+
+def _cli(*args: str) -> Any:
+    return runner.invoke(app, list(args), env={"CI": "1"})
+
+
+def _one_line(result: Any) -> str:
+    """The command's one ``error:`` line on stderr (progress lines aside), checked to come
+    without a traceback."""
+    errors = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    assert "Traceback" not in result.output and len(errors) == 1, result.output
+    return errors[0]
+
+
+def _snapshot(root: Path) -> dict[str, str]:
+    """Every file under ``root``: relative path → SHA-256."""
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*")) if p.is_file() and p.name != "run.lock"
+    }
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """A tiny trained and evaluated run (read-only for the tests: copy it first)."""
+    tmp = tmp_path_factory.mktemp("faults")
+    runs = tmp / "runs"
+    result = _cli("train", str(_spec(tmp)), "--runs-dir", str(runs))
+    assert result.exit_code == 0, result.output
+    run_id = result.stdout.split()[0]
+    result = _cli("evaluate", run_id, "--runs-dir", str(runs))
+    assert result.exit_code == 0, result.output
+    return runs, run_id
+
+
+@pytest.fixture
+def runs(trained: tuple[Path, str], tmp_path: Path) -> tuple[Path, str]:
+    """A private copy of the trained run's runs directory."""
+    source, run_id = trained
+    copy = tmp_path / "runs"
+    shutil.copytree(source, copy)
+    return copy, run_id
+
+
+def _raise_oserror(code: int, where: Path) -> Any:
+    def fail(*_args: Any, **_kwargs: Any) -> None:
+        raise OSError(code, os.strerror(code), str(where))
+    return fail
+
+
+# ---- 1. a query is read-only -----------------------------------------------------------------
+@pytest.mark.faults("lost")
+@pytest.mark.parametrize("sql", [
+    "COPY (SELECT * FROM eval_metrics WHERE false) TO '{run}/tables/eval_metrics.parquet'",
+    "COPY (SELECT 'x') TO '{run}/run.json'",
+    "ATTACH '{run}/new.db' AS extra",
+    "INSTALL httpfs",
+    "LOAD httpfs",
+    "SELECT * FROM read_csv('/etc/passwd')",
+    "SELECT * FROM read_parquet('{run}/tables/*.parquet')",
+    "SET enable_external_access = true",
+    "EXPORT DATABASE '{run}/dump'",
+    "SELECT 1; COPY (SELECT 1) TO '{run}/x.csv'",
+    "CREATE TABLE sneaky AS SELECT 1",
+])
+def test_query_cannot_write_read_outside_or_install(runs: tuple[Path, str], sql: str) -> None:
+    root, run_id = runs
+    run = root / run_id
+    before = _snapshot(root)
+    result = _cli("query", sql.format(run=run), "--runs-dir", str(root))
+    assert result.exit_code == 2
+    assert _one_line(result).startswith("error: query: ")
+    assert _snapshot(root) == before  # nothing written, nothing removed
+    assert _cli("query", "SELECT count(*) AS n FROM eval_metrics", "--runs-dir",
+                str(root)).stdout.split()[-1] == "6"  # the store still reads
+
+
+# ---- 2. tune: a retry is its own trial's run ---------------------------------------------------
+TUNE_PARAMS = {
+    "params": {
+        "algo.learning_rate": {"type": "float", "low": 1.0e-4, "high": 3.0e-3, "log": True},
+        "algo.batch_size": {"type": "categorical", "choices": [8, 16]},
+    },
+}
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+@pytest.mark.faults("lost")
+def test_tune_killed_everywhere_then_rerun_keeps_every_trial_its_run(tmp_path: Path) -> None:
+    import optuna
+
+    from softtrack.spec import spec_hash
+    from softtrack.tune.study import decode_params, default_storage, load_study, trial_spec
+
+    data = _spec_data(total_timesteps=1600, n_envs=2, checkpoint_interval=200,
+                      validation_episodes=1)
+    data["tune"] = TUNE_PARAMS
+    spec = tmp_path / "tune.yaml"
+    spec.write_text(yaml.safe_dump(data), encoding="utf-8")
+    root = tmp_path / "runs"
+    command = [sys.executable, "-m", "softtrack.cli", "tune", str(spec), "--trials", "3",
+               "--study", "k", "--workers", "2", "--runs-dir", str(root)]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "CI": "1"}, start_new_session=True)
+    deadline = time.monotonic() + 300
+    workers: set[int] = set()
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        records = RunStore(root).list_runs() if root.is_dir() else []
+        busy = [r for r in records if r.info.status == "running" and r.list_checkpoints()]
+        if len(busy) >= 2:
+            workers = {int(r.info.pid) for r in busy if r.info.pid}
+            break
+        time.sleep(0.05)
+    assert workers, "two trials never trained at once"
+    os.killpg(proc.pid, signal.SIGKILL)
+    for pid in workers:
+        if _alive(pid):
+            os.kill(pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    while any(_alive(pid) for pid in workers):
+        time.sleep(0.05)
+
+    result = subprocess.run(command, capture_output=True, text=True, timeout=900,
+                            env={**os.environ, "CI": "1"})
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    ts = load_study(default_storage(root), "k")
+    complete = [t for t in ts.study.get_trials() if t.state.name == "COMPLETE"]
+    assert len(complete) == 3
+    store = RunStore(root)
+    for trial in ts.study.get_trials():
+        if "run_id" not in trial.user_attrs or trial.state.name not in ("COMPLETE", "PRUNED"):
+            continue
+        record = store.get_run(trial.user_attrs["run_id"])
+        values = decode_params(ts.tune, trial.params)
+        assert set(values) == set(TUNE_PARAMS["params"])
+        expected = trial_spec(ts, values, record.info.name)
+        assert spec_hash(expected) == record.info.spec_hash, (trial.number, values)
+        assert record.load_spec().algo.batch_size == values["algo.batch_size"]
+
+
+# ---- 3, 4. a full or read-only disk: one line, the run resumable ------------------------------
+@pytest.mark.faults("traceback")
+def test_disk_full_during_train_marks_the_run_interrupted(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import softtrack.rl.callbacks as callbacks
+
+    root = tmp_path / "runs"
+    spec = _spec(tmp_path, total_timesteps=400, checkpoint_interval=200)
+    monkeypatch.setattr(callbacks, "atomic_dir",
+                        _raise_oserror(errno.ENOSPC, root / "x" / "checkpoints" / ".tmp"))
+    result = _cli("train", str(spec), "--runs-dir", str(root))
+    assert result.exit_code not in (0, 2) and result.exit_code < 128
+    err = _one_line(result)
+    assert "no space left on the device" in err and "--resume" in err and "free" in err
+    (record,) = RunStore(root).list_runs()
+    assert record.info.status == "interrupted" and "no space left" in str(record.info.error)
+    monkeypatch.undo()  # space is back: the run resumes and finishes
+    result = _cli("train", "--resume", record.run_id, "--runs-dir", str(root))
+    assert result.exit_code == 0, result.output
+    assert RunStore(root).get_run(record.run_id).info.status == "completed"
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("code, words", [(errno.ENOSPC, "no space left"),
+                                         (errno.EROFS, "read-only file system")])
+def test_disk_faults_during_evaluate_are_one_line_and_keep_the_tables(
+    runs: tuple[Path, str], monkeypatch: pytest.MonkeyPatch, code: int, words: str
+) -> None:
+    import softtrack.store.tables as tables
+
+    root, run_id = runs
+    before = _snapshot(root / run_id / "tables")
+    monkeypatch.setattr(tables, "_write_parquet",
+                        _raise_oserror(code, root / run_id / "tables" / ".x.tmp-1-a.parquet"))
+    result = _cli("evaluate", run_id, "--runs-dir", str(root))
+    assert result.exit_code == 2
+    err = _one_line(result)
+    assert words in err and str(root / run_id / "tables") in err
+    assert _snapshot(root / run_id / "tables") == before
+
+
+@pytest.mark.faults("traceback")
+def test_read_only_runs_directory_train_and_report_are_one_line(
+    runs: tuple[Path, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import softtrack.store.ids as ids
+
+    root, run_id = runs
+    monkeypatch.setattr(ids.os, "mkdir", _raise_oserror(errno.EROFS, root / "new"))
+    result = _cli("train", str(_spec(tmp_path)), "--runs-dir", str(root))
+    assert result.exit_code == 2 and "read-only file system" in _one_line(result)
+    monkeypatch.undo()
+    import softtrack.store.tables as tables
+
+    for table in (root / run_id / "tables").glob("eval_*.parquet"):
+        table.unlink()  # an unevaluated run: report must evaluate (and write) it
+    monkeypatch.setattr(tables, "_write_parquet",
+                        _raise_oserror(errno.EROFS, root / run_id / "tables" / ".t.parquet"))
+    result = _cli("report", run_id, "--runs-dir", str(root), "--out", str(tmp_path / "rep"))
+    assert result.exit_code == 2 and "read-only file system" in _one_line(result)
+
+
+def _can_mount() -> bool:
+    if os.geteuid() != 0 or not sys.platform.startswith("linux") or shutil.which("mount") is None:
+        return False
+    probe = Path(f"/tmp/softtrack-mount-probe-{os.getpid()}")
+    probe.mkdir(exist_ok=True)
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(probe)],
+                        capture_output=True).returncode == 0
+    if ok:
+        subprocess.run(["umount", str(probe)], capture_output=True)
+    probe.rmdir()
+    return ok
+
+
+@pytest.fixture
+def tmpfs(tmp_path: Path) -> Iterator[Any]:
+    """``mount(size_kb, read_only=False) -> Path``: a real tmpfs (root with mount rights only)."""
+    if not _can_mount():
+        pytest.skip("needs root and mount rights for a real tmpfs (the injected variants run)")
+    mounted: list[Path] = []
+
+    def mount(size_kb: int, read_only: bool = False) -> Path:
+        point = tmp_path / f"mnt{len(mounted)}"
+        point.mkdir()
+        options = f"size={size_kb}k" + (",ro" if read_only else "")
+        subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(point)], check=True)
+        mounted.append(point)
+        return point
+
+    yield mount
+    for point in mounted:
+        subprocess.run(["umount", "-l", str(point)], capture_output=True)
+
+
+@pytest.mark.slow
+@pytest.mark.faults("traceback")
+def test_a_really_full_disk_during_train(tmp_path: Path, tmpfs: Any) -> None:
+    disk = tmpfs(600)  # room for the run, not for a checkpoint with its replay buffer
+    root = disk / "runs"
+    spec = _spec(tmp_path, total_timesteps=400, checkpoint_interval=200)
+    command = [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir",
+               str(root)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300,
+                            env={**os.environ, "CI": "1"})
+    assert result.returncode not in (0, 2), result.stderr
+    lines = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
+    assert "Traceback" not in result.stderr and len(lines) == 1, result.stderr
+    assert "no space left" in lines[0] and str(root) in lines[0]
+    (record,) = RunStore(root).list_runs()
+    assert record.info.status == "interrupted"
+    assert not [p for p in root.rglob("*") if is_temp_file(p)]
+
+
+@pytest.mark.slow
+@pytest.mark.faults("traceback")
+def test_a_really_read_only_runs_directory(runs: tuple[Path, str], tmp_path: Path,
+                                           tmpfs: Any) -> None:
+    root, run_id = runs
+    ro = tmpfs(4096)
+    shutil.copytree(root, ro / "runs")
+    subprocess.run(["mount", "-o", "remount,ro", str(ro)], check=True)
+    for args in (["evaluate", run_id], ["train", str(_spec(tmp_path))]):
+        result = subprocess.run([sys.executable, "-m", "softtrack.cli", *args, "--runs-dir",
+                                 str(ro / "runs")], capture_output=True, text=True,
+                                timeout=300, env={**os.environ, "CI": "1"})
+        assert result.returncode == 2, result.stderr
+        assert "Traceback" not in result.stderr
+        assert "read-only file system" in result.stderr.strip().splitlines()[-1]
+
+
+# ---- 5, 6. hostile specs -------------------------------------------------------------------
+def _alias_bomb(levels: int) -> str:
+    lines = ['a: &a ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    for k in range(1, levels):
+        prev, cur = chr(ord("a") + k - 1), chr(ord("a") + k)
+        lines.append(f"{cur}: &{cur} [" + ", ".join([f"*{prev}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("text, words", [
+    (_alias_bomb(9), "expands to more than"),
+    (_alias_bomb(7), "expands to more than"),
+    ("name: x\nseeds: " + "[" * 20000 + "\n", "nests lists/mappings more than"),
+    ("name: x\nseeds: " + "[" * 20000 + "]" * 20000 + "\n", "nests lists/mappings more than"),
+])
+def test_yaml_bombs_and_deep_nesting_are_rejected_fast(tmp_path: Path, text: str,
+                                                       words: str) -> None:
+    path = tmp_path / "bomb.yaml"
+    path.write_text(text, encoding="utf-8")
+    start = time.monotonic()
+    result = _cli("validate", str(path))
+    assert time.monotonic() - start < 10
+    assert result.exit_code == 2 and words in _one_line(result)
+
+
+@pytest.mark.faults("traceback")
+def test_an_override_bomb_is_rejected(tmp_path: Path) -> None:
+    result = _cli("validate", str(_spec(tmp_path)), "--set", "seeds=" + "[" * 5000)
+    assert result.exit_code == 2 and "nests" in _one_line(result)
+
+
+@pytest.mark.faults("degraded")
+def test_integers_beyond_64_bits_are_refused(tmp_path: Path) -> None:
+    spec = _spec(tmp_path)
+    result = _cli("train", str(spec), "--set", "training.total_timesteps=9223372036854775808",
+                  "--runs-dir", str(tmp_path / "runs"))
+    assert result.exit_code == 2 and "64-bit" in _one_line(result)
+    assert not (tmp_path / "runs").exists()
+
+
+@pytest.mark.faults("degraded")
+def test_a_run_json_beyond_64_bits_is_listed_unreadable_and_queries_work(
+    runs: tuple[Path, str], tmp_path: Path
+) -> None:
+    root, run_id = runs
+    shutil.copytree(root / run_id, root / "huge")
+    data = json.loads((root / "huge" / "run.json").read_text())
+    data.update(run_id="01HUGEHUGEHUGEHUGEHUGEHUGE", total_timesteps=2**63)
+    (root / "huge" / "run.json").write_text(json.dumps(data))
+    result = _cli("query", "SELECT count(*) AS n FROM runs", "--runs-dir", str(root))
+    assert result.exit_code == 0 and result.stdout.split()[-1] == "1"
+    assert "huge" in result.stderr and "left out" in result.stderr
+    listing = _cli("runs", "--runs-dir", str(root)).stdout
+    assert "huge: unreadable" in listing
+
+
+# ---- 7, 8. evaluation tables: all or none, no temporaries -------------------------------------
+@pytest.mark.faults("degraded")
+def test_evaluate_with_a_corrupt_table_changes_no_table(runs: tuple[Path, str]) -> None:
+    root, run_id = runs
+    tables = root / run_id / "tables"
+    (tables / "eval_metrics.parquet").write_bytes(b"PAR1 garbage")
+    before = _snapshot(tables)
+    result = _cli("evaluate", run_id, "--runs-dir", str(root))
+    assert result.exit_code == 2 and "eval_metrics.parquet" in _one_line(result)
+    assert _snapshot(tables) == before
+
+
+_SLOW_WRITER = """
+import signal, sys, time
+from pathlib import Path
+import pandas as pd
+import softtrack.cli as cli
+import softtrack.store.tables as tables
+signal.signal(signal.SIGTERM, cli._exit_on_sigterm)
+write = tables._write_parquet
+def slow(table, path):
+    write(table, path)
+    print("written", flush=True)
+    time.sleep(60)
+tables._write_parquet = slow
+tables.write_tables({Path(sys.argv[1]): pd.DataFrame({"a": [1.0, 2.0]})})
+"""
+
+
+@pytest.mark.faults("degraded")
+def test_sigterm_during_a_table_write_leaves_no_temporary(tmp_path: Path) -> None:
+    target = tmp_path / "tables" / "eval_metrics.parquet"
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_WRITER, str(target)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "written"
+    assert [p for p in target.parent.iterdir() if is_temp_file(p)]  # mid-write
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    assert list(target.parent.iterdir()) == []  # no temporary, no half table
+
+
+@pytest.mark.faults("degraded")
+def test_a_killed_writers_temporary_is_swept_by_the_next_evaluation(
+    runs: tuple[Path, str]
+) -> None:
+    root, run_id = runs
+    tables = root / run_id / "tables"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = [tables / f".eval_metrics.tmp-{dead.pid}-deadbeef.parquet",
+             tables / ".eval_trajectories.tmp-cafebabe.parquet"]  # an older version's name
+    for path in stale:
+        path.write_bytes(b"half")
+    result = _cli("evaluate", run_id, "--runs-dir", str(root))
+    assert result.exit_code == 0, result.output
+    assert not [p for p in tables.iterdir() if is_temp_file(p)]
+
+
+# ---- 9, 10, 11. missing files, runs found by id ----------------------------------------------
+@pytest.mark.faults("degraded")
+@pytest.mark.parametrize("damage", ["missing", "truncated"])
+def test_a_run_without_a_readable_run_json_is_listed_and_named(
+    runs: tuple[Path, str], damage: str
+) -> None:
+    root, run_id = runs
+    path = root / run_id / "run.json"
+    if damage == "missing":
+        path.unlink()
+    else:
+        path.write_text(path.read_text()[:40])
+    listing = _cli("runs", "--runs-dir", str(root))
+    assert listing.exit_code == 0
+    assert f"{run_id}: unreadable:" in listing.stdout and "run.json" in listing.stdout
+    rows = json.loads(_cli("runs", "--runs-dir", str(root), "--format", "json").stdout)
+    assert [r["status"] for r in rows] == ["unreadable"]
+    result = _cli("evaluate", str(root / run_id))
+    assert result.exit_code == 2 and "run.json" in _one_line(result)
+    result = _cli("evaluate", run_id, "--runs-dir", str(root))
+    assert result.exit_code == 2 and "run.json" in _one_line(result)
+    result = _cli("resume", "--runs-dir", str(root))
+    assert run_id in result.stderr and "run.json" in result.stderr
+
+
+def _interrupted_run(tmp_path: Path) -> tuple[Path, str]:
+    """A run stopped by SIGINT after its first checkpoint (mid-episode)."""
+    spec = _spec(tmp_path, total_timesteps=2000, checkpoint_interval=200, n_envs=2)
+    root = tmp_path / "runs"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir", str(root)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "CI": "1"},
+    )
+    deadline = time.monotonic() + 180
+    while time.monotonic() < deadline:
+        records = RunStore(root).list_runs() if root.is_dir() else []
+        if records and records[0].list_checkpoints():
+            break
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    return root, out.strip()
+
+
+@pytest.mark.faults("lost")
+@pytest.mark.parametrize("damage", ["missing", "latin-1"])
+def test_resume_with_a_broken_spec_keeps_the_status(tmp_path: Path, damage: str) -> None:
+    root, run_id = _interrupted_run(tmp_path)
+    spec = root / run_id / "spec.yaml"
+    original = spec.read_bytes()
+    if damage == "missing":
+        spec.unlink()
+    else:
+        spec.write_bytes(original + "# caf\xe9\n".encode("latin-1"))
+    for args in (["train", "--resume", run_id], ["resume", run_id]):
+        result = _cli(*args, "--runs-dir", str(root))
+        assert result.exit_code == 2 and "spec.yaml" in _one_line(result), result.output
+        assert RunStore(root).get_run(run_id).info.status == "interrupted"
+    result = _cli("resume", "--runs-dir", str(root))  # all: it is named, not failed
+    assert "spec.yaml" in result.stderr
+    assert RunStore(root).get_run(run_id).info.status == "interrupted"
+    spec.write_bytes(original)
+    result = _cli("train", "--resume", run_id, "--runs-dir", str(root))
+    assert result.exit_code == 0, result.output
+    assert RunStore(root).get_run(run_id).info.status == "completed"
+
+
+@pytest.mark.faults("degraded")
+def test_evaluate_finds_a_run_by_its_id_in_a_directory_named_otherwise(
+    runs: tuple[Path, str]
+) -> None:
+    root, run_id = runs
+    (root / run_id).rename(root / "td3-tiny-seed0")
+    result = _cli("evaluate", run_id, "--runs-dir", str(root), "--trajectory", "circle")
+    assert result.exit_code == 0, result.output
+    assert (root / "td3-tiny-seed0" / "tables" / "eval_metrics.parquet").is_file()
+
+
+# ---- 12. resume keeps the history ------------------------------------------------------------
+@pytest.mark.faults("degraded")
+def test_resume_keeps_started_the_killed_sessions_step_and_every_env_step(
+    tmp_path: Path
+) -> None:
+    spec = _spec(tmp_path, total_timesteps=2000, checkpoint_interval=220, n_envs=2)
+    root = tmp_path / "runs"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir",
+         os.path.abspath(root)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "CI": "1"},
+    )
+    deadline = time.monotonic() + 180
+    record = None
+    while time.monotonic() < deadline and record is None:
+        records = RunStore(root).list_runs() if root.is_dir() else []
+        if records and records[0].list_checkpoints():
+            record = records[0]
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.02)
+    assert record is not None
+    proc.kill()  # SIGKILL: the session is never closed by its process
+    proc.communicate(timeout=30)
+    checkpoint = int(RunStore(root).get_run(record.run_id).list_checkpoints()[-1].name[5:])
+    started = RunStore(root).get_run(record.run_id).info.started
+    result = _cli("train", "--resume", record.run_id, "--runs-dir", str(root))
+    assert result.exit_code == 0, result.output
+    info = RunStore(root).get_run(record.run_id).info
+    assert info.started == started  # the first start, not the resume's
+    lost, done = info.sessions
+    assert lost["status"] == "lost" and lost["end_step"] >= checkpoint > 0
+    runs_dir_arg = info.command[info.command.index("--runs-dir") + 1]
+    assert not os.path.isabs(runs_dir_arg)
+    assert os.path.normpath(Path.cwd() / runs_dir_arg) == os.path.abspath(root)
+    episodes = read_table(record.table_path("train_episodes"))
+    truncated = episodes[episodes["truncated"].fillna(False).astype(bool)]
+    assert len(truncated) == 2  # the two envs' episodes under way at the 220-step checkpoint
+    assert (truncated["global_step"] == checkpoint).all() and (truncated["length"] < 50).all()
+    assert list(episodes["episode"]) == list(range(len(episodes)))
+    # every env step up to the checkpoint lies in one episode row (whole or truncated)
+    before = episodes[episodes["global_step"] <= checkpoint]
+    assert int(before["length"].sum()) == checkpoint
