@@ -37,7 +37,7 @@ def compare_run(run_dir: Path, store: bool) -> pd.DataFrame:
     """One row per trajectory and arm: stored and live 3-D RMSE (m), the stored CPU kind."""
     stored = read_table(run_dir / "tables" / "eval_metrics.parquet")
     stored = stored[stored["trajectory"].isin(TRAJECTORIES)]
-    live = api.evaluate([str(run_dir)], TRAJECTORIES, write=store)
+    live = api.evaluate([str(run_dir)], TRAJECTORIES, write=store, in_place=store)
     rows = stored.merge(live, on=["trajectory", "arm"], suffixes=("_stored", "_live"))
     stored_cpu = rows["cpu_stored"] if "cpu_stored" in rows else pd.Series([None] * len(rows))
     return pd.DataFrame({

@@ -221,7 +221,7 @@ def run_robustness(names: list[str], workers: int) -> None:
         print("robustness: no shipped run of " + ", ".join(names), flush=True)
         return
     for grid in ROBUSTNESS_GRIDS:
-        _softtrack("robustness", *runs, *grid, "--workers", str(workers))
+        _softtrack("robustness", *runs, *grid, "--workers", str(workers), "--in-place")
 
 
 def run_contact_robustness(workers: int) -> None:
@@ -235,7 +235,8 @@ def run_contact_robustness(workers: int) -> None:
                 and load_experiment(job.spec).env.physics.contact_k == 0.0):
             runs.append(f"models/{job.dest}")
     if runs:
-        _softtrack("robustness", *runs, "--grid", "contact=on", "--workers", str(workers))
+        _softtrack("robustness", *runs, "--grid", "contact=on", "--workers", str(workers),
+                   "--in-place")
 
 
 def _softtrack(*args: str, taskset: int | None = None) -> str:

@@ -26,7 +26,7 @@ from softtrack.spec import (
     spec_json_schema,
     spec_to_yaml,
 )
-from softtrack.store.provenance import portable_command
+from softtrack.store.provenance import portable_command, portable_path
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.status import (
     RUN_TABLE_COLUMNS,
@@ -221,9 +221,14 @@ def evaluate(
     model: ModelChoice = "policy",
     full_moments: bool = False,
     on_created: Callable[[RunRecord], None] | None = None,
+    in_place: bool = False,
+    on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
+
+    A shipped run (``notes.read_only``) is never written unless ``in_place``: its results go
+    to its copy in the runs directory (:func:`writable_run`; ``on_copied`` is told).
 
     A reference that is a spec file of ``controller: mpc`` (nothing to train) first creates
     one completed run per seed of the spec in the runs directory, which is then evaluated.
@@ -272,6 +277,11 @@ def evaluate(
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     mpc_specs = {ref: _mpc_spec(ref) for ref in references if _is_spec_file(ref)}
     records = [resolve_run(ref, runs_dir) for ref in references if ref not in mpc_specs]
+    for record in records:
+        record.load_spec()  # every run checked before anything is copied or written
+    if write and model == "policy":
+        records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied)
+                   for r in records]
     store_for_new = RunStore(resolve_runs_dir(runs_dir))
     for ref, spec in mpc_specs.items():
         for seed in spec.seeds:
@@ -360,7 +370,8 @@ def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bo
 
 
 def copy_run(
-    source: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None
+    source: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None,
+    keep_evaluation: bool = False,
 ) -> Path:
     """Copy a finished run directory (e.g. the shipped ``models/td3-sbx-1e7-seed0``) into the
     runs directory under its own id, without its evaluation tables, so that evaluating the
@@ -370,7 +381,9 @@ def copy_run(
     The copy holds everything but checkpoints, replay buffers, the run lock and
     ``tables/eval_*.parquet`` (training episodes and validation stay: they cannot be measured
     again). A copy already there with the same model files is reused, its evaluation tables
-    removed likewise.
+    removed likewise (kept with ``keep_evaluation``: a copy that holds this machine's results
+    already). The copy is writable (no ``notes.read_only``) and names its source in
+    ``notes.copy_of``.
 
     Returns:
         The copy's directory, ``<runs_dir>/<run id>``.
@@ -404,6 +417,8 @@ def copy_run(
         if not same:
             raise RunStoreError(f"{dest} already holds another run named {record.run_id}; "
                                 "remove it or give another --runs-dir")
+        if keep_evaluation:
+            return dest
     else:
         def skipped(directory: str, names: list[str]) -> set[str]:
             in_tables = Path(directory).name == "tables"
@@ -413,9 +428,43 @@ def copy_run(
 
         with atomic_dir(dest, fsync=False) as tmp:
             shutil.copytree(record.path, tmp, ignore=skipped, dirs_exist_ok=True)
+        notes = {k: v for k, v in record.info.notes.items() if k != "read_only"}
+        RunStore(root).update_run(record.run_id,
+                                  notes={**notes, "copy_of": portable_path(record.path)})
     for table in (dest / "tables").glob("eval_*.parquet"):
         table.unlink()
     return dest
+
+
+def writable_run(
+    record: RunRecord,
+    runs_dir: str | os.PathLike[str] | None = None,
+    *,
+    in_place: bool = False,
+    on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
+) -> RunRecord:
+    """The run a command that stores results writes into: ``record`` itself, or, for a
+    shipped run (``notes.read_only``, as ``softtrack export`` marks them) unless ``in_place``,
+    its copy in the runs directory (:func:`copy_run`, reused by later commands, so results
+    accumulate there). ``on_copied(shipped, copy)`` is called when a copy is used.
+
+    Raises:
+        RunStoreError: the runs directory is the shipped run's own directory.
+    """
+    if in_place or not record.read_only:
+        return record
+    root = resolve_runs_dir(runs_dir)
+    if root.resolve() == record.path.parent.resolve():
+        raise RunStoreError(
+            f"{record.path} is a shipped run (read-only) and --runs-dir is its own directory; "
+            "give a --runs-dir for this machine's results (default runs/), or --in-place to "
+            "write into the shipped run"
+        )
+    copy = RunStore(root).get_run(copy_run(record.path, runs_dir=root,
+                                           keep_evaluation=True).name)
+    if on_copied is not None:
+        on_copied(record, copy)
+    return copy
 
 
 def report(
@@ -580,8 +629,11 @@ def robustness(
     options: Any = None,
     on_cell: Callable[..., None] | None = None,
     on_progress: Callable[[str], None] | None = None,
+    in_place: bool = False,
+    on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
 ) -> Any:
-    """Evaluate runs under perturbations and store their ``eval_robustness`` tables.
+    """Evaluate runs under perturbations and store their ``eval_robustness`` tables (a
+    shipped run's in its copy unless ``in_place``: :func:`writable_run`).
 
     Every reference, grid axis and setting is checked before any episode runs.
 
@@ -627,6 +679,10 @@ def robustness(
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     settings = expand_settings(parse_grid(grid), full_grid)
     records = [resolve_run(ref, runs_dir) for ref in references]
+    for record in records:
+        record.load_spec()  # every run checked before anything is copied or written
+    records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied)
+               for r in records]
     return run_robustness(records, settings, chosen, episodes, keep_realism=keep_realism,
                           redo=redo, options=options, on_cell=on_cell, on_progress=on_progress)
 

@@ -49,6 +49,12 @@ SetOption = Annotated[
         show_default=False,
     ),
 ]
+InPlaceOption = Annotated[
+    bool,
+    typer.Option("--in-place",
+                 help="Store the results in a shipped (read-only) run itself, e.g. to update "
+                      "models/ on purpose [default: in its copy in the runs directory]."),
+]
 RunsDirOption = Annotated[
     str | None,
     typer.Option(
@@ -671,6 +677,7 @@ def evaluate(
                           "last model of training, or the best-validated one. Only the "
                           "policy's results are stored."),
     ] = ModelOption.policy,
+    in_place: InPlaceOption = False,
     full_moments: Annotated[
         bool,
         typer.Option("--full-moments",
@@ -705,7 +712,13 @@ def evaluate(
     with _user_errors(runs_dir):
         api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
                      random_episodes=random, on_random=_print_random, model=model.value,
-                     full_moments=full_moments, on_created=_print_created)
+                     full_moments=full_moments, on_created=_print_created,
+                     in_place=in_place, on_copied=_print_copied)
+
+
+def _print_copied(shipped: RunRecord, copy: RunRecord) -> None:
+    typer.echo(f"{_shown(shipped.path)} is a shipped run (read-only): its results go to its "
+               f"copy {_shown(copy.path)} (--in-place writes into the shipped run)", err=True)
 
 
 def _print_created(record: RunRecord) -> None:
@@ -784,6 +797,7 @@ def robustness(
     redo: Annotated[
         bool, typer.Option("--redo", help="Evaluate again settings the tables already hold.")
     ] = False,
+    in_place: InPlaceOption = False,
     *,
     options: ExecOptions,
     runs_dir: RunsDirOption = None,
@@ -816,7 +830,8 @@ def robustness(
         outcome = api.robustness(references, grid or [], full_grid=full_grid,
                                  trajectories=chosen, episodes=episodes,
                                  keep_realism=keep_realism, redo=redo, runs_dir=runs_dir,
-                                 options=options, on_cell=cell, on_progress=_progress)
+                                 options=options, on_cell=cell, on_progress=_progress,
+                                 in_place=in_place, on_copied=_print_copied)
     if outcome.skipped:
         typer.echo(f"robustness: {len(outcome.skipped)} settings already stored (--redo "
                    "evaluates them again)", err=True)

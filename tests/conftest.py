@@ -1,4 +1,5 @@
-"""Shared pytest hooks: the tally of the fault-injection sweep (``make faults``)."""
+"""Shared pytest hooks: a private default runs directory for every test, and the tally of
+the fault-injection sweep (``make faults``)."""
 
 from __future__ import annotations
 
@@ -21,6 +22,14 @@ def _kind(item: Any) -> str | None:
     if kind not in FAULT_KINDS:
         raise pytest.UsageError(f"{item.nodeid}: faults kind {kind!r}; one of {FAULT_KINDS}")
     return str(kind)
+
+
+@pytest.fixture(autouse=True)
+def _private_default_runs_dir(tmp_path_factory: pytest.TempPathFactory,
+                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Commands run without --runs-dir write into a temporary directory, never the
+    checkout's runs/."""
+    monkeypatch.setenv("SOFTTRACK_RUNS_DIR", str(tmp_path_factory.mktemp("default-runs")))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -154,7 +154,7 @@ def test_trains_evaluates_exports_and_loads_with_the_plain_class(
         if backend == "sbx":  # inference-only: no critics, optimiser or entropy state
             assert exported.stat().st_size < 0.7 * source.stat().st_size
             assert getattr(lean, "ent_coef_state", None) is None
-    result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle"])
+    result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle", "--in-place"])
     assert result.exit_code == 0, result.output
 
 

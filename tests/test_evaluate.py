@@ -330,7 +330,7 @@ def test_export_keeps_what_evaluation_needs_and_drops_checkpoints(
     assert exported == expected | {"policy.json"}
     assert json.loads((dest / "policy.json").read_text())["model"] == "last"
     # the export is a run directory: evaluation and reports take it as they are
-    result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle"])
+    result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle", "--in-place"])
     assert result.exit_code == 0, result.output
     out = tmp_path / "report"
     result = runner.invoke(app, ["report", "tiny-centralized", "--runs-dir",
@@ -397,7 +397,7 @@ def test_quickstart_reports_the_shipped_policy_beside_its_own_run(
     runs, run_id = trained
     shipped = tmp_path / "models" / "shipped-td3"
     assert runner.invoke(app, ["export", run_id, str(shipped), "--runs-dir", str(runs)]).exit_code == 0
-    assert runner.invoke(app, ["evaluate", str(shipped)]).exit_code == 0
+    assert runner.invoke(app, ["evaluate", str(shipped), "--in-place"]).exit_code == 0
     before = _files(shipped)
     out = tmp_path / "report"
     result = runner.invoke(app, ["quickstart", *TINY_QUICKSTART, "--runs-dir",
@@ -415,3 +415,34 @@ def test_quickstart_reports_the_shipped_policy_beside_its_own_run(
                                  "--pretrained", str(tmp_path / "nothing")])
     assert result.exit_code == 2 and "not a run directory" in result.output
     assert not (tmp_path / "r2").exists()
+
+
+def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
+    """`softtrack evaluate models/<run>` (a README command) stores this machine's results in
+    the run's copy in the runs directory; the shipped files stay byte for byte; --in-place
+    writes into the shipped run on purpose."""
+    shipped = Path("models/td3-sbx-1e7-seed0")
+    before = _files(shipped)
+    runs = tmp_path / "runs"
+    result = runner.invoke(app, ["evaluate", str(shipped), "-t", "circle", "--runs-dir",
+                                 str(runs)])
+    assert result.exit_code == 0, result.output
+    assert "read-only" in result.stderr and str(runs / shipped.name) in result.stderr
+    assert _files(shipped) == before
+    copy = runs / shipped.name
+    assert read_table(copy / "tables" / "eval_metrics.parquet")["trajectory"].tolist() == [
+        "circle", "circle"]
+    assert json.loads((copy / "run.json").read_text())["notes"]["copy_of"] == str(shipped)
+    result = runner.invoke(app, ["robustness", str(shipped), "-t", "circle", "--grid",
+                                 "obs_noise=0.01", "--runs-dir", str(runs)])
+    assert result.exit_code == 0, result.output
+    assert _files(shipped) == before and (copy / "tables" / "eval_robustness.parquet").is_file()
+    assert (copy / "tables" / "eval_metrics.parquet").is_file()  # the copy is reused, kept
+    result = runner.invoke(app, ["evaluate", shipped.name, "--runs-dir", "models"])
+    assert result.exit_code == 2 and "--in-place" in result.stderr
+    mine = tmp_path / "mine"
+    shutil.copytree(shipped, mine / shipped.name)
+    result = runner.invoke(app, ["evaluate", str(mine / shipped.name), "-t", "circle",
+                                 "--in-place"])
+    assert result.exit_code == 0 and "read-only" not in result.stderr
+    assert _files(mine / shipped.name) != _files(shipped)  # written where asked

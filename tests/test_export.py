@@ -77,13 +77,13 @@ def test_upgrade_relayouts_an_old_export_in_place(sbx_run: tuple[Path, str], tmp
     runs, run_id = sbx_run
     old = tmp_path / "models" / "tiny-sbx-seed0"  # the earlier export: a copy, checkpoints left out
     shutil.copytree(runs / run_id, old, ignore=shutil.ignore_patterns("checkpoints", "run.lock"))
-    before = runner.invoke(app, ["evaluate", str(old), "-t", "circle"])
+    before = runner.invoke(app, ["evaluate", str(old), "-t", "circle", "--in-place"])
     assert before.exit_code == 0, before.output
     result = runner.invoke(app, ["upgrade", str(old)])
     assert result.exit_code == 0, result.output
     assert "models" in result.output
     assert (old / "policy.json").is_file() and not (old / "best").exists()
-    after = runner.invoke(app, ["evaluate", str(old), "-t", "circle"])
+    after = runner.invoke(app, ["evaluate", str(old), "-t", "circle", "--in-place"])
     assert after.exit_code == 0, after.output
     assert after.output == before.output  # the same policy, the same episode
     again = runner.invoke(app, ["upgrade", str(old)])

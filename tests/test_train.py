@@ -400,7 +400,7 @@ def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: 
     result = runner.invoke(app, ["export", result.stdout.strip(), str(shipped), "--runs-dir",
                                  str(trained)])
     assert result.exit_code == 0, result.output
-    assert runner.invoke(app, ["evaluate", str(shipped)]).exit_code == 0
+    assert runner.invoke(app, ["evaluate", str(shipped), "--in-place"]).exit_code == 0
     stored = shipped / "tables" / "eval_metrics.parquet"
     write_table(stored, read_table(stored).assign(rmse_3d=9.8765))
     before = {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()}

@@ -48,8 +48,10 @@ def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
         except ImportError:
             raise SpecError(
                 file,
-                "algo.backend 'sbx' needs the JAX backend, which is not installed",
-                "pip install -c constraints.txt -e '.[sbx]' or use algo.backend: sb3",
+                "algo.backend 'sbx' needs the JAX backend (sbx-rl, a dependency of softtrack), "
+                "which is not installed",
+                "reinstall softtrack (pip install -c constraints.txt -e .) or use "
+                "algo.backend: sb3",
                 field="algo.backend",
             ) from None
     elif spec.algo.name == "tqc":

@@ -6,7 +6,9 @@ An exported directory keeps what evaluation and reports read -- ``spec.yaml``, `
 are laid out for users (:mod:`softtrack.store.layout`): each policy directory's ``model.zip``
 is the run's policy, its other models sit in ``other_models/<name>/``, and ``policy.json``
 says which model ``model.zip`` is. ``softtrack evaluate DIR`` and
-``softtrack report NAME --runs-dir PARENT`` accept the result like any run.
+``softtrack report NAME --runs-dir PARENT`` accept the result like any run. It is marked
+read-only (``notes.read_only``): ``evaluate`` and ``robustness`` store their results in a copy
+in the runs directory unless given ``--in-place``.
 """
 
 from __future__ import annotations
@@ -18,10 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from softtrack.store.atomic import atomic_dir, atomic_write_json, is_temp_file
-from softtrack.store.runs import RunRecord, RunStoreError
+from softtrack.store.atomic import atomic_dir, atomic_write_json, atomic_write_text, is_temp_file
+from softtrack.store.runs import RunInfo, RunRecord, RunStoreError
 
-__all__ = ["EXCLUDED_NAMES", "MODEL_FILES", "ModelCopy", "export_run"]
+__all__ = ["EXCLUDED_NAMES", "MODEL_FILES", "ModelCopy", "export_run", "mark_read_only"]
 
 EXCLUDED_NAMES = frozenset({"checkpoints", "run.lock", "replay_buffer.pkl"})
 """File and directory names never exported, at any depth of the run directory."""
@@ -103,4 +105,13 @@ def export_run(
                     shutil.copy2(model.source.parent / name, target.parent / name)
         for relative, manifest in manifests.items():
             atomic_write_json(tmp / relative / "policy.json", dict(manifest))
+        mark_read_only(tmp)
     return dest
+
+
+def mark_read_only(run_path: Path) -> None:
+    """Mark a run directory as shipped: ``notes.read_only`` in its ``run.json``, so commands
+    that store results write them into a copy (``softtrack evaluate --in-place`` overrides)."""
+    info = RunInfo.model_validate_json((run_path / "run.json").read_bytes())
+    info.notes = {**info.notes, "read_only": True}
+    atomic_write_text(run_path / "run.json", info.model_dump_json(indent=2) + "\n")

@@ -213,6 +213,12 @@ class RunRecord:
         """The final model (SB3 zip)."""
         return self.path / "model.zip"
 
+    @property
+    def read_only(self) -> bool:
+        """A shipped run (``notes.read_only``, set by ``softtrack export``): commands store
+        their results in a copy of it unless told ``--in-place``."""
+        return bool(self.info.notes.get("read_only"))
+
     def saved_steps(self) -> int:
         """Env steps the run's saved files hold (over its policies): a finished arm's
         ``state.json`` step, else the step of the policy's newest checkpoint; 0 for none."""
