@@ -517,19 +517,34 @@ QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
 """The shipped policy the quickstart shows beside its own short training (repo-relative)."""
 
 
+def _checkout_or_cwd(relative: str) -> list[Path]:
+    """``relative`` in this source checkout (an editable install) and in the current
+    directory (a checkout the user works in with an installed wheel), in that order."""
+    return [Path(__file__).resolve().parents[1] / relative, Path.cwd() / relative]
+
+
 def quickstart_pretrained_path() -> Path | None:
-    """The checkout's :data:`QUICKSTART_PRETRAINED` run directory, or ``None`` if absent."""
-    path = Path(__file__).resolve().parents[1] / QUICKSTART_PRETRAINED
-    return path if (path / "run.json").is_file() else None
+    """The :data:`QUICKSTART_PRETRAINED` run directory of this checkout or of the current
+    directory, or ``None`` if neither has it (an installed wheel used elsewhere)."""
+    for path in _checkout_or_cwd(QUICKSTART_PRETRAINED):
+        if (path / "run.json").is_file():
+            return path
+    return None
 
 
 def quickstart_spec_path() -> Path:
-    """``experiments/quickstart.yaml`` of this checkout."""
-    path = Path(__file__).resolve().parents[1] / "experiments" / "quickstart.yaml"
-    if not path.is_file():
-        raise SpecError(str(path), "the quickstart spec is missing",
-                        "run from a softtrack checkout (the file ships in experiments/)")
-    return path
+    """``experiments/quickstart.yaml`` of this checkout or the current directory, else the
+    copy that ships inside the package (``softtrack/data/quickstart.yaml``)."""
+    from importlib.resources import files
+
+    for path in _checkout_or_cwd("experiments/quickstart.yaml"):
+        if path.is_file():
+            return path
+    packaged = Path(str(files("softtrack") / "data" / "quickstart.yaml"))
+    if not packaged.is_file():
+        raise SpecError(str(packaged), "the quickstart spec is missing from this installation",
+                        "reinstall softtrack (pip install softtrack) or run from a checkout")
+    return packaged
 
 
 # ---- sweeps -------------------------------------------------------------------------------

@@ -1,13 +1,13 @@
 """The numba engine reproduces the stored PyElastica 1.0.0 reference rollouts (docs/physics.md).
 
-``shared/reference/pyelastica/*.npz`` hold two 2-s open-loop rollouts of the dual-arm scenario
+``tests/data/pyelastica/*.npz`` hold two 2-s open-loop rollouts of the dual-arm scenario
 made with the real PyElastica 1.0.0 at the default settings. Halving the time step moves the tips
 by 0.2–0.5 mm over those 2 s, so an engine with the same discretisation agrees to round-off
 (measured: ≤ 2e-14 m) and any difference above 1e-6 m means a convention differs.
 
-The reference directory is ``$SOFTTRACK_REFERENCE_DIR`` if set, else
-``<repo>/../shared/reference/pyelastica`` (or ``<repo>/shared/reference/pyelastica``); the tests
-skip, saying where they looked, when it is absent.
+The files ship with the tests (``tests/data/pyelastica/``, 1.1 MB, with their README), so a
+clone checks its PyElastica claim by itself; ``$SOFTTRACK_REFERENCE_DIR`` points the tests at
+another copy.
 """
 
 from __future__ import annotations
@@ -39,10 +39,7 @@ def _candidate_dirs() -> list[Path]:
     env = os.environ.get("SOFTTRACK_REFERENCE_DIR")
     if env:
         return [Path(env)]
-    return [
-        REPO.parent / "shared" / "reference" / "pyelastica",
-        REPO / "shared" / "reference" / "pyelastica",
-    ]
+    return [REPO / "tests" / "data" / "pyelastica"]
 
 
 def _reference_dir() -> Path:

@@ -1,6 +1,7 @@
 """The PyElastica 1.0.0 backend reproduces the stored reference rollouts (docs/physics.md).
 
-The reference files in ``shared/reference/pyelastica`` were made with the real PyElastica
+The reference files in ``tests/data/pyelastica`` (shipped with the tests) were made with the
+real PyElastica
 1.0.0; the backend rebuilds the scenario from ``SimParams`` defaults and must agree with
 them to ≤ 1e-6 m at every control step (it agrees to ~1e-14 m).
 """
@@ -27,11 +28,7 @@ from softtrack.sim.pyelastica_backend import (
 pytestmark = pytest.mark.pyelastica
 
 REPO = Path(__file__).resolve().parents[1]
-_CANDIDATES = [
-    REPO / "shared" / "reference" / "pyelastica",
-    REPO.parent / "shared" / "reference" / "pyelastica",
-]
-REFERENCE_DIR = next((p for p in _CANDIDATES if p.is_dir()), _CANDIDATES[0])
+REFERENCE_DIR = REPO / "tests" / "data" / "pyelastica"
 REFERENCE_FILES = ["const_actions.npz", "sine_actions.npz"]
 
 TIP_TOL = 1e-6  # m; a differing convention shows up as ≥ 1e-4 m over 2 s
@@ -39,11 +36,7 @@ TIP_TOL = 1e-6  # m; a differing convention shows up as ≥ 1e-4 m over 2 s
 
 def _load(name: str) -> dict[str, np.ndarray]:
     path = REFERENCE_DIR / name
-    if not path.is_file():
-        # CI has ../shared beside the clone: a missing reference there is a failure
-        (pytest.fail if os.environ.get("CI") else pytest.skip)(
-            f"reference file {path} not available"
-        )
+    assert path.is_file(), f"reference file {path} is missing from the checkout"
     with np.load(path) as data:
         return {k: data[k] for k in data.files}
 
