@@ -18,6 +18,8 @@ quickstart: setup
 	$(BIN)/softtrack quickstart
 
 test: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 

@@ -62,7 +62,7 @@ def make_softtrack_runner(params: SimParams, torques: np.ndarray, n_envs: int, c
     repeats time the same motion (the arms' contacts included).
     """
     batch = RodBatch(n_envs, params)
-    tiled = np.broadcast_to(torques[:, None], (len(torques), n_envs) + torques.shape[1:]).copy()
+    tiled = np.broadcast_to(torques[:, None], (len(torques), n_envs, *torques.shape[1:])).copy()
     for k in range(30):
         batch.set_element_torques(tiled[k % len(tiled)])
         batch.advance()
@@ -114,19 +114,30 @@ def warm_start_seconds() -> float:
         "print(time.perf_counter()-t)"
     )
     subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)  # fills cache
-    runs = [float(subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
-                                 text=True).stdout) for _ in range(3)]
+    runs = [
+        float(
+            subprocess.run(
+                [sys.executable, "-c", code], check=True, capture_output=True, text=True
+            ).stdout
+        )
+        for _ in range(3)
+    ]
     return statistics.median(runs)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--control-steps", type=int, default=200,
-                        help="control steps (of 10 integration steps) per timed run")
+    parser.add_argument(
+        "--control-steps",
+        type=int,
+        default=200,
+        help="control steps (of 10 integration steps) per timed run",
+    )
     parser.add_argument("--repeats", type=int, default=11, help="timed runs per measurement")
     parser.add_argument("--batch", type=int, default=64, help="environments in the batch")
-    parser.add_argument("--no-contact", action="store_true",
-                        help="leave out the contact-on measurements")
+    parser.add_argument(
+        "--no-contact", action="store_true", help="leave out the contact-on measurements"
+    )
     args = parser.parse_args()
 
     params = SimParams()
@@ -136,12 +147,18 @@ def main() -> None:
     steps = params.steps_per_action
     batch_control_steps = max(args.control_steps // args.batch, 5)
     runners = {
-        "pyelastica": (make_pyelastica_runner(params, torques, args.control_steps),
-                       args.control_steps * steps),
-        "single": (make_softtrack_runner(params, torques, 1, args.control_steps),
-                   args.control_steps * steps),
-        "batch": (make_softtrack_runner(params, torques, args.batch, batch_control_steps),
-                  batch_control_steps * steps * args.batch),
+        "pyelastica": (
+            make_pyelastica_runner(params, torques, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "single": (
+            make_softtrack_runner(params, torques, 1, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "batch": (
+            make_softtrack_runner(params, torques, args.batch, batch_control_steps),
+            batch_control_steps * steps * args.batch,
+        ),
     }
     # ratios are taken within a round, then the median over rounds
     rates = interleaved_rates(runners, args.repeats)
@@ -152,13 +169,21 @@ def main() -> None:
     batch_ratio = median_ratio(rates["batch"], rates["pyelastica"])
     warm = warm_start_seconds()
 
-    print("integration steps/s (both arms, dt = 2e-4 s), median of", args.repeats,
-          "interleaved runs; ratios are medians of per-run ratios; CPU:", cpu_description())
+    print(
+        "integration steps/s (both arms, dt = 2e-4 s), median of",
+        args.repeats,
+        "interleaved runs; ratios are medians of per-run ratios; CPU:",
+        cpu_description(),
+    )
     print(f"  PyElastica 1.0.0          {pyelastica:12,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
-    print(f"  softtrack, 1 env          {single:12,.0f}   ({1e6 / single:6.2f} µs/step)"
-          f"   {single_ratio:5.1f}× PyElastica")
-    print(f"  softtrack, {args.batch} envs, per env {batch:9,.0f}   ({1e6 / batch:6.2f} µs/step)"
-          f"   {batch_ratio:5.1f}× PyElastica")
+    print(
+        f"  softtrack, 1 env          {single:12,.0f}   ({1e6 / single:6.2f} µs/step)"
+        f"   {single_ratio:5.1f}× PyElastica"
+    )
+    print(
+        f"  softtrack, {args.batch} envs, per env {batch:9,.0f}   ({1e6 / batch:6.2f} µs/step)"
+        f"   {batch_ratio:5.1f}× PyElastica"
+    )
     print(f"warm start (import + first step, cached compilation): {warm:.2f} s")
     if not args.no_contact:
         contact_rows(args, steps, batch_control_steps)
@@ -168,25 +193,37 @@ def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int)
     """The contact-on measurements (module docstring), one block per scene."""
     free = SimParams()
     touching = SimParams(**CONTACT_ON)
-    print(f"with contact (contact_k = {touching.contact_k:g} N/m, contact_nu = "
-          f"{touching.contact_nu:g} N·s/m); cost = contact step time / contact-free step time")
+    print(
+        f"with contact (contact_k = {touching.contact_k:g} N/m, contact_nu = "
+        f"{touching.contact_nu:g} N·s/m); cost = contact step time / contact-free step time"
+    )
     for scene in ("random", "pressed"):
         torques = scene_torques(scene, free, np.random.default_rng(0))
         runners = {
-            "pyelastica": (make_pyelastica_runner(touching, torques, args.control_steps),
-                           args.control_steps * steps),
-            "single-free": (make_softtrack_runner(free, torques, 1, args.control_steps),
-                            args.control_steps * steps),
-            "single": (make_softtrack_runner(touching, torques, 1, args.control_steps),
-                       args.control_steps * steps),
-            "batch-free": (make_softtrack_runner(free, torques, args.batch, batch_control_steps),
-                           batch_control_steps * steps * args.batch),
-            "batch": (make_softtrack_runner(touching, torques, args.batch, batch_control_steps),
-                      batch_control_steps * steps * args.batch),
+            "pyelastica": (
+                make_pyelastica_runner(touching, torques, args.control_steps),
+                args.control_steps * steps,
+            ),
+            "single-free": (
+                make_softtrack_runner(free, torques, 1, args.control_steps),
+                args.control_steps * steps,
+            ),
+            "single": (
+                make_softtrack_runner(touching, torques, 1, args.control_steps),
+                args.control_steps * steps,
+            ),
+            "batch-free": (
+                make_softtrack_runner(free, torques, args.batch, batch_control_steps),
+                batch_control_steps * steps * args.batch,
+            ),
+            "batch": (
+                make_softtrack_runner(touching, torques, args.batch, batch_control_steps),
+                batch_control_steps * steps * args.batch,
+            ),
         }
         rates = interleaved_rates(runners, args.repeats)
         probe = RodBatch(args.batch, touching)
-        tiled = np.broadcast_to(torques[:, None], (50, args.batch) + torques.shape[1:])
+        tiled = np.broadcast_to(torques[:, None], (50, args.batch, *torques.shape[1:]))
         touched = []
         for k in range(30 + batch_control_steps):
             probe.set_element_torques(tiled[k % 50])
@@ -195,13 +232,17 @@ def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int)
         share = float(np.mean(touched[30:]))
         pyelastica = statistics.median(rates["pyelastica"])
         print(f" scene '{scene}' (arms touching in {100 * share:.0f} % of control steps):")
-        print(f"  PyElastica + RodRodContact {pyelastica:11,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
+        print(
+            f"  PyElastica + RodRodContact {pyelastica:11,.0f}   ({1e6 / pyelastica:6.2f} µs/step)"
+        )
         for name, label in (("single", "1 env"), ("batch", f"{args.batch} envs, per env")):
             rate = statistics.median(rates[name])
             cost = median_ratio(rates[f"{name}-free"], rates[name])
             speedup = median_ratio(rates[name], rates["pyelastica"])
-            print(f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
-                  f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free")
+            print(
+                f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
+                f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
+            )
 
 
 if __name__ == "__main__":

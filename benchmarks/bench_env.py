@@ -42,9 +42,11 @@ def _timed(setup: Callable[[], None], run: Callable[[], None]) -> float:
     return time.perf_counter() - start
 
 
-def _compare(env_pair: tuple[Callable[[], None], Callable[[], None]],
-             engine_pair: tuple[Callable[[], None], Callable[[], None]],
-             repeats: int) -> tuple[float, float]:
+def _compare(
+    env_pair: tuple[Callable[[], None], Callable[[], None]],
+    engine_pair: tuple[Callable[[], None], Callable[[], None]],
+    repeats: int,
+) -> tuple[float, float]:
     """Median seconds per run of the env and of the engine, measured alternately."""
     _timed(*env_pair)  # warm-up (numba cache load, first-call allocations)
     _timed(*engine_pair)
@@ -55,8 +57,7 @@ def _compare(env_pair: tuple[Callable[[], None], Callable[[], None]],
     return statistics.median(env_times), statistics.median(engine_times)
 
 
-def bench_single(actions: np.ndarray, steps: int, repeats: int,
-                 target: str) -> tuple[float, float]:
+def bench_single(actions: np.ndarray, steps: int, repeats: int, target: str) -> tuple[float, float]:
     """(env, engine) control steps/s of one environment stepped one control step per call."""
     env = DualArmTrackingEnv(target=target)
     engine = RodBatch(1, env.config.sim)
@@ -81,15 +82,15 @@ def bench_single(actions: np.ndarray, steps: int, repeats: int,
     return steps / env_s, steps / engine_s
 
 
-def bench_batch(actions: np.ndarray, n_envs: int, steps: int, repeats: int,
-                target: str) -> tuple[float, float]:
+def bench_batch(
+    actions: np.ndarray, n_envs: int, steps: int, repeats: int, target: str
+) -> tuple[float, float]:
     """(env, engine) control steps/s per environment of a batch of ``n_envs``."""
     venv = TrackingVecEnv(n_envs, make_config(target=target))
     engine = RodBatch(n_envs, venv.config.sim)
     # one (n_envs, 24) action per control step; environment i gets its own random row
     batched = np.stack([np.roll(actions, i, axis=0) for i in range(n_envs)], axis=1)
-    controls = np.clip(batched.astype(np.float64), -1.0, 1.0).reshape(
-        len(actions), n_envs, 2, 2, 6)
+    controls = np.clip(batched.astype(np.float64), -1.0, 1.0).reshape(len(actions), n_envs, 2, 2, 6)
     n = len(actions)
 
     def env_setup() -> None:
@@ -117,14 +118,20 @@ def _row(label: str, rate: float) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--single-steps", type=int, default=2000,
-                        help="control steps per timed run of the single environment")
-    parser.add_argument("--batch-steps", type=int, default=100,
-                        help="control steps per timed run of the batch")
+    parser.add_argument(
+        "--single-steps",
+        type=int,
+        default=2000,
+        help="control steps per timed run of the single environment",
+    )
+    parser.add_argument(
+        "--batch-steps", type=int, default=100, help="control steps per timed run of the batch"
+    )
     parser.add_argument("--batch", type=int, default=64, help="environments in the batch")
     parser.add_argument("--repeats", type=int, default=7, help="timed runs per measurement (≥ 5)")
-    parser.add_argument("--target", default="random",
-                        help="target mode (random: the training setting)")
+    parser.add_argument(
+        "--target", default="random", help="target mode (random: the training setting)"
+    )
     args = parser.parse_args()
     if args.repeats < 5:
         parser.error("--repeats must be ≥ 5")
@@ -135,8 +142,10 @@ def main() -> None:
     env1, engine1 = bench_single(actions, args.single_steps, args.repeats, args.target)
     envb, engineb = bench_batch(actions, args.batch, args.batch_steps, args.repeats, args.target)
 
-    print(f"control steps/s (10 integration steps of both arms each), target={args.target}, "
-          f"median of {args.repeats} runs; CPU: {cpu_description()}")
+    print(
+        f"control steps/s (10 integration steps of both arms each), target={args.target}, "
+        f"median of {args.repeats} runs; CPU: {cpu_description()}"
+    )
     for label, env_rate, engine_rate in (
         ("1 env", env1, engine1),
         (f"{args.batch} envs, per env", envb, engineb),
@@ -146,8 +155,10 @@ def main() -> None:
         print(_row("engine alone (set_actions+advance)", engine_rate))
         env_name = "DualArmTrackingEnv.step" if label == "1 env" else "TrackingVecEnv.step"
         print(_row(env_name, env_rate))
-        print(f"  environment-layer overhead        {100.0 * overhead:11.1f} %"
-              f"   (+{1e6 / env_rate - 1e6 / engine_rate:.2f} µs/step)")
+        print(
+            f"  environment-layer overhead        {100.0 * overhead:11.1f} %"
+            f"   (+{1e6 / env_rate - 1e6 / engine_rate:.2f} µs/step)"
+        )
 
 
 if __name__ == "__main__":

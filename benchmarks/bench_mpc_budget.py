@@ -62,8 +62,14 @@ def parse_budgets(text: str, replan_interval: int) -> list[tuple[int, int, int, 
         parts = [int(p) for p in item.strip().split("x")]
         if len(parts) not in (2, 3, 4):
             raise SystemExit(f"--budgets: {item!r} is not SAMPLESxHORIZON[xITERATIONS[xREPLAN]]")
-        out.append((parts[0], parts[1], parts[2] if len(parts) >= 3 else 1,
-                    parts[3] if len(parts) == 4 else replan_interval))
+        out.append(
+            (
+                parts[0],
+                parts[1],
+                parts[2] if len(parts) >= 3 else 1,
+                parts[3] if len(parts) == 4 else replan_interval,
+            )
+        )
     return out
 
 
@@ -75,22 +81,26 @@ def budget_label(budget: Any) -> str:
 
 def study_cells() -> dict[tuple[str, int], float]:
     """The study's centralized TD3 3-D RMSE per (trajectory, arm), m."""
-    return {(t, a): v for t, pair in STUDY_RMSE_3D["centralized"].items()
-            for a, v in enumerate(pair)}
+    return {
+        (t, a): v for t, pair in STUDY_RMSE_3D["centralized"].items() for a, v in enumerate(pair)
+    }
 
 
-def evaluate_budget(spec_path: Path, budget: tuple[int, int, int, int],
-                    duration: float, trajectories: list[str]) -> pd.DataFrame:
+def evaluate_budget(
+    spec_path: Path, budget: tuple[int, int, int, int], duration: float, trajectories: list[str]
+) -> pd.DataFrame:
     """Metrics rows (one per trajectory and arm) of the MPC of ``spec_path`` with this budget
     (samples, horizon, iterations, replan interval), with its planning time per control
     step (s)."""
-    spec = load_spec(spec_path, [f"mpc.{key}={value}" for key, value in zip(KEYS, budget)])
+    spec = load_spec(
+        spec_path, [f"mpc.{key}={value}" for key, value in zip(KEYS, budget, strict=False)]
+    )
     config = env_config(spec)
     rows = []
     for trajectory in trajectories:
         episode = run_episode(mpc_controller(spec, 0), config, trajectory, duration)
         table = metrics_table(budget_label(budget), episode)
-        for position, (key, value) in enumerate(zip(KEYS, budget), start=1):
+        for position, (key, value) in enumerate(zip(KEYS, budget, strict=False), start=1):
             table.insert(position, key, value)
         rows.append(table)
     out = pd.concat(rows, ignore_index=True)
@@ -118,12 +128,20 @@ def write_figure(summary: pd.DataFrame, rl: dict[str, float], path: str) -> None
     ax = fig.add_subplot()
     for (horizon, replan), part in summary.groupby(["horizon", "replan_interval"]):
         part = part.sort_values("realtime_factor")
-        ax.plot(part["realtime_factor"], part["rmse_3d_mean"], "-o",
-                label=f"MPC, horizon {horizon}, a plan every {replan} control step(s)")
+        ax.plot(
+            part["realtime_factor"],
+            part["rmse_3d_mean"],
+            "-o",
+            label=f"MPC, horizon {horizon}, a plan every {replan} control step(s)",
+        )
         for _, row in part.iterrows():
-            ax.annotate(budget_label(row).replace("x", "×"),
-                        (row["realtime_factor"], row["rmse_3d_mean"]), fontsize=8,
-                        xytext=(4, 4), textcoords="offset points")
+            ax.annotate(
+                budget_label(row).replace("x", "×"),
+                (row["realtime_factor"], row["rmse_3d_mean"]),
+                fontsize=8,
+                xytext=(4, 4),
+                textcoords="offset points",
+            )
     study = float(np.mean(list(study_cells().values())))
     ax.axhline(study, color="k", ls="--", lw=1, label=f"study centralized TD3 ({study:.3f} m)")
     ax.axhline(0.5 * study, color="0.5", ls=":", lw=1, label="0.5 × study")
@@ -141,15 +159,23 @@ def write_figure(summary: pd.DataFrame, rl: dict[str, float], path: str) -> None
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--spec", default=str(DEFAULT_SPEC), help="MPC spec (planner settings)")
-    parser.add_argument("--budgets", default="32x50,64x50,64x50x2,64x50x3",
-                        help="comma-separated SAMPLESxHORIZON[xITERATIONS]")
+    parser.add_argument(
+        "--budgets",
+        default="32x50,64x50,64x50x2,64x50x3",
+        help="comma-separated SAMPLESxHORIZON[xITERATIONS]",
+    )
     parser.add_argument("--duration", type=float, default=10.0, help="episode length, s")
     parser.add_argument("--trajectories", default=",".join(EVAL_TRAJECTORIES))
     parser.add_argument("--rl", nargs="*", default=[], help="RL run directories to mark")
     parser.add_argument("--figure", help="write the figure here (PNG)")
     parser.add_argument("--csv", help="write one row per budget, trajectory and arm here")
-    parser.add_argument("--merge", nargs="*", default=[], metavar="CSV",
-                        help="rows of earlier runs (their --csv) to add before summarising")
+    parser.add_argument(
+        "--merge",
+        nargs="*",
+        default=[],
+        metavar="CSV",
+        help="rows of earlier runs (their --csv) to add before summarising",
+    )
     args = parser.parse_args(argv)
     trajectories = args.trajectories.split(",")
     study = study_cells()
@@ -164,36 +190,51 @@ def main(argv: list[str] | None = None) -> int:
         started = time.perf_counter()
         rows = evaluate_budget(Path(args.spec), budget, args.duration, trajectories)
         frames.append(rows)
-        cells = " ".join(f"{r.trajectory[:4]}{r.arm + 1} {r.rmse_3d:.4f}"
-                         for r in rows.itertuples())
+        cells = " ".join(
+            f"{r.trajectory[:4]}{r.arm + 1} {r.rmse_3d:.4f}" for r in rows.itertuples()
+        )
         factor = rows["planning_time"].mean() / rows["control_dt"].iloc[0]
-        print(f"{budget_label(budget):12s} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
-              f"{rows['planning_time'].mean() * 1e3:.2f} ms/step = {factor:.1f}x real time  "
-              f"({time.perf_counter() - started:.0f} s)", flush=True)
+        print(
+            f"{budget_label(budget):12s} mean {rows['rmse_3d'].mean():.4f} m  [{cells}]  "
+            f"{rows['planning_time'].mean() * 1e3:.2f} ms/step = {factor:.1f}x real time  "
+            f"({time.perf_counter() - started:.0f} s)",
+            flush=True,
+        )
     if not frames:
         raise SystemExit("nothing to summarise: give --budgets or --merge")
     table = pd.concat(frames, ignore_index=True)
     summary = table.groupby(KEYS, as_index=False).agg(
-        rmse_3d_mean=("rmse_3d", "mean"), planning_time=("planning_time", "mean"),
-        control_dt=("control_dt", "first"))
+        rmse_3d_mean=("rmse_3d", "mean"),
+        planning_time=("planning_time", "mean"),
+        control_dt=("control_dt", "first"),
+    )
     summary["realtime_factor"] = summary["planning_time"] / summary["control_dt"]
-    half = {key for key, part in table.groupby(KEYS)
-            if all(r.rmse_3d <= 0.5 * study[(r.trajectory, r.arm)] for r in part.itertuples())}
+    half = {
+        key
+        for key, part in table.groupby(KEYS)
+        if all(r.rmse_3d <= 0.5 * study[(r.trajectory, r.arm)] for r in part.itertuples())
+    }
     for _, row in summary.sort_values("realtime_factor").iterrows():
-        print(f"  {budget_label(row):12s} mean {row['rmse_3d_mean']:.4f} m, "
-              f"{row['realtime_factor']:.1f}x real time")
-    print("at or below 0.5 × the study in all six cells: "
-          + (", ".join(budget_label(k) for k in sorted(half)) or "none"))
+        print(
+            f"  {budget_label(row):12s} mean {row['rmse_3d_mean']:.4f} m, "
+            f"{row['realtime_factor']:.1f}x real time"
+        )
+    print(
+        "at or below 0.5 × the study in all six cells: "
+        + (", ".join(budget_label(k) for k in sorted(half)) or "none")
+    )
     rl = rl_means(args.rl)
     if rl:
         best_name, best = min(rl.items(), key=lambda kv: kv[1])
         matching = summary[summary["rmse_3d_mean"] <= best].sort_values("realtime_factor")
         if len(matching):
             m = matching.iloc[0]
-            print(f"cheapest budget at or below the best RL controller ({best_name}, {best:.4f} m): "
-                  f"{budget_label(m)}, "
-                  f"{m['rmse_3d_mean']:.4f} m, "
-                  f"{m['realtime_factor']:.1f}x real time")
+            print(
+                f"cheapest budget at or below the best RL controller ({best_name}, {best:.4f} m): "
+                f"{budget_label(m)}, "
+                f"{m['rmse_3d_mean']:.4f} m, "
+                f"{m['realtime_factor']:.1f}x real time"
+            )
         else:
             print(f"no budget reaches the best RL controller ({best_name}, {best:.4f} m)")
     if args.csv:

@@ -143,8 +143,9 @@ def group_by_config(runs: Iterable[RunInfo]) -> dict[str, list[RunInfo]]:
     groups: dict[str, list[RunInfo]] = {}
     for run in runs:
         groups.setdefault(run.name, []).append(run)
-    return {name: sorted(group, key=lambda r: (r.seed, str(r.path))) for name, group in
-            groups.items()}
+    return {
+        name: sorted(group, key=lambda r: (r.seed, str(r.path))) for name, group in groups.items()
+    }
 
 
 def checkpoint_cells(rows: pd.DataFrame) -> dict[str, float]:
@@ -175,8 +176,10 @@ def _checkpoints(table: pd.DataFrame, independent: bool) -> list[tuple[int, floa
     """(env steps of the run, stored clock in s, rows) per checkpoint, by step. An independent
     run's pair checkpoints: per-arm steps both arms validated (module docstring)."""
     if not independent:
-        return [(int(step), _clock(rows), rows)
-                for step, rows in table.groupby("global_step", sort=True)]
+        return [
+            (int(step), _clock(rows), rows)
+            for step, rows in table.groupby("global_step", sort=True)
+        ]
     arms = {arm: part for arm, part in table.groupby("arm")}
     if set(arms) != set(ARMS):
         return []
@@ -204,8 +207,14 @@ def validation_curve(table: pd.DataFrame, independent: bool = False) -> pd.DataF
     """
     records = []
     for step, clock, rows in _checkpoints(table, independent):
-        records.append({"global_step": step, "wall_time": clock, "score": validation_score(rows),
-                        **checkpoint_cells(rows)})
+        records.append(
+            {
+                "global_step": step,
+                "wall_time": clock,
+                "score": validation_score(rows),
+                **checkpoint_cells(rows),
+            }
+        )
     curve = pd.DataFrame(records, columns=["global_step", "wall_time", "score"])
     if records:
         curve = pd.DataFrame(records)
@@ -243,8 +252,11 @@ def best_checkpoint(curve: pd.DataFrame) -> tuple[int, float]:
     if curve.empty:
         return 0, math.inf
     ordered = curve.sort_values("global_step", kind="stable").reset_index(drop=True)
-    row = ordered.loc[ordered["score"].idxmin()] if np.isfinite(ordered["score"]).any() \
+    row = (
+        ordered.loc[ordered["score"].idxmin()]
+        if np.isfinite(ordered["score"]).any()
         else ordered.iloc[0]
+    )
     return int(row["global_step"]), float(row["score"])
 
 
@@ -325,15 +337,26 @@ def band_on_grid(curves: Sequence[pd.DataFrame], x: str = "global_step") -> pd.D
     grid = grid[(grid >= low) & (grid <= high)]
     if grid.size == 0:
         return pd.DataFrame(columns=[x, "mean", "min", "max"])
-    values = np.vstack([
-        np.interp(grid, p[x].to_numpy(float),
-                  np.where(np.isfinite(p["score"].to_numpy(float)), p["score"], np.nan))
-        for p in parts
-    ])
+    values = np.vstack(
+        [
+            np.interp(
+                grid,
+                p[x].to_numpy(float),
+                np.where(np.isfinite(p["score"].to_numpy(float)), p["score"], np.nan),
+            )
+            for p in parts
+        ]
+    )
     with warnings.catch_warnings():  # all-NaN columns (every seed terminated there)
         warnings.simplefilter("ignore", RuntimeWarning)
-        return pd.DataFrame({x: grid, "mean": np.nanmean(values, axis=0),
-                             "min": np.nanmin(values, axis=0), "max": np.nanmax(values, axis=0)})
+        return pd.DataFrame(
+            {
+                x: grid,
+                "mean": np.nanmean(values, axis=0),
+                "min": np.nanmin(values, axis=0),
+                "max": np.nanmax(values, axis=0),
+            }
+        )
 
 
 # ---------------------------------------------------------------- throughput
@@ -344,8 +367,9 @@ def throughput_spec(spec: ExperimentSpec) -> ExperimentSpec:
     timing; everything that sets the cost of a step is kept."""
     data = spec.model_dump()
     data["algo"]["buffer_size"] = min(int(data["algo"]["buffer_size"]), THROUGHPUT_BUFFER_SIZE)
-    data["algo"]["learning_starts"] = min(int(data["algo"]["learning_starts"]),
-                                          THROUGHPUT_LEARNING_STARTS)
+    data["algo"]["learning_starts"] = min(
+        int(data["algo"]["learning_starts"]), THROUGHPUT_LEARNING_STARTS
+    )
     return ExperimentSpec.model_validate(data)
 
 
@@ -410,8 +434,9 @@ def checkpoint_table(results: Sequence[RunResult], rates: Mapping[str, float]) -
         curve.insert(4, "hours_here", [hours(s, rate) for s in curve["global_step"]])
         frames.append(curve)
     if not frames:
-        return pd.DataFrame(columns=["config", "seed", "global_step", "wall_time", "hours_here",
-                                     "score"])
+        return pd.DataFrame(
+            columns=["config", "seed", "global_step", "wall_time", "hours_here", "score"]
+        )
     return pd.concat(frames, ignore_index=True)
 
 
@@ -426,17 +451,23 @@ def config_summary(
     accuracy / the reference's full training hours here (NaN where either is unknown)."""
     reached = [r.reached_step for r in runs if r.reached_step is not None]
     steps_mean, steps_std = mean_std([float(s) for s in reached])
-    hours_mean, hours_std = mean_std([hours(s, rate) for s in reached]) if rate else (
-        math.nan, math.nan)
+    hours_mean, hours_std = (
+        mean_std([hours(s, rate) for s in reached]) if rate else (math.nan, math.nan)
+    )
     best_mean, best_std = mean_std([r.best_score for r in runs])
     best_step_mean, best_step_std = mean_std([float(r.best_step) for r in runs])
     full = hours(float(np.mean([r.info.total_timesteps for r in runs])), rate)
     ratio = hours_mean / reference_full_hours if reference_full_hours > 0 else math.nan
     return {
-        "seeds": len(runs), "tracked": sum(r.tracked for r in runs), "reached": len(reached),
-        "steps": (steps_mean, steps_std), "hours": (hours_mean, hours_std),
-        "best": (best_mean, best_std), "best_step": (best_step_mean, best_step_std),
-        "full_hours": full, "ratio": ratio,
+        "seeds": len(runs),
+        "tracked": sum(r.tracked for r in runs),
+        "reached": len(reached),
+        "steps": (steps_mean, steps_std),
+        "hours": (hours_mean, hours_std),
+        "best": (best_mean, best_std),
+        "best_step": (best_step_mean, best_step_std),
+        "full_hours": full,
+        "ratio": ratio,
     }
 
 
@@ -459,8 +490,9 @@ def _hours_curve(result: RunResult, rate: float | None) -> tuple[pd.DataFrame, b
     the run's recorded rate on its own machine (False)."""
     curve = result.curve.copy()
     here = bool(rate)
-    curve["hours"] = [hours(s, rate if here else result.info.steps_per_second)
-                      for s in curve["global_step"]]
+    curve["hours"] = [
+        hours(s, rate if here else result.info.steps_per_second) for s in curve["global_step"]
+    ]
     return curve, here
 
 
@@ -496,23 +528,32 @@ def write_figure(
             ax.plot(band[x], band["mean"], color=color, lw=1.6, marker=".", label=label)
             ax.fill_between(band[x], band["min"], band["max"], color=color, alpha=0.2, lw=0)
     for ax in (by_steps, by_hours):
-        ax.axhline(study_mean, color="0.2", ls="--", lw=1.2,
-                   label=f"study, mean of six cells ({study_mean:.4f} m)")
+        ax.axhline(
+            study_mean,
+            color="0.2",
+            ls="--",
+            lw=1.2,
+            label=f"study, mean of six cells ({study_mean:.4f} m)",
+        )
         ax.grid(alpha=0.3)
         if log_x:
             ax.set_xscale("log")
     by_steps.set_xlabel("environment steps")
     if not log_x:
         by_steps.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
-    by_hours.set_xlabel("hours of training on this machine" if all_here else
-                        "hours of training (not measured here: at each run's\n"
-                        "recorded rate, run.json steps_per_second)")
+    by_hours.set_xlabel(
+        "hours of training on this machine"
+        if all_here
+        else "hours of training (not measured here: at each run's\n"
+        "recorded rate, run.json steps_per_second)"
+    )
     by_steps.set_ylabel("validation 3-D RMSE (m)")
     by_steps.set_title("against env steps", fontsize=11)
     by_hours.set_title("against training time", fontsize=11)
     by_steps.legend(loc="best", fontsize=8)
-    fig.suptitle("Validation score (held-out random targets): mean over seeds, min-max band",
-                 fontsize=12)
+    fig.suptitle(
+        "Validation score (held-out random targets): mean over seeds, min-max band", fontsize=12
+    )
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=DPI, format="png")
     return path
@@ -524,12 +565,20 @@ def write_figure(
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path, help="run directories")
-    parser.add_argument("--throughput-steps", type=int, default=4_000,
-                        help="timed env steps per measurement; 0: no throughput measure")
+    parser.add_argument(
+        "--throughput-steps",
+        type=int,
+        default=4_000,
+        help="timed env steps per measurement; 0: no throughput measure",
+    )
     parser.add_argument("--repeats", type=int, default=3, help="interleaved rounds (median)")
     parser.add_argument("--reference", default=DEFAULT_REFERENCE, help="reference config name")
-    parser.add_argument("--study", default="centralized", choices=sorted(STUDY_RMSE_3D),
-                        help="the study's controller whose 3-D RMSE is the target")
+    parser.add_argument(
+        "--study",
+        default="centralized",
+        choices=sorted(STUDY_RMSE_3D),
+        help="the study's controller whose 3-D RMSE is the target",
+    )
     parser.add_argument("--figure", type=Path, help="write the two-panel PNG here")
     parser.add_argument("--csv", type=Path, help="write one row per run and checkpoint here")
     parser.add_argument("--log-x", action="store_true", help="logarithmic x axes in the figure")
@@ -553,25 +602,38 @@ def main(argv: Sequence[str] | None = None) -> None:
     by_run = {r.info.path: r for r in results}
     grouped = {name: [by_run[i.path] for i in infos] for name, infos in groups.items()}
 
-    cells_text = ", ".join(f"{t} {study[cell_name(t, 0)]:.3f}/{study[cell_name(t, 1)]:.3f}"
-                           for t in TRAJECTORIES)
-    print(f"Time to the study's accuracy: all six trajectory x arm cells at or below the study's "
-          f"{args.study} TD3 3-D RMSE ({cells_text} m, arm 1/arm 2; mean {study_mean:.4f} m)")
+    cells_text = ", ".join(
+        f"{t} {study[cell_name(t, 0)]:.3f}/{study[cell_name(t, 1)]:.3f}" for t in TRAJECTORIES
+    )
+    print(
+        f"Time to the study's accuracy: all six trajectory x arm cells at or below the study's "
+        f"{args.study} TD3 3-D RMSE ({cells_text} m, arm 1/arm 2; mean {study_mean:.4f} m)"
+    )
     if any(r.info.independent for r in results):
-        print("note: independent runs are read by arm: a pair checkpoint is a per-arm step s "
-              "both arms validated, counted as 2 s env steps (the sum over both arms)")
+        print(
+            "note: independent runs are read by arm: a pair checkpoint is a per-arm step s "
+            "both arms validated, counted as 2 s env steps (the sum over both arms)"
+        )
 
     rates: dict[str, float] = {}
     if args.throughput_steps > 0:
         if args.reference not in grouped:
             print(f"note: reference config {args.reference!r} is not among the runs: no ratios")
-        specs = {name: throughput_spec(load_spec(runs[0].info.path / "spec.yaml"))
-                 for name, runs in grouped.items()}
-        print(f"\nThroughput here ({cpu_description()}): {args.throughput_steps:,} timed env steps "
-              f"after warm-up, buffer ≤ {THROUGHPUT_BUFFER_SIZE:,}, learning_starts ≤ "
-              f"{THROUGHPUT_LEARNING_STARTS:,}, {args.repeats} interleaved round(s), median")
-        rates = measure_throughput(specs, args.throughput_steps, args.repeats,
-                                   log=lambda line: print(line, file=sys.stderr, flush=True))
+        specs = {
+            name: throughput_spec(load_spec(runs[0].info.path / "spec.yaml"))
+            for name, runs in grouped.items()
+        }
+        print(
+            f"\nThroughput here ({cpu_description()}): {args.throughput_steps:,} timed env steps "
+            f"after warm-up, buffer ≤ {THROUGHPUT_BUFFER_SIZE:,}, learning_starts ≤ "
+            f"{THROUGHPUT_LEARNING_STARTS:,}, {args.repeats} interleaved round(s), median"
+        )
+        rates = measure_throughput(
+            specs,
+            args.throughput_steps,
+            args.repeats,
+            log=lambda line: print(line, file=sys.stderr, flush=True),
+        )
         ref_rate = rates.get(args.reference)
         for name, rate in rates.items():
             ratio = f"{rate / ref_rate:5.2f}x reference" if ref_rate else ""
@@ -580,13 +642,20 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(f"  {name:<34} {rate:8,.0f} env steps/s  {ratio}{stored}")
 
     ref_runs = grouped.get(args.reference, [])
-    ref_full = hours(float(np.mean([r.info.total_timesteps for r in ref_runs])), rates.get(
-        args.reference)) if ref_runs else math.nan
+    ref_full = (
+        hours(float(np.mean([r.info.total_timesteps for r in ref_runs])), rates.get(args.reference))
+        if ref_runs
+        else math.nan
+    )
 
-    print("\nRuns (steps to the study's accuracy: first checkpoint with all six cells at or "
-          "below the study; h here: at the config's measured rate; h stored: run's own clock)")
-    print(f"  {'config':<34} {'seed':>4}  {'steps to study':>24}  {'h here':>7}  "
-          f"{'h stored':>8}  best validation @ step")
+    print(
+        "\nRuns (steps to the study's accuracy: first checkpoint with all six cells at or "
+        "below the study; h here: at the config's measured rate; h stored: run's own clock)"
+    )
+    print(
+        f"  {'config':<34} {'seed':>4}  {'steps to study':>24}  {'h here':>7}  "
+        f"{'h stored':>8}  best validation @ step"
+    )
     for name, runs in grouped.items():
         for r in runs:
             if not r.tracked:
@@ -595,23 +664,33 @@ def main(argv: Sequence[str] | None = None) -> None:
                 reached = NOT_REACHED
             else:
                 reached = f"{r.reached_step:,}"
-            here = hours(r.reached_step, rates.get(name)) if r.reached_step is not None else \
-                math.nan
-            print(f"  {name:<34} {r.info.seed:>4}  {reached:>24}  {_h(here):>7}  "
-                  f"{_h(r.reached_wall_time / 3600):>8}  {r.best_score:.4f} m @ {r.best_step:,}")
+            here = (
+                hours(r.reached_step, rates.get(name)) if r.reached_step is not None else math.nan
+            )
+            print(
+                f"  {name:<34} {r.info.seed:>4}  {reached:>24}  {_h(here):>7}  "
+                f"{_h(r.reached_wall_time / 3600):>8}  {r.best_score:.4f} m @ {r.best_step:,}"
+            )
 
-    print("\nConfigs (mean ± sample std over seeds; steps and hours over the seeds that reached "
-          "the study's accuracy; ratio: h here to it / the reference's full training h here"
-          + (f" = {ref_full:.2f} h" if math.isfinite(ref_full) else ", n/a") + ")")
-    print(f"  {'config':<34} {'reached':>9}  {'steps to study':>22}  {'h here':>12}  "
-          f"{'full h here':>11}  {'best validation (m)':>19}  {'best step':>21}  ratio")
+    print(
+        "\nConfigs (mean ± sample std over seeds; steps and hours over the seeds that reached "
+        "the study's accuracy; ratio: h here to it / the reference's full training h here"
+        + (f" = {ref_full:.2f} h" if math.isfinite(ref_full) else ", n/a")
+        + ")"
+    )
+    print(
+        f"  {'config':<34} {'reached':>9}  {'steps to study':>22}  {'h here':>12}  "
+        f"{'full h here':>11}  {'best validation (m)':>19}  {'best step':>21}  ratio"
+    )
     for name, runs in grouped.items():
         row = config_summary(runs, rates.get(name), ref_full)
         reached = f"{row['reached']}/{row['seeds']}" if row["tracked"] else "n/a"
         ratio = "-" if not math.isfinite(row["ratio"]) else f"{row['ratio']:.2f}"
-        print(f"  {name:<34} {reached:>9}  {_pm(row['steps'], ',.0f'):>22}  "
-              f"{_pm(row['hours'], '.2f'):>12}  {_h(row['full_hours']):>11}  "
-              f"{_pm(row['best'], '.4f'):>19}  {_pm(row['best_step'], ',.0f'):>21}  {ratio}")
+        print(
+            f"  {name:<34} {reached:>9}  {_pm(row['steps'], ',.0f'):>22}  "
+            f"{_pm(row['hours'], '.2f'):>12}  {_h(row['full_hours']):>11}  "
+            f"{_pm(row['best'], '.4f'):>19}  {_pm(row['best_step'], ',.0f'):>21}  {ratio}"
+        )
 
     if args.figure:
         write_figure(args.figure, grouped, rates, study_mean, args.log_x)

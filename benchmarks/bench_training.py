@@ -58,9 +58,15 @@ STUDY_HOURS = 8.5
 def _study_data(backend: str, n_envs: int) -> dict[str, Any]:
     return {
         "name": f"bench-{backend}",
-        "algo": {"name": "td3", "backend": backend, "learning_starts": 2000,
-                 "buffer_size": 200_000, "train_freq": 1, "gradient_steps": n_envs,
-                 "device": "cpu"},
+        "algo": {
+            "name": "td3",
+            "backend": backend,
+            "learning_starts": 2000,
+            "buffer_size": 200_000,
+            "train_freq": 1,
+            "gradient_steps": n_envs,
+            "device": "cpu",
+        },
         "training": {"n_envs": n_envs, "total_timesteps": 10_000_000, "torch_threads": 1},
     }
 
@@ -122,7 +128,8 @@ def float32_report(spec: ExperimentSpec) -> str:
     buffer = model.replay_buffer
     batch = buffer.sample(spec.algo.batch_size)
     params = jax.tree_util.tree_leaves(
-        (model.policy.actor_state.params, model.policy.qf_state.params))
+        (model.policy.actor_state.params, model.policy.qf_state.params)
+    )
     dtypes = {
         "observation space": env.observation_space.dtype,
         "action space": env.action_space.dtype,
@@ -138,12 +145,16 @@ def float32_report(spec: ExperimentSpec) -> str:
     wide = sorted(name for name, dtype in dtypes.items() if np.dtype(dtype) != np.float32)
     x64 = bool(jax.config.read("jax_enable_x64"))
     if not wide and not x64:
-        return ("float32 throughout, not timed: observation/action spaces, replay buffer "
-                "(observations, next_observations, actions, rewards), the batch sbx passes "
-                f"to its jitted update and all {len(params)} network parameter arrays are "
-                "float32; jax_enable_x64 is off")
-    return (f"not float32: {', '.join(wide) or '-'}; jax_enable_x64 {x64}; softtrack exposes "
-            "no dtype setting, so no float32 variant is timed")
+        return (
+            "float32 throughout, not timed: observation/action spaces, replay buffer "
+            "(observations, next_observations, actions, rewards), the batch sbx passes "
+            f"to its jitted update and all {len(params)} network parameter arrays are "
+            "float32; jax_enable_x64 is off"
+        )
+    return (
+        f"not float32: {', '.join(wide) or '-'}; jax_enable_x64 {x64}; softtrack exposes "
+        "no dtype setting, so no float32 variant is timed"
+    )
 
 
 @dataclass(frozen=True)
@@ -176,21 +187,41 @@ class Variant:
 # train() call per train_freq × n_envs env steps, so UTD = gradient_steps / (train_freq·n_envs).
 VARIANTS: tuple[Variant, ...] = (
     Variant("today", "the study's sbx setting (reference)"),
-    Variant("gs1-per-call", "n_envs 1, 1 gradient step per train() call",
-            algo={"gradient_steps": 1}, training={"n_envs": 1}),
-    Variant("gs32-per-call", "train_freq 4 vector steps, 32 gradient steps per call",
-            algo={"train_freq": 4, "gradient_steps": 32}),
-    Variant("b256-utd0.5", "batch 256, 4 gradient steps per 8 env steps",
-            algo={"batch_size": 256, "gradient_steps": 4}),
-    Variant("b512-utd0.25", "batch 512, 2 gradient steps per 8 env steps",
-            algo={"batch_size": 512, "gradient_steps": 2}),
+    Variant(
+        "gs1-per-call",
+        "n_envs 1, 1 gradient step per train() call",
+        algo={"gradient_steps": 1},
+        training={"n_envs": 1},
+    ),
+    Variant(
+        "gs32-per-call",
+        "train_freq 4 vector steps, 32 gradient steps per call",
+        algo={"train_freq": 4, "gradient_steps": 32},
+    ),
+    Variant(
+        "b256-utd0.5",
+        "batch 256, 4 gradient steps per 8 env steps",
+        algo={"batch_size": 256, "gradient_steps": 4},
+    ),
+    Variant(
+        "b512-utd0.25",
+        "batch 512, 2 gradient steps per 8 env steps",
+        algo={"batch_size": 512, "gradient_steps": 2},
+    ),
     # XLA sizes its intra-op pool from the CPU affinity; the flag is its default, made explicit
     # ("intra_op_parallelism_threads" is TensorFlow's, which XLA_FLAGS silently ignores).
-    Variant("2-cores", "XLA intra-op threads on 2 cores", cores=2,
-            env={"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true"}),
+    Variant(
+        "2-cores",
+        "XLA intra-op threads on 2 cores",
+        cores=2,
+        env={"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true"},
+    ),
     Variant("64-mirror", "[64, 64] with mirror replay", algo={"mirror_replay": True}),
-    Variant("128-mirror", "[128, 128] with mirror replay (td3-sbx-128-mirror-val)",
-            algo={"mirror_replay": True, "policy_kwargs": {"net_arch": [128, 128]}}),
+    Variant(
+        "128-mirror",
+        "[128, 128] with mirror replay (td3-sbx-128-mirror-val)",
+        algo={"mirror_replay": True, "policy_kwargs": {"net_arch": [128, 128]}},
+    ),
 )
 VARIANT_NAMES = {variant.name: variant for variant in VARIANTS}
 
@@ -217,29 +248,40 @@ def run_variant(variant: Variant, steps: int) -> float:
     os.sched_setaffinity(0, _cpus(variant.cores))
     try:
         child = subprocess.Popen(
-            [sys.executable, os.path.abspath(__file__), "--variant", variant.name,
-             "--steps", str(steps)],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            [
+                sys.executable,
+                os.path.abspath(__file__),
+                "--variant",
+                variant.name,
+                "--steps",
+                str(steps),
+            ],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
         )
     finally:
         os.sched_setaffinity(0, own)
     stdout, stderr = child.communicate()
     lines = [line for line in stdout.splitlines() if line.startswith("{")]
     if child.returncode != 0 or not lines:
-        raise RuntimeError(f"{variant.name} failed ({child.returncode}): "
-                           f"{stderr.strip()[-2000:]}")
+        raise RuntimeError(f"{variant.name} failed ({child.returncode}): {stderr.strip()[-2000:]}")
     record = json.loads(lines[-1])
     if len(record["cpus"]) != variant.cores:
-        print(f"\n  {variant.name} ran on CPUs {record['cpus']}, not {variant.cores}",
-              file=sys.stderr)
+        print(
+            f"\n  {variant.name} ran on CPUs {record['cpus']}, not {variant.cores}", file=sys.stderr
+        )
     return float(record["steps"] / record["seconds"])
 
 
 def compare_variants(variants: list[Variant], steps: int, repeats: int) -> None:
     """Time ``variants`` interleaved in ``repeats`` rounds and print the table (env steps/s)."""
     rates: dict[str, list[float]] = {variant.name: [] for variant in variants}
-    print(f"\nLearner variants: {steps:,} timed env steps each, one subprocess per measurement, "
-          f"{repeats} round(s) A B C ...")
+    print(
+        f"\nLearner variants: {steps:,} timed env steps each, one subprocess per measurement, "
+        f"{repeats} round(s) A B C ..."
+    )
     for round_ in range(repeats):
         print(f"  round {round_ + 1}:", end="", flush=True)
         for k, variant in enumerate(variants):
@@ -251,27 +293,43 @@ def compare_variants(variants: list[Variant], steps: int, repeats: int) -> None:
                 print(f"{comma} {variant.name} failed", end="", flush=True)
                 print(f"\n  {error}", file=sys.stderr)
         print()
-    medians = {name: statistics.median(values) if values else float("nan")
-               for name, values in rates.items()}
+    medians = {
+        name: statistics.median(values) if values else float("nan")
+        for name, values in rates.items()
+    }
     reference = medians.get("today", float("nan"))
-    print(f"\n  {'variant':<14} {'grad/call':>9} {'UTD':>5} {'samples/step':>12} {'cores':>5} "
-          f"{'env steps/s':>11} {'× today':>8}  setting")
+    print(
+        f"\n  {'variant':<14} {'grad/call':>9} {'UTD':>5} {'samples/step':>12} {'cores':>5} "
+        f"{'env steps/s':>11} {'× today':>8}  setting"
+    )
     for variant in variants:
         spec = variant.spec()
         utd = spec.algo.gradient_steps / (spec.algo.train_freq * spec.training.n_envs)
-        print(f"  {variant.name:<14} {spec.algo.gradient_steps:>9} {utd:>5.2f} "
-              f"{utd * spec.algo.batch_size:>12.0f} {variant.cores:>5} "
-              f"{medians[variant.name]:>11,.0f} {medians[variant.name] / reference:>8.2f}  "
-              f"{variant.about}")
-    print("  (medians over the rounds; samples/step = batch × UTD; 2-cores is only meaningful "
-          "when the second core is idle)")
+        print(
+            f"  {variant.name:<14} {spec.algo.gradient_steps:>9} {utd:>5.2f} "
+            f"{utd * spec.algo.batch_size:>12.0f} {variant.cores:>5} "
+            f"{medians[variant.name]:>11,.0f} {medians[variant.name] / reference:>8.2f}  "
+            f"{variant.about}"
+        )
+    print(
+        "  (medians over the rounds; samples/step = batch × UTD; 2-cores is only meaningful "
+        "when the second core is idle)"
+    )
 
 
 def _child(name: str, steps: int) -> None:
     """Subprocess side of :func:`run_variant`: print one JSON line of the timing."""
     done, seconds = _learn(VARIANT_NAMES[name].spec(), steps)
-    print(json.dumps({"variant": name, "steps": done, "seconds": seconds,
-                      "cpus": sorted(os.sched_getaffinity(0))}))
+    print(
+        json.dumps(
+            {
+                "variant": name,
+                "steps": done,
+                "seconds": seconds,
+                "cpus": sorted(os.sched_getaffinity(0)),
+            }
+        )
+    )
 
 
 def _variant_list(text: str) -> list[Variant]:
@@ -279,37 +337,51 @@ def _variant_list(text: str) -> list[Variant]:
     unknown = [name for name in names if name not in VARIANT_NAMES]
     if unknown:
         raise argparse.ArgumentTypeError(
-            f"unknown variant(s) {', '.join(unknown)}; choose from {', '.join(VARIANT_NAMES)}")
+            f"unknown variant(s) {', '.join(unknown)}; choose from {', '.join(VARIANT_NAMES)}"
+        )
     return [VARIANT_NAMES["today"]] * ("today" not in names) + [VARIANT_NAMES[n] for n in names]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=8_000,
-                        help="timed environment steps per measurement")
-    parser.add_argument("--n-envs", type=int, default=8,
-                        help="environments per vector step of the per-backend split")
+    parser.add_argument(
+        "--steps", type=int, default=8_000, help="timed environment steps per measurement"
+    )
+    parser.add_argument(
+        "--n-envs",
+        type=int,
+        default=8,
+        help="environments per vector step of the per-backend split",
+    )
     parser.add_argument("--repeats", type=int, default=3, help="rounds of the variants")
-    parser.add_argument("--variants", type=_variant_list, default=list(VARIANTS),
-                        help=f"comma-separated subset of: {', '.join(VARIANT_NAMES)}")
+    parser.add_argument(
+        "--variants",
+        type=_variant_list,
+        default=list(VARIANTS),
+        help=f"comma-separated subset of: {', '.join(VARIANT_NAMES)}",
+    )
     parser.add_argument("--variant", choices=list(VARIANT_NAMES), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.variant:
         _child(args.variant, args.steps)
         return
     backends = ["sb3"] + (["sbx"] if importlib.util.find_spec("sbx") else [])
-    print(f"TD3 [64, 64], batch 128, one gradient step per env step, {args.n_envs} envs, "
-          f"{args.steps:,} timed env steps after warm-up; CPU: {cpu_description()}")
+    print(
+        f"TD3 [64, 64], batch 128, one gradient step per env step, {args.n_envs} envs, "
+        f"{args.steps:,} timed env steps after warm-up; CPU: {cpu_description()}"
+    )
     for backend in backends:
         spec = study_spec(backend, args.n_envs)
         total = time_learning(spec, args.steps)
         env_s, physics_s = time_environment(spec, args.steps)
         rate = args.steps / total
         hours = STUDY_BUDGET / rate / 3600
-        print(f"  {backend}: {rate:7,.0f} env steps/s   physics {physics_s / total:5.1%}  "
-              f"environment {(env_s - physics_s) / total:5.1%}  learning "
-              f"{(total - env_s) / total:5.1%}   1e7 steps in {hours:4.2f} h "
-              f"(study: {STUDY_HOURS} h, {STUDY_HOURS / hours:4.1f}× faster)")
+        print(
+            f"  {backend}: {rate:7,.0f} env steps/s   physics {physics_s / total:5.1%}  "
+            f"environment {(env_s - physics_s) / total:5.1%}  learning "
+            f"{(total - env_s) / total:5.1%}   1e7 steps in {hours:4.2f} h "
+            f"(study: {STUDY_HOURS} h, {STUDY_HOURS / hours:4.1f}× faster)"
+        )
     if "sbx" not in backends:
         print("\nsbx is not installed: no float32 check and no learner variants")
         return

@@ -49,19 +49,26 @@ def circle_rmse(run_dir: Path) -> np.ndarray:
     """Each arm's 3-D RMSE (m) on the circle: sqrt(mean over control steps of distance²)."""
     spec = load_spec(run_dir / "spec.yaml")
     independent = spec.controller == "independent"
-    policy_files = ([run_dir / "models" / f"arm{k}" / "model.zip" for k in (0, 1)]
-                    if independent else [run_dir / "model.zip"])
+    policy_files = (
+        [run_dir / "models" / f"arm{k}" / "model.zip" for k in (0, 1)]
+        if independent
+        else [run_dir / "model.zip"]
+    )
     models = [plain_model(spec.algo.name, spec.algo.backend, f) for f in policy_files]
-    kwargs = {**env_kwargs(spec), "target": "circle",
-              "episode_duration": spec.training.eval_duration}
+    kwargs = {
+        **env_kwargs(spec),
+        "target": "circle",
+        "episode_duration": spec.training.eval_duration,
+    }
     env = gym.make("softtrack/DualArmTracking-v0", **kwargs)
     observation, _ = env.reset(seed=0)
     squared, steps = np.zeros(2), 0
     while True:
         if independent:
             views = [observation[arm_view_columns(k, 2, len(observation))] for k in (0, 1)]
-            action = np.concatenate([m.predict(v, deterministic=True)[0]
-                                     for m, v in zip(models, views, strict=True)])
+            action = np.concatenate(
+                [m.predict(v, deterministic=True)[0] for m, v in zip(models, views, strict=True)]
+            )
         else:
             action = models[0].predict(observation, deterministic=True)[0]
         observation, _, terminated, truncated, info = env.step(action)
@@ -78,8 +85,10 @@ def main() -> None:
     here, failures = cpu_kind(), 0
     print(f"CPU kind here: {here}")
     for run_dir in args.runs:
-        if not (run_dir / "policy.json").is_file() and not (
-                run_dir / "models" / "arm0" / "policy.json").is_file():
+        if (
+            not (run_dir / "policy.json").is_file()
+            and not (run_dir / "models" / "arm0" / "policy.json").is_file()
+        ):
             print(f"{run_dir.name}: not in the exported layout; run `softtrack upgrade {run_dir}`")
             failures += 1
             continue
@@ -93,8 +102,10 @@ def main() -> None:
         if stored_cpu == here and not same:
             failures += 1
             verdict += "  <-- stored on this CPU kind"
-        print(f"{run_dir.name}: live {live[0]:.6f} / {live[1]:.6f} m, stored on "
-              f"{stored_cpu}: {verdict}")
+        print(
+            f"{run_dir.name}: live {live[0]:.6f} / {live[1]:.6f} m, stored on "
+            f"{stored_cpu}: {verdict}"
+        )
     sys.exit(1 if failures else 0)
 
 

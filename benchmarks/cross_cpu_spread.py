@@ -40,14 +40,16 @@ def compare_run(run_dir: Path, store: bool) -> pd.DataFrame:
     live = api.evaluate([str(run_dir)], TRAJECTORIES, write=store, in_place=store)
     rows = stored.merge(live, on=["trajectory", "arm"], suffixes=("_stored", "_live"))
     stored_cpu = rows["cpu_stored"] if "cpu_stored" in rows else pd.Series([None] * len(rows))
-    return pd.DataFrame({
-        "run": run_dir.name,
-        "trajectory": rows["trajectory"],
-        "arm": rows["arm"],
-        "stored_cpu": stored_cpu.fillna("not recorded").to_numpy(),
-        "rmse_3d_stored": rows["rmse_3d_stored"],
-        "rmse_3d_live": rows["rmse_3d_live"],
-    })
+    return pd.DataFrame(
+        {
+            "run": run_dir.name,
+            "trajectory": rows["trajectory"],
+            "arm": rows["arm"],
+            "stored_cpu": stored_cpu.fillna("not recorded").to_numpy(),
+            "rmse_3d_stored": rows["rmse_3d_stored"],
+            "rmse_3d_live": rows["rmse_3d_live"],
+        }
+    )
 
 
 SAME_EPISODE = 1e-9
@@ -58,22 +60,31 @@ differ only by the last bits of their summation)."""
 def summarize(table: pd.DataFrame, here: str) -> str:
     """Per stored-CPU group: how many cells ran the same episode (|Δ|/stored < 1e-9), and
     the median, 90th percentile and largest |live − stored| / stored of the others."""
-    table = table.assign(rel=(table["rmse_3d_live"] - table["rmse_3d_stored"]).abs()
-                         / table["rmse_3d_stored"])
-    lines = [f"live CPU kind: {here}; cells: {len(table)} (runs × trajectories × arms), "
-             f"runs: {table['run'].nunique()}"]
+    table = table.assign(
+        rel=(table["rmse_3d_live"] - table["rmse_3d_stored"]).abs() / table["rmse_3d_stored"]
+    )
+    lines = [
+        f"live CPU kind: {here}; cells: {len(table)} (runs × trajectories × arms), "
+        f"runs: {table['run'].nunique()}"
+    ]
     same = table["stored_cpu"] == here
-    for label, part in (("stored on this CPU kind", table[same]),
-                        ("stored on another CPU kind or not recorded", table[~same])):
+    for label, part in (
+        ("stored on this CPU kind", table[same]),
+        ("stored on another CPU kind or not recorded", table[~same]),
+    ):
         if not len(part):
             continue
         moved = part[part["rel"] >= SAME_EPISODE]
-        line = (f"{label}: {len(part)} cells; same episode in {len(part) - len(moved)}; "
-                f"moved in {len(moved)} (of {moved['run'].nunique()} runs)")
+        line = (
+            f"{label}: {len(part)} cells; same episode in {len(part) - len(moved)}; "
+            f"moved in {len(moved)} (of {moved['run'].nunique()} runs)"
+        )
         if len(moved):
             rel = moved["rel"].to_numpy()
-            line += (f": |Δ|/stored median {np.median(rel):.2%}, p90 "
-                     f"{np.quantile(rel, 0.9):.2%}, max {rel.max():.2%}")
+            line += (
+                f": |Δ|/stored median {np.median(rel):.2%}, p90 "
+                f"{np.quantile(rel, 0.9):.2%}, max {rel.max():.2%}"
+            )
         lines.append(line)
     return "\n".join(lines)
 
@@ -81,8 +92,9 @@ def summarize(table: pd.DataFrame, here: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path, help="run directories (e.g. models/*/)")
-    parser.add_argument("--store", action="store_true",
-                        help="replace the stored evaluation tables by the live ones")
+    parser.add_argument(
+        "--store", action="store_true", help="replace the stored evaluation tables by the live ones"
+    )
     parser.add_argument("--csv", type=Path, help="also write every cell to this CSV file")
     args = parser.parse_args()
     here = cpu_kind()
@@ -91,10 +103,15 @@ def main() -> None:
         start = time.perf_counter()
         part = compare_run(run_dir, args.store)
         parts.append(part)
-        worst = ((part["rmse_3d_live"] - part["rmse_3d_stored"]).abs()
-                 / part["rmse_3d_stored"]).max()
-        print(f"[{k}/{len(args.runs)}] {run_dir.name}: max |Δ|/stored {worst:.2%} "
-              f"({time.perf_counter() - start:.0f} s)", file=sys.stderr, flush=True)
+        worst = (
+            (part["rmse_3d_live"] - part["rmse_3d_stored"]).abs() / part["rmse_3d_stored"]
+        ).max()
+        print(
+            f"[{k}/{len(args.runs)}] {run_dir.name}: max |Δ|/stored {worst:.2%} "
+            f"({time.perf_counter() - start:.0f} s)",
+            file=sys.stderr,
+            flush=True,
+        )
     table = pd.concat(parts, ignore_index=True)
     if args.csv:
         table.to_csv(args.csv, index=False)

@@ -76,8 +76,13 @@ REPORT_DIR = "reports/study"
 FEATURED = ("td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm")
 #: Experiments whose shipped runs keep their per-step table: the featured ones, and those the
 #: report's contact figures draw (clearance and contact force per step).
-KEEP_STEPS = (*FEATURED, "td3-sbx-128-mirror-fast-contact", "td3-sbx-128-mirror-fast-viewpoints",
-              "mpc-mppi-64x50-contact", "mpc-mppi-64x50-viewpoints")
+KEEP_STEPS = (
+    *FEATURED,
+    "td3-sbx-128-mirror-fast-contact",
+    "td3-sbx-128-mirror-fast-viewpoints",
+    "mpc-mppi-64x50-contact",
+    "mpc-mppi-64x50-viewpoints",
+)
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
 
@@ -113,110 +118,228 @@ JOBS: tuple[Job, ...] = (
     *(Job(S + "td3-sbx-64-4e6.yaml", s, f"td3-sbx-4e6-seed{s}") for s in (0, 1, 2)),
     *(Job(S + "td3-sbx-64-1e7.yaml", s, f"td3-sbx-1e7-seed{s}") for s in (0, 1, 2)),
     *(Job(V + "td3-sbx-64-4e6-speeds.yaml", s, f"td3-sbx-speeds-4e6-seed{s}") for s in (0, 1, 2)),
-    *(Job(V + "td3-sbx-64-4e6-arm-bonus.yaml", s, f"td3-sbx-arm-bonus-4e6-seed{s}")
-      for s in (0, 1, 2)),
+    *(
+        Job(V + "td3-sbx-64-4e6-arm-bonus.yaml", s, f"td3-sbx-arm-bonus-4e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
     *(Job(V + "td3-sbx-128-4e6.yaml", s, f"td3-sbx-128-4e6-seed{s}") for s in (0, 1, 2)),
     Job(V + "td3-sbx-64-4e6-per-arm.yaml", 0, "td3-sbx-per-arm-4e6-seed0"),
-    *(Job(V + "td3-sbx-128-4e6-per-arm.yaml", s, f"td3-sbx-128-per-arm-4e6-seed{s}")
-      for s in (0, 1, 2)),
-    *(Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", s, f"td3-sbx-per-arm-nets-4e6-seed{s}")
-      for s in (0, 1)),
+    *(
+        Job(V + "td3-sbx-128-4e6-per-arm.yaml", s, f"td3-sbx-128-per-arm-4e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
+    *(
+        Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", s, f"td3-sbx-per-arm-nets-4e6-seed{s}")
+        for s in (0, 1)
+    ),
     Job(V + "td3-sbx-64-4e6-own-arm-actors.yaml", 0, "td3-sbx-own-arm-actors-4e6-seed0"),
-    *(job for s in (0, 1, 2) for job in (
-        Job(V + "td3-sbx-128-4e6-val.yaml", s, f"td3-sbx-128-val-4e6-seed{s}"),
-        Job(V + "independent-td3-sbx-64-2e6-val.yaml", s, f"independent-td3-sbx-2e6-val-seed{s}"),
-    )),
+    *(
+        job
+        for s in (0, 1, 2)
+        for job in (
+            Job(V + "td3-sbx-128-4e6-val.yaml", s, f"td3-sbx-128-val-4e6-seed{s}"),
+            Job(
+                V + "independent-td3-sbx-64-2e6-val.yaml", s, f"independent-td3-sbx-2e6-val-seed{s}"
+            ),
+        )
+    ),
     Job(S + "independent-td3-sbx-64-4e6.yaml", 0, "independent-td3-sbx-4e6-seed0"),
-    *(Job(S + "independent-td3-sbx-64-2e6.yaml", s, f"independent-td3-sbx-2e6-seed{s}")
-      for s in (0, 1, 2)),
+    *(
+        Job(S + "independent-td3-sbx-64-2e6.yaml", s, f"independent-td3-sbx-2e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
     *(Job(S + "ddpg-sbx-64-1e6.yaml", s, f"ddpg-sbx-1e6-seed{s}") for s in (0, 1, 2)),
     *(Job(S + "ppo-sbx-64-4e6.yaml", s, f"ppo-sbx-4e6-seed{s}") for s in (0, 1, 2)),
     # after the -val runs:
-    *(Job(V + "td3-sbx-64-4e6-own-arm-actors.yaml", s, f"td3-sbx-own-arm-actors-4e6-seed{s}")
-      for s in (1, 2)),
+    *(
+        Job(V + "td3-sbx-64-4e6-own-arm-actors.yaml", s, f"td3-sbx-own-arm-actors-4e6-seed{s}")
+        for s in (1, 2)
+    ),
     Job(V + "td3-sbx-64-4e6-per-arm-nets.yaml", 2, "td3-sbx-per-arm-nets-4e6-seed2"),
-    *(Job(V + "td3-sbx-128-4e6-mirror-val.yaml", s, f"td3-sbx-128-mirror-val-4e6-seed{s}")
-      for s in (0, 1, 2)),
+    *(
+        Job(V + "td3-sbx-128-4e6-mirror-val.yaml", s, f"td3-sbx-128-mirror-val-4e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
     # time to accuracy (1e6 steps, checkpoints tracking the trajectories):
     Job(V + "td3-sbx-64-1e6-mirror-fast.yaml", 0, "td3-sbx-64-mirror-fast-1e6-seed0"),
-    *(Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
-      for s in (0, 1, 2)),
-    *(Job(V + "sac-sbx-128-1e6-mirror-fast.yaml", s, f"sac-sbx-128-mirror-fast-1e6-seed{s}")
-      for s in (0, 1, 2)),
-    *(Job(V + "td3-sbx-64-1e6-mirror-tuned.yaml", s, f"td3-sbx-64-mirror-tuned-1e6-seed{s}")
-      for s in (0, 1, 2)),
+    *(
+        Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
+    *(
+        Job(V + "sac-sbx-128-1e6-mirror-fast.yaml", s, f"sac-sbx-128-mirror-fast-1e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
+    *(
+        Job(V + "td3-sbx-64-1e6-mirror-tuned.yaml", s, f"td3-sbx-64-mirror-tuned-1e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
     # smooth actuation and domain randomisation (issue 29):
-    *(job for s in (0, 1, 2) for job in (
-        Job(V + "td3-sbx-128-1e6-mirror-smooth.yaml", s, f"td3-sbx-128-mirror-smooth-1e6-seed{s}"),
-        Job(V + "td3-sbx-128-1e6-mirror-dr.yaml", s, f"td3-sbx-128-mirror-dr-1e6-seed{s}"),
-    )),
-    Job(V + "td3-sbx-128-1e6-mirror-smooth-act2.yaml", 0,
-        "td3-sbx-128-mirror-smooth-act2-1e6-seed0"),
-    *(Job(V + "td3-sbx-128-1e6-mirror-bounded.yaml", s, f"td3-sbx-128-mirror-bounded-1e6-seed{s}")
-      for s in (0, 1, 2)),
-    *(Job(V + "td3-sbx-128-1e6-mirror-dr-warmup.yaml", s,
-          f"td3-sbx-128-mirror-dr-warmup-1e6-seed{s}") for s in (0, 1, 2)),
+    *(
+        job
+        for s in (0, 1, 2)
+        for job in (
+            Job(
+                V + "td3-sbx-128-1e6-mirror-smooth.yaml",
+                s,
+                f"td3-sbx-128-mirror-smooth-1e6-seed{s}",
+            ),
+            Job(V + "td3-sbx-128-1e6-mirror-dr.yaml", s, f"td3-sbx-128-mirror-dr-1e6-seed{s}"),
+        )
+    ),
+    Job(
+        V + "td3-sbx-128-1e6-mirror-smooth-act2.yaml", 0, "td3-sbx-128-mirror-smooth-act2-1e6-seed0"
+    ),
+    *(
+        Job(V + "td3-sbx-128-1e6-mirror-bounded.yaml", s, f"td3-sbx-128-mirror-bounded-1e6-seed{s}")
+        for s in (0, 1, 2)
+    ),
+    *(
+        Job(
+            V + "td3-sbx-128-1e6-mirror-dr-warmup.yaml",
+            s,
+            f"td3-sbx-128-mirror-dr-warmup-1e6-seed{s}",
+        )
+        for s in (0, 1, 2)
+    ),
     # sampling MPC (issue 30; evaluated on the three trajectories only: no --random episodes):
     Job(V + "mpc-mppi-64x50.yaml", 0, "mpc-mppi-64x50-seed0"),
     # arms that touch (issue 37): contact on, the shared target and the viewpoints task
-    *(job for s in (0, 1, 2, 3, 4) for job in (
-        Job(V + "td3-sbx-128-1e6-mirror-fast-contact.yaml", s,
-            f"td3-sbx-128-mirror-fast-contact-1e6-seed{s}"),
-        Job(V + "td3-sbx-128-1e6-mirror-fast-viewpoints.yaml", s,
-            f"td3-sbx-128-mirror-fast-viewpoints-1e6-seed{s}"),
-        Job(V + "independent-td3-sbx-128-5e5-fast-contact.yaml", s,
-            f"independent-td3-sbx-128-fast-contact-1e6-seed{s}"),
-        Job(V + "independent-td3-sbx-128-5e5-fast-viewpoints.yaml", s,
-            f"independent-td3-sbx-128-fast-viewpoints-1e6-seed{s}"),
-    )),
+    *(
+        job
+        for s in (0, 1, 2, 3, 4)
+        for job in (
+            Job(
+                V + "td3-sbx-128-1e6-mirror-fast-contact.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-contact-1e6-seed{s}",
+            ),
+            Job(
+                V + "td3-sbx-128-1e6-mirror-fast-viewpoints.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-viewpoints-1e6-seed{s}",
+            ),
+            Job(
+                V + "independent-td3-sbx-128-5e5-fast-contact.yaml",
+                s,
+                f"independent-td3-sbx-128-fast-contact-1e6-seed{s}",
+            ),
+            Job(
+                V + "independent-td3-sbx-128-5e5-fast-viewpoints.yaml",
+                s,
+                f"independent-td3-sbx-128-fast-viewpoints-1e6-seed{s}",
+            ),
+        )
+    ),
     Job(V + "mpc-mppi-64x50-contact.yaml", 0, "mpc-mppi-64x50-contact-seed0"),
     Job(V + "mpc-mppi-64x50-viewpoints.yaml", 0, "mpc-mppi-64x50-viewpoints-seed0"),
     # derived from shipped runs (after all trainings):
-    *(Job(V + "td3-sbx-128-4e6-mirror-val-confirm.yaml", s,
-          f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}", f"td3-sbx-128-mirror-val-4e6-seed{s}")
-      for s in (0, 1, 2)),
-    *(Job(V + "independent-td3-sbx-64-2e6-val-confirm.yaml", s,
-          f"independent-td3-sbx-2e6-val-confirm-seed{s}", f"independent-td3-sbx-2e6-val-seed{s}")
-      for s in (0, 1, 2)),
+    *(
+        Job(
+            V + "td3-sbx-128-4e6-mirror-val-confirm.yaml",
+            s,
+            f"td3-sbx-128-mirror-val-confirm-4e6-seed{s}",
+            f"td3-sbx-128-mirror-val-4e6-seed{s}",
+        )
+        for s in (0, 1, 2)
+    ),
+    *(
+        Job(
+            V + "independent-td3-sbx-64-2e6-val-confirm.yaml",
+            s,
+            f"independent-td3-sbx-2e6-val-confirm-seed{s}",
+            f"independent-td3-sbx-2e6-val-seed{s}",
+        )
+        for s in (0, 1, 2)
+    ),
 )
 REPORTED = (
-    "td3-sbx", "td3-sbx-1e7", "td3-sbx-speeds", "td3-sbx-arm-bonus", "td3-sbx-128",
-    "td3-sbx-per-arm", "td3-sbx-128-per-arm", "td3-sbx-per-arm-nets", "td3-sbx-own-arm-actors",
-    "td3-sbx-128-val", "td3-sbx-128-mirror-val", "td3-sbx-128-mirror-val-confirm",
-    "independent-td3-sbx", "independent-td3-sbx-2e6", "independent-td3-sbx-2e6-val",
-    "independent-td3-sbx-2e6-val-confirm", "ddpg-sbx", "ppo-sbx",
-    "td3-sbx-128-mirror-fast", "td3-sbx-64-mirror-fast", "sac-sbx-128-mirror-fast",
-    "td3-sbx-64-mirror-tuned", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-smooth-act2",
-    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "td3-sbx-128-mirror-dr-warmup",
+    "td3-sbx",
+    "td3-sbx-1e7",
+    "td3-sbx-speeds",
+    "td3-sbx-arm-bonus",
+    "td3-sbx-128",
+    "td3-sbx-per-arm",
+    "td3-sbx-128-per-arm",
+    "td3-sbx-per-arm-nets",
+    "td3-sbx-own-arm-actors",
+    "td3-sbx-128-val",
+    "td3-sbx-128-mirror-val",
+    "td3-sbx-128-mirror-val-confirm",
+    "independent-td3-sbx",
+    "independent-td3-sbx-2e6",
+    "independent-td3-sbx-2e6-val",
+    "independent-td3-sbx-2e6-val-confirm",
+    "ddpg-sbx",
+    "ppo-sbx",
+    "td3-sbx-128-mirror-fast",
+    "td3-sbx-64-mirror-fast",
+    "sac-sbx-128-mirror-fast",
+    "td3-sbx-64-mirror-tuned",
+    "td3-sbx-128-mirror-smooth",
+    "td3-sbx-128-mirror-smooth-act2",
+    "td3-sbx-128-mirror-dr",
+    "td3-sbx-128-mirror-bounded",
+    "td3-sbx-128-mirror-dr-warmup",
     "mpc-mppi-64x50",
-    "td3-sbx-128-mirror-fast-contact", "td3-sbx-128-mirror-fast-viewpoints",
-    "independent-td3-sbx-128-fast-contact", "independent-td3-sbx-128-fast-viewpoints",
-    "mpc-mppi-64x50-contact", "mpc-mppi-64x50-viewpoints",
+    "td3-sbx-128-mirror-fast-contact",
+    "td3-sbx-128-mirror-fast-viewpoints",
+    "independent-td3-sbx-128-fast-contact",
+    "independent-td3-sbx-128-fast-viewpoints",
+    "mpc-mppi-64x50-contact",
+    "mpc-mppi-64x50-viewpoints",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
 #: shipped runs): the study protocol, the best variant, the independent baseline, the fast
 #: variant (the nominal twin of the smooth, bounded and domain-randomized ones) and those.
 ROBUSTNESS = (
-    "td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm",
-    "td3-sbx-128-mirror-fast", "td3-sbx-128-mirror-smooth", "td3-sbx-128-mirror-smooth-act2",
-    "td3-sbx-128-mirror-dr", "td3-sbx-128-mirror-bounded", "td3-sbx-128-mirror-dr-warmup",
+    "td3-sbx-1e7",
+    "td3-sbx-128-mirror-val-confirm",
+    "independent-td3-sbx-2e6-val-confirm",
+    "td3-sbx-128-mirror-fast",
+    "td3-sbx-128-mirror-smooth",
+    "td3-sbx-128-mirror-smooth-act2",
+    "td3-sbx-128-mirror-dr",
+    "td3-sbx-128-mirror-bounded",
+    "td3-sbx-128-mirror-dr-warmup",
 )
 #: One factor at a time, then the combination a user expects on hardware (one setting).
 ROBUSTNESS_GRIDS = (
-    ("--grid", "obs_noise=0.002,0.005,0.01", "--grid", "action_delay=1,2,4",
-     "--grid", "youngs_modulus_scale=0.7,1.3", "--grid", "gravity=on",
-     "--grid", "torque_scale_factor=0.85"),
-    ("--full-grid", "--grid", "youngs_modulus_scale=0.7", "--grid", "obs_noise=0.005",
-     "--grid", "action_delay=2", "--grid", "gravity=on"),
+    (
+        "--grid",
+        "obs_noise=0.002,0.005,0.01",
+        "--grid",
+        "action_delay=1,2,4",
+        "--grid",
+        "youngs_modulus_scale=0.7,1.3",
+        "--grid",
+        "gravity=on",
+        "--grid",
+        "torque_scale_factor=0.85",
+    ),
+    (
+        "--full-grid",
+        "--grid",
+        "youngs_modulus_scale=0.7",
+        "--grid",
+        "obs_noise=0.005",
+        "--grid",
+        "action_delay=2",
+        "--grid",
+        "gravity=on",
+    ),
 )
 
 
 def run_robustness(names: list[str], workers: int) -> None:
     """`softtrack robustness` on the shipped runs of ``names`` (experiments of
     :data:`ROBUSTNESS`) with :data:`ROBUSTNESS_GRIDS`; settings already stored are skipped."""
-    runs = [f"models/{job.dest}" for job in JOBS
-            if job.name in names and (ROOT / "models" / job.dest).is_dir()]
+    runs = [
+        f"models/{job.dest}"
+        for job in JOBS
+        if job.name in names and (ROOT / "models" / job.dest).is_dir()
+    ]
     if not runs:
         print("robustness: no shipped run of " + ", ".join(names), flush=True)
         return
@@ -231,12 +354,16 @@ def run_contact_robustness(workers: int) -> None:
     runs = []
     for job in JOBS:
         path = ROOT / "models" / job.dest
-        if (path.is_dir() and not job.name.startswith("mpc-")
-                and load_experiment(job.spec).env.physics.contact_k == 0.0):
+        if (
+            path.is_dir()
+            and not job.name.startswith("mpc-")
+            and load_experiment(job.spec).env.physics.contact_k == 0.0
+        ):
             runs.append(f"models/{job.dest}")
     if runs:
-        _softtrack("robustness", *runs, "--grid", "contact=on", "--workers", str(workers),
-                   "--in-place")
+        _softtrack(
+            "robustness", *runs, "--grid", "contact=on", "--workers", str(workers), "--in-place"
+        )
 
 
 def _softtrack(*args: str, taskset: int | None = None) -> str:
@@ -258,8 +385,10 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     if not runs_dir.is_dir():
         return None
     candidates = [
-        r for r in RunStore(runs_dir).list_runs()
-        if r.info.name == spec.name and r.info.seed == job.seed
+        r
+        for r in RunStore(runs_dir).list_runs()
+        if r.info.name == spec.name
+        and r.info.seed == job.seed
         and r.info.spec_hash == spec_hash(spec)
     ]
     if not candidates:
@@ -278,25 +407,48 @@ def derive_run(job: Job, runs_dir: Path) -> str:
     spec = load_experiment(job.spec).with_seed(job.seed)
     base_spec = base.load_spec()
     if _training_fields(spec) != _training_fields(base_spec) or base.info.seed != job.seed:
-        raise SystemExit(f"experiments/{job.spec} (seed {job.seed}) does not train like "
-                         f"models/{job.derive_from}; train it instead of deriving it")
+        raise SystemExit(
+            f"experiments/{job.spec} (seed {job.seed}) does not train like "
+            f"models/{job.derive_from}; train it instead of deriving it"
+        )
     run_id, path = create_unique_dir(runs_dir)
-    shutil.copytree(base.path, path, dirs_exist_ok=True, ignore=lambda _dir, names: [
-        n for n in names if n in ("run.json", "spec.yaml") or n.startswith("eval_")])
-    header = (f"# fully resolved spec of run {run_id} (seed {job.seed}), derived from run "
-              f"{base.info.run_id} ({base.info.name})\n")
-    header += chain_comment([portable_path(f, ROOT)
-                             for f in spec_chain(ROOT / "experiments" / job.spec)])
+    shutil.copytree(
+        base.path,
+        path,
+        dirs_exist_ok=True,
+        ignore=lambda _dir, names: [
+            n for n in names if n in ("run.json", "spec.yaml") or n.startswith("eval_")
+        ],
+    )
+    header = (
+        f"# fully resolved spec of run {run_id} (seed {job.seed}), derived from run "
+        f"{base.info.run_id} ({base.info.name})\n"
+    )
+    header += chain_comment(
+        [portable_path(f, ROOT) for f in spec_chain(ROOT / "experiments" / job.spec)]
+    )
     atomic_write_text(path / "spec.yaml", header + spec_to_yaml(spec))
-    info = base.info.model_copy(update={
-        "run_id": run_id, "name": spec.name, "spec_hash": spec_hash(spec),
-        "notes": {**base.info.notes, "derived_from": {
-            "run_id": base.info.run_id, "name": base.info.name, "spec_hash": base.info.spec_hash,
-            "why": "the same training; the spec adds training.confirm_episodes"}},
-    })
+    info = base.info.model_copy(
+        update={
+            "run_id": run_id,
+            "name": spec.name,
+            "spec_hash": spec_hash(spec),
+            "notes": {
+                **base.info.notes,
+                "derived_from": {
+                    "run_id": base.info.run_id,
+                    "name": base.info.name,
+                    "spec_hash": base.info.spec_hash,
+                    "why": "the same training; the spec adds training.confirm_episodes",
+                },
+            },
+        }
+    )
     atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")  # last
-    print(f"derived run {run_id} ({job.name} seed {job.seed}) from models/{job.derive_from}",
-          flush=True)
+    print(
+        f"derived run {run_id} ({job.name} seed {job.seed}) from models/{job.derive_from}",
+        flush=True,
+    )
     return run_id
 
 
@@ -331,14 +483,18 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         lean(dest, job.name)
         return
     elif found is None:
-        out = _softtrack("train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs,
-                         taskset=core)
+        out = _softtrack(
+            "train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs, taskset=core
+        )
         run_id = out.split()[0]
     else:
         run_id, status = found
         if status == "running":
-            print(f"busy: run {run_id} ({job.name} seed {job.seed}) is training in another "
-                  "process; run this script again when it has finished", flush=True)
+            print(
+                f"busy: run {run_id} ({job.name} seed {job.seed}) is training in another "
+                "process; run this script again when it has finished",
+                flush=True,
+            )
             return
         if status != "completed":
             _softtrack("train", "--resume", run_id, *runs, taskset=core)
@@ -360,18 +516,28 @@ def lean(run_dir: Path, name: str) -> None:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=1, help="runs at once (one core each)")
-    parser.add_argument("--only", action="append", metavar="NAME",
-                        help="only the jobs of this experiment: its name or its spec file under "
-                        "experiments/ (repeatable)")
+    parser.add_argument(
+        "--only",
+        action="append",
+        metavar="NAME",
+        help="only the jobs of this experiment: its name or its spec file under "
+        "experiments/ (repeatable)",
+    )
     parser.add_argument("--runs-dir", default=None, help="where runs are trained [runs/]")
     parser.add_argument("--list", action="store_true", help="print the jobs and stop")
     parser.add_argument("--report-only", action="store_true", help="only rebuild the report")
-    parser.add_argument("--robustness", action="store_true",
-                        help="evaluate the shipped runs of the robustness experiments under "
-                        "perturbations (softtrack robustness; with --only, those named) instead "
-                        "of training")
-    parser.add_argument("--no-report", action="store_true",
-                        help="do not rebuild the report (e.g. for two --only processes at once)")
+    parser.add_argument(
+        "--robustness",
+        action="store_true",
+        help="evaluate the shipped runs of the robustness experiments under "
+        "perturbations (softtrack robustness; with --only, those named) instead "
+        "of training",
+    )
+    parser.add_argument(
+        "--no-report",
+        action="store_true",
+        help="do not rebuild the report (e.g. for two --only processes at once)",
+    )
     args = parser.parse_args(argv)
     jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
     if args.list:
@@ -380,14 +546,20 @@ def main(argv: list[str] | None = None) -> None:
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
             per_arm = " per arm" if spec.controller == "independent" else ""
             how = f"derived from models/{job.derive_from}, " if job.derive_from else ""
-            budget = ("no training (planner)" if spec.controller == "mpc" else
-                      f"{spec.training.total_timesteps:>10,d} env steps{per_arm}")
-            print(f"{job.name:35s} seed {job.seed}  {budget}  models/{job.dest}  "
-                  f"(experiments/{job.spec}; {how}{state})")
+            budget = (
+                "no training (planner)"
+                if spec.controller == "mpc"
+                else f"{spec.training.total_timesteps:>10,d} env steps{per_arm}"
+            )
+            print(
+                f"{job.name:35s} seed {job.seed}  {budget}  models/{job.dest}  "
+                f"(experiments/{job.spec}; {how}{state})"
+            )
         return
     if args.robustness:
-        run_robustness([n for n in ROBUSTNESS if not args.only or n in args.only],
-                       max(1, args.jobs))
+        run_robustness(
+            [n for n in ROBUSTNESS if not args.only or n in args.only], max(1, args.jobs)
+        )
         if not args.only:
             run_contact_robustness(max(1, args.jobs))
     elif not args.report_only:

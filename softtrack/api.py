@@ -106,17 +106,22 @@ def validation_summary(spec: ExperimentSpec, chain: Sequence[str] = ()) -> str:
     seed_word = "seeds" if spec.n_runs != 1 else "seed"
     if spec.controller == "mpc":
         m = spec.mpc
-        what = (f"{m.method}/mpc, {m.samples} samples × {m.horizon} steps, replanning every "
-                f"{m.replan_interval} steps (nothing to train: `softtrack evaluate SPEC`)")
+        what = (
+            f"{m.method}/mpc, {m.samples} samples × {m.horizon} steps, replanning every "
+            f"{m.replan_interval} steps (nothing to train: `softtrack evaluate SPEC`)"
+        )
     else:
-        what = (f"{spec.algo.name}/{spec.controller}, {spec.training.total_timesteps:,} env "
-                "steps each")
+        what = (
+            f"{spec.algo.name}/{spec.controller}, {spec.training.total_timesteps:,} env steps each"
+        )
     text = f"ok: {spec.name}, {runs} ({seed_word} {seeds}): {what}"
     if len(chain) > 1:
         text += "\n   base: " + " → ".join(chain[1:])
     if spec.tune is not None:
-        text += (f"\n   tune: {len(spec.tune.params)} params ({', '.join(spec.tune.params)}), "
-                 f"metric {spec.tune.metric}, pruner {spec.tune.pruner.type}")
+        text += (
+            f"\n   tune: {len(spec.tune.params)} params ({', '.join(spec.tune.params)}), "
+            f"metric {spec.tune.metric}, pruner {spec.tune.pruner.type}"
+        )
     return text
 
 
@@ -170,10 +175,12 @@ def train(
     spec = load_spec(path, overrides)
     chain = spec_chain(path)
     if spec.controller == "mpc":
-        raise SpecError(str(path),
-                        "mpc has nothing to train (a planner plans at every control step)",
-                        f"evaluate it: `softtrack evaluate {path}` creates one run per seed "
-                        "and evaluates it", field="controller")
+        raise SpecError(
+            str(path),
+            "mpc has nothing to train (a planner plans at every control step)",
+            f"evaluate it: `softtrack evaluate {path}` creates one run per seed and evaluates it",
+            field="controller",
+        )
     check_supported(spec, str(path))
     seeds = list(spec.seeds) if seed is None else [int(seed)]
     if seed is not None and not 0 <= seed < 2**32:
@@ -262,17 +269,25 @@ def evaluate(
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
     if unknown:
-        raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}",
-                        f"choose from {', '.join(EVAL_TRAJECTORIES)} or all")
+        raise SpecError(
+            "--trajectory",
+            f"unknown trajectory {unknown[0]!r}",
+            f"choose from {', '.join(EVAL_TRAJECTORIES)} or all",
+        )
     if random_episodes < 0:
-        raise SpecError("--random", f"{random_episodes} random-target episodes",
-                        "give 0 (none) or more")
+        raise SpecError(
+            "--random", f"{random_episodes} random-target episodes", "give 0 (none) or more"
+        )
     if model not in MODEL_CHOICES:
-        raise SpecError("--model", f"unknown model {model!r}",
-                        f"choose from {', '.join(MODEL_CHOICES)}")
+        raise SpecError(
+            "--model", f"unknown model {model!r}", f"choose from {', '.join(MODEL_CHOICES)}"
+        )
     if not chosen and not random_episodes:
-        raise SpecError("--trajectory", "nothing to evaluate",
-                        "name a trajectory, or add --random N to --trajectory none")
+        raise SpecError(
+            "--trajectory",
+            "nothing to evaluate",
+            "name a trajectory, or add --random N to --trajectory none",
+        )
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     mpc_specs = {ref: _mpc_spec(ref) for ref in references if _is_spec_file(ref)}
@@ -280,8 +295,9 @@ def evaluate(
     for record in records:
         record.load_spec()  # every run checked before anything is copied or written
     if write and model == "policy":
-        records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied)
-                   for r in records]
+        records = [
+            writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) for r in records
+        ]
     store_for_new = RunStore(resolve_runs_dir(runs_dir))
     for ref, spec in mpc_specs.items():
         for seed in spec.seeds:
@@ -298,8 +314,11 @@ def evaluate(
     frames = []
     for record, store in zip(records, stores, strict=True):
         if chosen:
-            frames.append(evaluate_run(record, chosen, on_episode, write=store, model=model,
-                                       full_moments=full_moments))
+            frames.append(
+                evaluate_run(
+                    record, chosen, on_episode, write=store, model=model, full_moments=full_moments
+                )
+            )
         if random_episodes:
             rows = evaluate_random_targets(record, random_episodes, write=store, model=model)
             if on_random is not None:
@@ -319,9 +338,12 @@ def _mpc_spec(path: str) -> ExperimentSpec:
     """
     spec = load_spec(path)
     if spec.controller != "mpc":
-        raise SpecError(path, f"controller: {spec.controller} needs training before it can be "
-                        "evaluated", f"train it (`softtrack train {path}`) and evaluate its runs",
-                        field="controller")
+        raise SpecError(
+            path,
+            f"controller: {spec.controller} needs training before it can be evaluated",
+            f"train it (`softtrack train {path}`) and evaluate its runs",
+            field="controller",
+        )
     return spec
 
 
@@ -338,8 +360,9 @@ def export(
     return export_policy_run(resolve_run(reference, runs_dir), dest)
 
 
-def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bool = False
-            ) -> dict[Path, list[str]]:
+def upgrade(
+    run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bool = False
+) -> dict[Path, list[str]]:
     """Rewrite run directories made by earlier versions in the current format: evaluation
     tables (:mod:`softtrack.store.upgrade`) and, for exported runs, the model layout
     (:func:`softtrack.rl.export.relayout_exported_run`). Every directory is checked before
@@ -358,8 +381,10 @@ def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bo
     paths = [Path(d) for d in run_dirs]
     for path in paths:
         if not (path / "tables").is_dir() or not (path / "run.json").is_file():
-            raise RunStoreError(f"{path}: not a run directory with tables (no run.json or "
-                                "tables/ inside); give run directories such as models/<name>")
+            raise RunStoreError(
+                f"{path}: not a run directory with tables (no run.json or "
+                "tables/ inside); give run directories such as models/<name>"
+            )
         RunStore(path.parent).get_run(path.name).load_spec()
     done = {}
     for path in paths:
@@ -370,7 +395,9 @@ def upgrade(run_dirs: Sequence[str | os.PathLike[str]], *, keep_full_moments: bo
 
 
 def copy_run(
-    source: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None,
+    source: str | os.PathLike[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
     keep_evaluation: bool = False,
 ) -> Path:
     """Copy a finished run directory (e.g. the shipped ``models/td3-sbx-1e7-seed0``) into the
@@ -403,34 +430,46 @@ def copy_run(
     root = resolve_runs_dir(runs_dir)
     dest = root / record.run_id
     if dest.exists() and dest.resolve() == record.path.resolve():
-        raise RunStoreError(f"{dest}: the runs directory holds the run to copy itself; give "
-                            "another --runs-dir (the source is never written)")
+        raise RunStoreError(
+            f"{dest}: the runs directory holds the run to copy itself; give "
+            "another --runs-dir (the source is never written)"
+        )
     models = [p.relative_to(record.path) for p in model_paths(record, record.load_spec())]
     missing = [m for m in models if not (record.path / m).is_file()]
     if missing:
-        raise RunStoreError(f"{record.path / missing[0]}: run {record.run_id} has no trained "
-                            "model to copy")
+        raise RunStoreError(
+            f"{record.path / missing[0]}: run {record.run_id} has no trained model to copy"
+        )
     if dest.exists():
         same = (dest / "run.json").is_file() and all(
             (dest / m).is_file() and filecmp.cmp(record.path / m, dest / m, shallow=False)
-            for m in models)
+            for m in models
+        )
         if not same:
-            raise RunStoreError(f"{dest} already holds another run named {record.run_id}; "
-                                "remove it or give another --runs-dir")
+            raise RunStoreError(
+                f"{dest} already holds another run named {record.run_id}; "
+                "remove it or give another --runs-dir"
+            )
         if keep_evaluation:
             return dest
     else:
+
         def skipped(directory: str, names: list[str]) -> set[str]:
             in_tables = Path(directory).name == "tables"
-            return {n for n in names if n in ("checkpoints", "run.lock", "replay_buffer.pkl")
-                    or is_temp_file(n)
-                    or (in_tables and n.startswith("eval_") and n.endswith(".parquet"))}
+            return {
+                n
+                for n in names
+                if n in ("checkpoints", "run.lock", "replay_buffer.pkl")
+                or is_temp_file(n)
+                or (in_tables and n.startswith("eval_") and n.endswith(".parquet"))
+            }
 
         with atomic_dir(dest, fsync=False) as tmp:
             shutil.copytree(record.path, tmp, ignore=skipped, dirs_exist_ok=True)
         notes = {k: v for k, v in record.info.notes.items() if k != "read_only"}
-        RunStore(root).update_run(record.run_id,
-                                  notes={**notes, "copy_of": portable_path(record.path)})
+        RunStore(root).update_run(
+            record.run_id, notes={**notes, "copy_of": portable_path(record.path)}
+        )
     for table in (dest / "tables").glob("eval_*.parquet"):
         table.unlink()
     return dest
@@ -460,8 +499,7 @@ def writable_run(
             "give a --runs-dir for this machine's results (default runs/), or --in-place to "
             "write into the shipped run"
         )
-    copy = RunStore(root).get_run(copy_run(record.path, runs_dir=root,
-                                           keep_evaluation=True).name)
+    copy = RunStore(root).get_run(copy_run(record.path, runs_dir=root, keep_evaluation=True).name)
     if on_copied is not None:
         on_copied(record, copy)
     return copy
@@ -500,8 +538,9 @@ def report(
     extra = [resolve_run(str(path)) for path in extra_runs]
     for record in extra:
         if not has_evaluation(record):
-            raise RunStoreError(f"{record.path}: no stored evaluation; run `softtrack evaluate "
-                                f"{record.path}` first")
+            raise RunStoreError(
+                f"{record.path}: no stored evaluation; run `softtrack evaluate {record.path}` first"
+            )
     for record in records:
         spec = record.load_spec()
         trained = all(p.is_file() for p in model_paths(record, spec))
@@ -509,8 +548,13 @@ def report(
             evaluate_run(record, on_episode=on_episode)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report([*records, *extra], out_dir, portable_command(list(command_line)),
-                        all_figures=all_figures, figures_for=figures_for)
+    return build_report(
+        [*records, *extra],
+        out_dir,
+        portable_command(list(command_line)),
+        all_figures=all_figures,
+        figures_for=figures_for,
+    )
 
 
 QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
@@ -542,8 +586,11 @@ def quickstart_spec_path() -> Path:
             return path
     packaged = Path(str(files("softtrack") / "data" / "quickstart.yaml"))
     if not packaged.is_file():
-        raise SpecError(str(packaged), "the quickstart spec is missing from this installation",
-                        "reinstall softtrack (pip install softtrack) or run from a checkout")
+        raise SpecError(
+            str(packaged),
+            "the quickstart spec is missing from this installation",
+            "reinstall softtrack (pip install softtrack) or run from a checkout",
+        )
     return packaged
 
 
@@ -578,8 +625,9 @@ def sweep(
 
     options = options or dispatch.ExecOptions()
     if options.executor not in dispatch.EXECUTORS:
-        raise SpecError("--executor", f"unknown executor {options.executor!r}",
-                        "use local or slurm")
+        raise SpecError(
+            "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
+        )
     points = expand_grid(paths, parse_grid(grid), seeds=parse_seeds(seeds), overrides=overrides)
     store = RunStore(resolve_runs_dir(runs_dir))
     sweep_id = dispatch.new_sweep_id()
@@ -588,13 +636,17 @@ def sweep(
     for point in points:
         for s in point.spec.seeds:
             notes = {"sweep": sweep_id, "grid": point.grid}
-            records.append(store.create_run(point.spec, s, list(sys.argv), notes=notes,
-                                            spec_files=chains[point.path]))
+            records.append(
+                store.create_run(
+                    point.spec, s, list(sys.argv), notes=notes, spec_files=chains[point.path]
+                )
+            )
     if on_created is not None:
         on_created(sweep_id, records)
     ids = [r.run_id for r in records]
-    return dispatch.execute(store, ids, options, sweep_id, cluster=points[0].spec.cluster,
-                            on_progress=on_progress)
+    return dispatch.execute(
+        store, ids, options, sweep_id, cluster=points[0].spec.cluster, on_progress=on_progress
+    )
 
 
 def resume_runs(
@@ -625,9 +677,15 @@ def resume_runs(
     if on_selected is not None:
         on_selected(resume_id, records)
     ids = [r.run_id for r in records]
-    return dispatch.execute(store, ids, options, resume_id,
-                            cluster=dispatch.cluster_of(store, ids), on_progress=on_progress,
-                            label=f"resume {resume_id}")
+    return dispatch.execute(
+        store,
+        ids,
+        options,
+        resume_id,
+        cluster=dispatch.cluster_of(store, ids),
+        on_progress=on_progress,
+        label=f"resume {resume_id}",
+    )
 
 
 # ---- robustness ---------------------------------------------------------------------------
@@ -677,17 +735,24 @@ def robustness(
 
     options = options or dispatch.ExecOptions(workers=1)
     if options.executor not in dispatch.EXECUTORS:
-        raise SpecError("--executor", f"unknown executor {options.executor!r}",
-                        "use local or slurm")
+        raise SpecError(
+            "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
+        )
     if options.detach and options.executor == "local":
-        raise SpecError("--detach", "local robustness workers cannot be detached",
-                        "run without --detach (an interrupted evaluation continues where it "
-                        "stopped), or use --executor slurm")
+        raise SpecError(
+            "--detach",
+            "local robustness workers cannot be detached",
+            "run without --detach (an interrupted evaluation continues where it "
+            "stopped), or use --executor slurm",
+        )
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
     if unknown or not chosen:
-        raise SpecError("--trajectory", f"unknown trajectory {unknown[0]!r}" if unknown
-                        else "no trajectory", f"choose from {', '.join(EVAL_TRAJECTORIES)}")
+        raise SpecError(
+            "--trajectory",
+            f"unknown trajectory {unknown[0]!r}" if unknown else "no trajectory",
+            f"choose from {', '.join(EVAL_TRAJECTORIES)}",
+        )
     if episodes < 1:
         raise SpecError("--episodes", f"{episodes} episodes", "give 1 or more")
     if not references:
@@ -696,10 +761,18 @@ def robustness(
     records = [resolve_run(ref, runs_dir) for ref in references]
     for record in records:
         record.load_spec()  # every run checked before anything is copied or written
-    records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied)
-               for r in records]
-    return run_robustness(records, settings, chosen, episodes, keep_realism=keep_realism,
-                          redo=redo, options=options, on_cell=on_cell, on_progress=on_progress)
+    records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) for r in records]
+    return run_robustness(
+        records,
+        settings,
+        chosen,
+        episodes,
+        keep_realism=keep_realism,
+        redo=redo,
+        options=options,
+        on_cell=on_cell,
+        on_progress=on_progress,
+    )
 
 
 # ---- tuning -------------------------------------------------------------------------------
@@ -734,22 +807,36 @@ def tune(
     """
     from softtrack.tune.run import tune as run_tune
 
-    return run_tune(path, overrides, trials=trials, study=study, storage=storage,
-                    runs_dir=runs_dir, options=options, log=log, on_progress=on_progress,
-                    show_progress=show_progress)
+    return run_tune(
+        path,
+        overrides,
+        trials=trials,
+        study=study,
+        storage=storage,
+        runs_dir=runs_dir,
+        options=options,
+        log=log,
+        on_progress=on_progress,
+        show_progress=show_progress,
+    )
 
 
-def tune_status(study: str, *, storage: str | None = None,
-                runs_dir: str | os.PathLike[str] | None = None) -> str:
+def tune_status(
+    study: str, *, storage: str | None = None, runs_dir: str | os.PathLike[str] | None = None
+) -> str:
     """A study's summary line and its trials (number, state, score, step, run id, params)."""
     from softtrack.tune.run import tune_status as status
 
     return status(study, storage=storage, runs_dir=runs_dir)
 
 
-def tune_best(study: str, out: str | os.PathLike[str] | None = None, *,
-              storage: str | None = None,
-              runs_dir: str | os.PathLike[str] | None = None) -> tuple[Path, Any]:
+def tune_best(
+    study: str,
+    out: str | os.PathLike[str] | None = None,
+    *,
+    storage: str | None = None,
+    runs_dir: str | os.PathLike[str] | None = None,
+) -> tuple[Path, Any]:
     """Write a study's best complete trial as a spec file (``base:`` the tuned spec, the best
     values set; default ``<study>-best.yaml``) that ``softtrack train`` loads; returns the
     file and the trial."""

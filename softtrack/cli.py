@@ -51,9 +51,11 @@ SetOption = Annotated[
 ]
 InPlaceOption = Annotated[
     bool,
-    typer.Option("--in-place",
-                 help="Store the results in a shipped (read-only) run itself, e.g. to update "
-                      "models/ on purpose [default: in its copy in the runs directory]."),
+    typer.Option(
+        "--in-place",
+        help="Store the results in a shipped (read-only) run itself, e.g. to update "
+        "models/ on purpose [default: in its copy in the runs directory].",
+    ),
 ]
 RunsDirOption = Annotated[
     str | None,
@@ -66,7 +68,7 @@ RunsDirOption = Annotated[
 ]
 
 
-class OutputFormat(str, enum.Enum):
+class OutputFormat(enum.StrEnum):
     table = "table"
     json = "json"
 
@@ -89,8 +91,7 @@ def _user_errors(runs_dir: str | None = None) -> Iterator[None]:
         from softtrack.store.disk import storage_problem
         from softtrack.store.runs import resolve_runs_dir
 
-        problem = storage_problem(exc, "then run the command again",
-                                  resolve_runs_dir(runs_dir))
+        problem = storage_problem(exc, "then run the command again", resolve_runs_dir(runs_dir))
         if problem is None:
             raise
         _fail(problem)
@@ -238,8 +239,11 @@ def train(
             )
     for outcome in outcomes:
         if outcome.status == "interrupted" and outcome.error:
-            typer.echo(f"error: run {outcome.run_id} stopped at step {outcome.global_step}: "
-                       f"{outcome.error}", err=True)
+            typer.echo(
+                f"error: run {outcome.run_id} stopped at step {outcome.global_step}: "
+                f"{outcome.error}",
+                err=True,
+            )
         elif outcome.status == "interrupted":
             typer.echo(
                 f"interrupted: run {outcome.run_id} at step {outcome.global_step}; continue with "
@@ -253,64 +257,106 @@ def train(
         raise typer.Exit(code)
 
 
-class ExecutorChoice(str, enum.Enum):
+class ExecutorChoice(enum.StrEnum):
     local = "local"
     slurm = "slurm"
 
 
 ExecutorOption = Annotated[
     ExecutorChoice,
-    typer.Option("--executor", "-e", case_sensitive=False,
-                 help="local: a process pool on this machine; slurm: a SLURM job array "
-                 "(needs `pip install 'softtrack[cluster]'`)."),
+    typer.Option(
+        "--executor",
+        "-e",
+        case_sensitive=False,
+        help="local: a process pool on this machine; slurm: a SLURM job array "
+        "(needs `pip install 'softtrack[cluster]'`).",
+    ),
 ]
 WorkersOption = Annotated[
     int | None,
-    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
-                 help="Runs at once (local: worker processes, default the number of cores; "
-                 "slurm: array parallelism, default no limit)."),
+    typer.Option(
+        "--workers",
+        "-w",
+        metavar="N",
+        min=1,
+        show_default=False,
+        help="Runs at once (local: worker processes, default the number of cores; "
+        "slurm: array parallelism, default no limit).",
+    ),
 ]
 DetachOption = Annotated[
-    bool, typer.Option("--detach", help="Return once the runs are submitted (follow them "
-                       "with `softtrack runs`).")
+    bool,
+    typer.Option(
+        "--detach", help="Return once the runs are submitted (follow them with `softtrack runs`)."
+    ),
 ]
 PartitionOption = Annotated[
-    str | None, typer.Option("--partition", metavar="NAME", show_default=False,
-                             help="slurm: partition [default: spec cluster.partition].")
+    str | None,
+    typer.Option(
+        "--partition",
+        metavar="NAME",
+        show_default=False,
+        help="slurm: partition [default: spec cluster.partition].",
+    ),
 ]
 TimeOption = Annotated[
-    int | None, typer.Option("--time", metavar="MIN", min=1, show_default=False,
-                             help="slurm: time limit per job, min; longer runs are requeued "
-                             "and resume [default: spec cluster.time_min, 240].")
+    int | None,
+    typer.Option(
+        "--time",
+        metavar="MIN",
+        min=1,
+        show_default=False,
+        help="slurm: time limit per job, min; longer runs are requeued "
+        "and resume [default: spec cluster.time_min, 240].",
+    ),
 ]
 CpusOption = Annotated[
-    int | None, typer.Option("--cpus", metavar="N", min=1, show_default=False,
-                             help="slurm: cores per job [default: spec cluster.cpus_per_task, 1].")
+    int | None,
+    typer.Option(
+        "--cpus",
+        metavar="N",
+        min=1,
+        show_default=False,
+        help="slurm: cores per job [default: spec cluster.cpus_per_task, 1].",
+    ),
 ]
 MemOption = Annotated[
-    float | None, typer.Option("--mem", metavar="GB", min=0.001, show_default=False,
-                               help="slurm: memory per job, GB [default: spec cluster.mem_gb, 4].")
+    float | None,
+    typer.Option(
+        "--mem",
+        metavar="GB",
+        min=0.001,
+        show_default=False,
+        help="slurm: memory per job, GB [default: spec cluster.mem_gb, 4].",
+    ),
 ]
 
 
 TuneWorkersOption = Annotated[
     int | None,
-    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
-                 help="Worker processes pulling trials from the study [default: 1, in this "
-                 "process] (slurm: N jobs)."),
+    typer.Option(
+        "--workers",
+        "-w",
+        metavar="N",
+        min=1,
+        show_default=False,
+        help="Worker processes pulling trials from the study [default: 1, in this "
+        "process] (slurm: N jobs).",
+    ),
 ]
 
 
 def _exec_parameters(workers: Any = WorkersOption) -> list[inspect.Parameter]:
     return [
-        inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default,
-                          annotation=annotation)
+        inspect.Parameter(
+            name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation
+        )
         for name, annotation, default in (
             ("executor", ExecutorOption, ExecutorChoice.local),
             ("workers", workers, None),
-        ("detach", DetachOption, False),
-        ("partition", PartitionOption, None),
-        ("time_min", TimeOption, None),
+            ("detach", DetachOption, False),
+            ("partition", PartitionOption, None),
+            ("time_min", TimeOption, None),
             ("cpus", CpusOption, None),
             ("mem", MemOption, None),
         )
@@ -330,13 +376,25 @@ def _with_exec_options(
 
     @functools.wraps(command)
     def with_options(
-        *args: Any, executor: ExecutorChoice, workers: int | None, detach: bool,
-        partition: str | None, time_min: int | None, cpus: int | None, mem: float | None,
+        *args: Any,
+        executor: ExecutorChoice,
+        workers: int | None,
+        detach: bool,
+        partition: str | None,
+        time_min: int | None,
+        cpus: int | None,
+        mem: float | None,
         **kwargs: Any,
     ) -> None:
-        options = ExecOptions(executor=executor.value, workers=workers, detach=detach,
-                              partition=partition, time_min=time_min, cpus_per_task=cpus,
-                              mem_gb=mem)
+        options = ExecOptions(
+            executor=executor.value,
+            workers=workers,
+            detach=detach,
+            partition=partition,
+            time_min=time_min,
+            cpus_per_task=cpus,
+            mem_gb=mem,
+        )
         command(*args, options=options, **kwargs)
 
     signature = signature.replace(parameters=parameters)
@@ -353,8 +411,11 @@ def _finish(outcome: Outcome, what: str) -> None:
     """Print what is complete and what is missing; exit with the outcome's code."""
     o = outcome
     if o.detached:
-        typer.echo(f"{what} {o.sweep_id}: {len(o.run_ids)} runs submitted; follow them with "
-                   f"`softtrack runs` (log: {o.log})", err=True)
+        typer.echo(
+            f"{what} {o.sweep_id}: {len(o.run_ids)} runs submitted; follow them with "
+            f"`softtrack runs` (log: {o.log})",
+            err=True,
+        )
         return
     missing = o.missing
     done = len(o.run_ids) - len(missing)
@@ -362,8 +423,10 @@ def _finish(outcome: Outcome, what: str) -> None:
     for run_id, status in missing:
         typer.echo(f"  missing: {run_id} ({status})", err=True)
     if missing:
-        typer.echo(f"  continue with `softtrack resume {o.sweep_id}`; failures: "
-                   "`softtrack runs --failed`", err=True)
+        typer.echo(
+            f"  continue with `softtrack resume {o.sweep_id}`; failures: `softtrack runs --failed`",
+            err=True,
+        )
     if o.exit_code:
         raise typer.Exit(o.exit_code)
 
@@ -373,20 +436,32 @@ def _finish(outcome: Outcome, what: str) -> None:
 def sweep(
     specs: Annotated[
         list[str],
-        typer.Argument(metavar="SPEC...", help="Experiment specs (YAML): one run per seed and "
-                       "grid point.", show_default=False),
+        typer.Argument(
+            metavar="SPEC...",
+            help="Experiment specs (YAML): one run per seed and grid point.",
+            show_default=False,
+        ),
     ],
     grid: Annotated[
         list[str] | None,
-        typer.Option("--grid", "-g", metavar="KEY=V1,V2", show_default=False,
-                     help="A grid axis over any spec field, e.g. --grid algo.name=td3,ddpg,ppo "
-                     "(values are YAML; commas inside [...] are kept). Repeatable: the grid is "
-                     "the product of the axes."),
+        typer.Option(
+            "--grid",
+            "-g",
+            metavar="KEY=V1,V2",
+            show_default=False,
+            help="A grid axis over any spec field, e.g. --grid algo.name=td3,ddpg,ppo "
+            "(values are YAML; commas inside [...] are kept). Repeatable: the grid is "
+            "the product of the axes.",
+        ),
     ] = None,
     seeds: Annotated[
         str | None,
-        typer.Option("--seeds", metavar="LIST", show_default=False,
-                     help="Seeds of every grid point, e.g. 0,1,2 or 0-4 [default: the spec's]."),
+        typer.Option(
+            "--seeds",
+            metavar="LIST",
+            show_default=False,
+            help="Seeds of every grid point, e.g. 0,1,2 or 0-4 [default: the spec's].",
+        ),
     ] = None,
     overrides: SetOption = None,
     *,
@@ -409,8 +484,14 @@ def sweep(
 
     with _user_errors(runs_dir):
         outcome = api.sweep(
-            specs, grid or [], overrides or [], seeds=seeds, runs_dir=runs_dir,
-            options=options, on_created=created, on_progress=_progress,
+            specs,
+            grid or [],
+            overrides or [],
+            seeds=seeds,
+            runs_dir=runs_dir,
+            options=options,
+            on_created=created,
+            on_progress=_progress,
         )
     _finish(outcome, "sweep")
 
@@ -420,9 +501,11 @@ def sweep(
 def resume_command(
     selection: Annotated[
         list[str] | None,
-        typer.Argument(metavar="[EXPERIMENT|SWEEP_ID|RUN_ID]...", show_default=False,
-                       help="Experiment names, sweep ids or run ids [default: every resumable "
-                       "run]."),
+        typer.Argument(
+            metavar="[EXPERIMENT|SWEEP_ID|RUN_ID]...",
+            show_default=False,
+            help="Experiment names, sweep ids or run ids [default: every resumable run].",
+        ),
     ] = None,
     *,
     options: ExecOptions,
@@ -442,12 +525,17 @@ def resume_command(
 
     with _user_errors(runs_dir):
         outcome = api.resume_runs(
-            selection or [], runs_dir=runs_dir, options=options, on_selected=selected,
+            selection or [],
+            runs_dir=runs_dir,
+            options=options,
+            on_selected=selected,
             on_progress=_progress,
         )
     if outcome is None:
-        typer.echo("nothing to resume: no interrupted, queued, failed-by-signal or lost run "
-                   "matches", err=True)
+        typer.echo(
+            "nothing to resume: no interrupted, queued, failed-by-signal or lost run matches",
+            err=True,
+        )
         return
     _finish(outcome, "resume")
 
@@ -457,41 +545,70 @@ def resume_command(
 def tune_command(
     spec: Annotated[
         str | None,
-        typer.Argument(metavar="[SPEC]", show_default=False,
-                       help="Experiment spec (YAML) with a tune: section (the search space)."),
+        typer.Argument(
+            metavar="[SPEC]",
+            show_default=False,
+            help="Experiment spec (YAML) with a tune: section (the search space).",
+        ),
     ] = None,
     overrides: SetOption = None,
     trials: Annotated[
         int | None,
-        typer.Option("--trials", "-n", metavar="N", min=1, show_default=False,
-                     help="Finished trials (complete or pruned) the study should have."),
+        typer.Option(
+            "--trials",
+            "-n",
+            metavar="N",
+            min=1,
+            show_default=False,
+            help="Finished trials (complete or pruned) the study should have.",
+        ),
     ] = None,
     study: Annotated[
         str | None,
-        typer.Option("--study", metavar="NAME", show_default=False,
-                     help="The study: started, or continued if it exists [default: the spec's "
-                     "name]."),
+        typer.Option(
+            "--study",
+            metavar="NAME",
+            show_default=False,
+            help="The study: started, or continued if it exists [default: the spec's name].",
+        ),
     ] = None,
     storage: Annotated[
         str | None,
-        typer.Option("--storage", metavar="URL", show_default=False,
-                     help="Optuna RDB storage URL, e.g. postgresql://user@host/db [default: "
-                     "sqlite:///RUNS_DIR/optuna.db]."),
+        typer.Option(
+            "--storage",
+            metavar="URL",
+            show_default=False,
+            help="Optuna RDB storage URL, e.g. postgresql://user@host/db [default: "
+            "sqlite:///RUNS_DIR/optuna.db].",
+        ),
     ] = None,
     best: Annotated[
         str | None,
-        typer.Option("--best", metavar="STUDY", show_default=False,
-                     help="Write the study's best trial as a spec file (see --out) instead."),
+        typer.Option(
+            "--best",
+            metavar="STUDY",
+            show_default=False,
+            help="Write the study's best trial as a spec file (see --out) instead.",
+        ),
     ] = None,
     out: Annotated[
         str | None,
-        typer.Option("--out", "-o", metavar="FILE", show_default=False,
-                     help="With --best: the spec file to write [default: STUDY-best.yaml]."),
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="FILE",
+            show_default=False,
+            help="With --best: the spec file to write [default: STUDY-best.yaml].",
+        ),
     ] = None,
     status: Annotated[
         str | None,
-        typer.Option("--status", metavar="STUDY", show_default=False,
-                     help="Print the study's trials (state, score, params, run id) instead."),
+        typer.Option(
+            "--status",
+            metavar="STUDY",
+            show_default=False,
+            help="Print the study's trials (state, score, params, run id) instead.",
+        ),
     ] = None,
     *,
     options: ExecOptions,
@@ -520,33 +637,53 @@ def tune_command(
         if best is not None:
             path, trial = api.tune_best(best, out, storage=storage, runs_dir=runs_dir)
             typer.echo(str(path))
-            typer.echo(f"best trial {trial.number} of study {best}: validation score "
-                       f"{trial.value:.4f} m (run {trial.user_attrs.get('run_id', '?')}); "
-                       f"train it with `softtrack train {path}`", err=True)
+            typer.echo(
+                f"best trial {trial.number} of study {best}: validation score "
+                f"{trial.value:.4f} m (run {trial.user_attrs.get('run_id', '?')}); "
+                f"train it with `softtrack train {path}`",
+                err=True,
+            )
             return
         if trials is None:
-            _fail(f"tune: --trials N is needed (finished trials the study should have); "
-                  f"{example}")
+            _fail(f"tune: --trials N is needed (finished trials the study should have); {example}")
         assert spec is not None
-        outcome = api.tune(spec, overrides or [], trials=trials, study=study, storage=storage,
-                           runs_dir=runs_dir, options=options, log=_progress,
-                           on_progress=_progress)
+        outcome = api.tune(
+            spec,
+            overrides or [],
+            trials=trials,
+            study=study,
+            storage=storage,
+            runs_dir=runs_dir,
+            options=options,
+            log=_progress,
+            on_progress=_progress,
+        )
     if outcome.detached:
-        typer.echo(f"tune {outcome.study}: workers started; follow them with `softtrack tune "
-                   f"--status {outcome.study}` (logs: {outcome.log})", err=True)
+        typer.echo(
+            f"tune {outcome.study}: workers started; follow them with `softtrack tune "
+            f"--status {outcome.study}` (logs: {outcome.log})",
+            err=True,
+        )
         return
     typer.echo(outcome.summary, err=True)
     for where, code in outcome.crashed:
-        typer.echo(f"error: a tune worker ended with exit code {code} (log: {where}); "
-                   f"its trial is retried when the study continues", err=True)
+        typer.echo(
+            f"error: a tune worker ended with exit code {code} (log: {where}); "
+            f"its trial is retried when the study continues",
+            err=True,
+        )
     if outcome.missing:
         again = f"softtrack tune {spec} --trials {trials} --study {outcome.study}"
-        typer.echo(f"  {outcome.missing} trial{'s' if outcome.missing != 1 else ''} missing; "
-                   f"continue with `{again}` (same --set and --storage); trials: "
-                   f"`softtrack tune --status {outcome.study}`", err=True)
+        typer.echo(
+            f"  {outcome.missing} trial{'s' if outcome.missing != 1 else ''} missing; "
+            f"continue with `{again}` (same --set and --storage); trials: "
+            f"`softtrack tune --status {outcome.study}`",
+            err=True,
+        )
     else:
-        typer.echo(f"  write the best trial as a spec: `softtrack tune --best {outcome.study}`",
-                   err=True)
+        typer.echo(
+            f"  write the best trial as a spec: `softtrack tune --best {outcome.study}`", err=True
+        )
     if outcome.exit_code:
         raise typer.Exit(outcome.exit_code)
 
@@ -587,7 +724,7 @@ def runs(
     typer.echo(api.format_runs_table(summaries))
 
 
-class QueryFormat(str, enum.Enum):
+class QueryFormat(enum.StrEnum):
     table = "table"
     csv = "csv"
     json = "json"
@@ -597,14 +734,21 @@ class QueryFormat(str, enum.Enum):
 def query_command(
     sql: Annotated[
         str | None,
-        typer.Argument(metavar="[SQL]", show_default=False,
-                       help="A DuckDB SQL query (quote it), e.g. \"SELECT * FROM runs\"."),
+        typer.Argument(
+            metavar="[SQL]",
+            show_default=False,
+            help='A DuckDB SQL query (quote it), e.g. "SELECT * FROM runs".',
+        ),
     ] = None,
     runs_dir: RunsDirOption = None,
     output_format: Annotated[
         QueryFormat,
-        typer.Option("--format", "-f", case_sensitive=False,
-                     help="table: aligned text; csv: with a header; json: an array of records."),
+        typer.Option(
+            "--format",
+            "-f",
+            case_sensitive=False,
+            help="table: aligned text; csv: with a header; json: an array of records.",
+        ),
     ] = QueryFormat.table,
     views: Annotated[
         bool, typer.Option("--views", help="List the views and their columns instead.")
@@ -627,8 +771,9 @@ def query_command(
 
     with _user_errors(), ResultsDatabase(runs_dir) as db:
         for item in db.unreadable:
-            typer.echo(f"warning: run {item.path.name} left out: {item.reason}; {item.fix}",
-                       err=True)
+            typer.echo(
+                f"warning: run {item.path.name} left out: {item.reason}; {item.fix}", err=True
+            )
         if views:
             typer.echo(format_views(db.views()))
             return
@@ -638,7 +783,7 @@ def query_command(
         typer.echo(format_result(result, output_format.value))
 
 
-class TrajectoryChoice(str, enum.Enum):
+class TrajectoryChoice(enum.StrEnum):
     circle = "circle"
     rectangle = "rectangle"
     figure8 = "figure8"
@@ -646,7 +791,7 @@ class TrajectoryChoice(str, enum.Enum):
     none = "none"
 
 
-class ModelOption(str, enum.Enum):
+class ModelOption(enum.StrEnum):
     policy = "policy"
     last = "last"
     best = "best"
@@ -656,34 +801,47 @@ class ModelOption(str, enum.Enum):
 def evaluate(
     references: Annotated[
         list[str],
-        typer.Argument(metavar="RUN_ID_OR_DIR...", help="Run ids (or prefixes) or run directories.",
-                       show_default=False),
+        typer.Argument(
+            metavar="RUN_ID_OR_DIR...",
+            help="Run ids (or prefixes) or run directories.",
+            show_default=False,
+        ),
     ],
     trajectory: Annotated[
         TrajectoryChoice,
-        typer.Option("--trajectory", "-t", help="Target trajectory to evaluate on.",
-                     case_sensitive=False),
+        typer.Option(
+            "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
+        ),
     ] = TrajectoryChoice.all,
     random: Annotated[
         int,
-        typer.Option("--random", metavar="N",
-                     help="Also run N episodes on the run's random training target, from "
-                          "seeds training never uses (table eval_random)."),
+        typer.Option(
+            "--random",
+            metavar="N",
+            help="Also run N episodes on the run's random training target, from "
+            "seeds training never uses (table eval_random).",
+        ),
     ] = 0,
     model: Annotated[
         ModelOption,
-        typer.Option("--model", "-m", case_sensitive=False,
-                     help="Which model of each run: its policy (training.final_policy), the "
-                          "last model of training, or the best-validated one. Only the "
-                          "policy's results are stored."),
+        typer.Option(
+            "--model",
+            "-m",
+            case_sensitive=False,
+            help="Which model of each run: its policy (training.final_policy), the "
+            "last model of training, or the best-validated one. Only the "
+            "policy's results are stored.",
+        ),
     ] = ModelOption.policy,
     in_place: InPlaceOption = False,
     full_moments: Annotated[
         bool,
-        typer.Option("--full-moments",
-                     help="Also store every element torque at every step (table "
-                          "eval_element_moments, ~2 MB per trajectory); by default only "
-                          "the per-step RMS and the per-element peaks are stored."),
+        typer.Option(
+            "--full-moments",
+            help="Also store every element torque at every step (table "
+            "eval_element_moments, ~2 MB per trajectory); by default only "
+            "the per-step RMS and the per-element peaks are stored.",
+        ),
     ] = False,
     runs_dir: RunsDirOption = None,
 ) -> None:
@@ -710,20 +868,35 @@ def evaluate(
         chosen = [] if trajectory is TrajectoryChoice.none else [trajectory.value]
 
     with _user_errors(runs_dir):
-        api.evaluate(references, chosen, runs_dir=runs_dir, on_episode=_print_episode,
-                     random_episodes=random, on_random=_print_random, model=model.value,
-                     full_moments=full_moments, on_created=_print_created,
-                     in_place=in_place, on_copied=_print_copied)
+        api.evaluate(
+            references,
+            chosen,
+            runs_dir=runs_dir,
+            on_episode=_print_episode,
+            random_episodes=random,
+            on_random=_print_random,
+            model=model.value,
+            full_moments=full_moments,
+            on_created=_print_created,
+            in_place=in_place,
+            on_copied=_print_copied,
+        )
 
 
 def _print_copied(shipped: RunRecord, copy: RunRecord) -> None:
-    typer.echo(f"{_shown(shipped.path)} is a shipped run (read-only): its results go to its "
-               f"copy {_shown(copy.path)} (--in-place writes into the shipped run)", err=True)
+    typer.echo(
+        f"{_shown(shipped.path)} is a shipped run (read-only): its results go to its "
+        f"copy {_shown(copy.path)} (--in-place writes into the shipped run)",
+        err=True,
+    )
 
 
 def _print_created(record: RunRecord) -> None:
-    typer.echo(f"{record.run_id}  created: {record.info.name} seed {record.info.seed} "
-               f"(controller mpc, {record.info.algo})", err=True)
+    typer.echo(
+        f"{record.run_id}  created: {record.info.name} seed {record.info.seed} "
+        f"(controller mpc, {record.info.algo})",
+        err=True,
+    )
 
 
 def _print_episode(record: RunRecord, episode: Episode, metrics: pd.DataFrame) -> None:
@@ -755,9 +928,15 @@ def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
 
 RobustnessWorkersOption = Annotated[
     int | None,
-    typer.Option("--workers", "-w", metavar="N", min=1, show_default=False,
-                 help="Settings evaluated at once (local: worker processes, default 1 = in "
-                 "this process; slurm: array parallelism, default no limit)."),
+    typer.Option(
+        "--workers",
+        "-w",
+        metavar="N",
+        min=1,
+        show_default=False,
+        help="Settings evaluated at once (local: worker processes, default 1 = in "
+        "this process; slurm: array parallelism, default no limit).",
+    ),
 ]
 
 
@@ -766,33 +945,54 @@ RobustnessWorkersOption = Annotated[
 def robustness(
     references: Annotated[
         list[str],
-        typer.Argument(metavar="RUN_ID_OR_DIR...", help="Run ids (or prefixes) or run directories.",
-                       show_default=False),
+        typer.Argument(
+            metavar="RUN_ID_OR_DIR...",
+            help="Run ids (or prefixes) or run directories.",
+            show_default=False,
+        ),
     ],
     grid: Annotated[
         list[str] | None,
-        typer.Option("--grid", "-g", metavar="FACTOR=L1,L2", show_default=False,
-                     help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
-                     "action_delay=0,2 (a field of env.realism, obs_noise, gravity, contact (on/off or N/m), or a spec "
-                     "path env.*). Repeatable."),
+        typer.Option(
+            "--grid",
+            "-g",
+            metavar="FACTOR=L1,L2",
+            show_default=False,
+            help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
+            "action_delay=0,2 (a field of env.realism, obs_noise, gravity, contact (on/off or N/m), or a spec "
+            "path env.*). Repeatable.",
+        ),
     ] = None,
     full_grid: Annotated[
-        bool, typer.Option("--full-grid", help="Every combination of the axes' levels "
-                           "[default: one factor at a time, the others nominal].")
+        bool,
+        typer.Option(
+            "--full-grid",
+            help="Every combination of the axes' levels "
+            "[default: one factor at a time, the others nominal].",
+        ),
     ] = False,
     trajectory: Annotated[
         TrajectoryChoice,
-        typer.Option("--trajectory", "-t", help="Target trajectory to evaluate on.",
-                     case_sensitive=False),
+        typer.Option(
+            "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
+        ),
     ] = TrajectoryChoice.all,
     episodes: Annotated[
-        int, typer.Option("--episodes", metavar="K", min=1,
-                          help="Episodes per setting and trajectory (noise seeds "
-                          "4,000,000 + k).")
+        int,
+        typer.Option(
+            "--episodes",
+            metavar="K",
+            min=1,
+            help="Episodes per setting and trajectory (noise seeds 4,000,000 + k).",
+        ),
     ] = 1,
     keep_realism: Annotated[
-        bool, typer.Option("--keep-realism", help="Perturb each run's own env.realism "
-                           "[default: the idealised environment, realism off].")
+        bool,
+        typer.Option(
+            "--keep-realism",
+            help="Perturb each run's own env.realism "
+            "[default: the idealised environment, realism off].",
+        ),
     ] = False,
     redo: Annotated[
         bool, typer.Option("--redo", help="Evaluate again settings the tables already hold.")
@@ -823,21 +1023,39 @@ def robustness(
         for name, part in rows.groupby("trajectory", sort=False):
             rmse = " / ".join(f"{v:.4f}" for v in part.groupby("arm")["rmse_3d"].mean())
             note = "  (diverged)" if bool(part["terminated"].any()) else ""
-            typer.echo(f"{record.run_id}  {setting.key:28s} {name:9s}  3-D RMSE arm 1 / arm 2: "
-                       f"{rmse} m{note}")
+            typer.echo(
+                f"{record.run_id}  {setting.key:28s} {name:9s}  3-D RMSE arm 1 / arm 2: "
+                f"{rmse} m{note}"
+            )
 
     with _user_errors(runs_dir):
-        outcome = api.robustness(references, grid or [], full_grid=full_grid,
-                                 trajectories=chosen, episodes=episodes,
-                                 keep_realism=keep_realism, redo=redo, runs_dir=runs_dir,
-                                 options=options, on_cell=cell, on_progress=_progress,
-                                 in_place=in_place, on_copied=_print_copied)
+        outcome = api.robustness(
+            references,
+            grid or [],
+            full_grid=full_grid,
+            trajectories=chosen,
+            episodes=episodes,
+            keep_realism=keep_realism,
+            redo=redo,
+            runs_dir=runs_dir,
+            options=options,
+            on_cell=cell,
+            on_progress=_progress,
+            in_place=in_place,
+            on_copied=_print_copied,
+        )
     if outcome.skipped:
-        typer.echo(f"robustness: {len(outcome.skipped)} settings already stored (--redo "
-                   "evaluates them again)", err=True)
+        typer.echo(
+            f"robustness: {len(outcome.skipped)} settings already stored (--redo "
+            "evaluates them again)",
+            err=True,
+        )
     if outcome.detached:
-        typer.echo("robustness: workers submitted; run the same command again once they "
-                   "ended to merge their results", err=True)
+        typer.echo(
+            "robustness: workers submitted; run the same command again once they "
+            "ended to merge their results",
+            err=True,
+        )
     for run_id, key in outcome.failed:
         typer.echo(f"  failed: {run_id} {key} (see the run's robustness.log)", err=True)
     if outcome.exit_code:
@@ -846,10 +1064,15 @@ def robustness(
 
 @app.command()
 def export(
-    run: Annotated[str, typer.Argument(metavar="RUN", help="Run id, unique id prefix or run "
-                                       "directory.", show_default=False)],
-    dest: Annotated[str, typer.Argument(metavar="DEST", help="New directory to create.",
-                                        show_default=False)],
+    run: Annotated[
+        str,
+        typer.Argument(
+            metavar="RUN", help="Run id, unique id prefix or run directory.", show_default=False
+        ),
+    ],
+    dest: Annotated[
+        str, typer.Argument(metavar="DEST", help="New directory to create.", show_default=False)
+    ],
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Copy a finished run to DEST without checkpoints or replay buffers (spec, run.json,
@@ -866,11 +1089,18 @@ def export(
 
 @app.command()
 def upgrade(
-    run_dirs: Annotated[list[str], typer.Argument(metavar="RUN_DIR...", show_default=False,
-                                                  help="Run directories to rewrite.")],
+    run_dirs: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="RUN_DIR...", show_default=False, help="Run directories to rewrite."
+        ),
+    ],
     keep_full_moments: Annotated[
-        bool, typer.Option("--keep-full-moments",
-                           help="Keep the per-element torque history as eval_element_moments.")
+        bool,
+        typer.Option(
+            "--keep-full-moments",
+            help="Keep the per-element torque history as eval_element_moments.",
+        ),
     ] = False,
 ) -> None:
     """Rewrite runs made by earlier softtrack versions in the current format.
@@ -892,8 +1122,11 @@ def upgrade(
 def report(
     selection: Annotated[
         list[str] | None,
-        typer.Argument(metavar="SELECTION...", show_default=False,
-                       help="Experiment names, run ids (or prefixes) or spec files."),
+        typer.Argument(
+            metavar="SELECTION...",
+            show_default=False,
+            help="Experiment names, run ids (or prefixes) or spec files.",
+        ),
     ] = None,
     out: Annotated[
         str, typer.Option("--out", "-o", metavar="DIR", help="Output directory of the report.")
@@ -901,16 +1134,22 @@ def report(
     runs_dir: RunsDirOption = None,
     all_figures: Annotated[
         bool,
-        typer.Option("--all-figures",
-                     help="Draw the trajectory, error and moment figures of every controller "
-                          "(one per controller and trajectory), not only of the study "
-                          "protocol and the best centralized and independent controllers."),
+        typer.Option(
+            "--all-figures",
+            help="Draw the trajectory, error and moment figures of every controller "
+            "(one per controller and trajectory), not only of the study "
+            "protocol and the best centralized and independent controllers.",
+        ),
     ] = False,
     figures_for: Annotated[
         list[str] | None,
-        typer.Option("--figures-for", metavar="NAME", show_default=False,
-                     help="Draw those figures for this experiment's controller instead of the "
-                          "automatic choice. Repeatable."),
+        typer.Option(
+            "--figures-for",
+            metavar="NAME",
+            show_default=False,
+            help="Draw those figures for this experiment's controller instead of the "
+            "automatic choice. Repeatable.",
+        ),
     ] = None,
 ) -> None:
     """Build a report (PNG figures, index.md, index.html) from the selected runs.
@@ -923,9 +1162,15 @@ def report(
 
     with _user_errors(runs_dir):
         # an empty selection is a one-line error (EmptySelectionError), like every command's
-        index = api.report(selection or [], out, runs_dir=runs_dir,
-                           command_line=["softtrack", *sys.argv[1:]], on_episode=_print_episode,
-                           all_figures=all_figures, figures_for=figures_for or [])
+        index = api.report(
+            selection or [],
+            out,
+            runs_dir=runs_dir,
+            command_line=["softtrack", *sys.argv[1:]],
+            on_episode=_print_episode,
+            all_figures=all_figures,
+            figures_for=figures_for or [],
+        )
     typer.echo(f"report: {index}")
 
 
@@ -938,9 +1183,13 @@ def quickstart(
     ] = "reports/quickstart",
     pretrained: Annotated[
         str | None,
-        typer.Option("--pretrained", metavar="DIR", show_default=False,
-                     help="A trained run directory to show beside the quickstart's own run "
-                     f"[default: {api.QUICKSTART_PRETRAINED} of this checkout].")
+        typer.Option(
+            "--pretrained",
+            metavar="DIR",
+            show_default=False,
+            help="A trained run directory to show beside the quickstart's own run "
+            f"[default: {api.QUICKSTART_PRETRAINED} of this checkout].",
+        ),
     ] = None,
     no_pretrained: Annotated[
         bool, typer.Option("--no-pretrained", help="Leave the shipped policy out.")
@@ -957,16 +1206,25 @@ def quickstart(
     """
     with _user_errors(runs_dir):
         spec_path = api.quickstart_spec_path()
-        shipped = None if no_pretrained else (
-            Path(pretrained) if pretrained is not None else api.quickstart_pretrained_path())
+        shipped = (
+            None
+            if no_pretrained
+            else (Path(pretrained) if pretrained is not None else api.quickstart_pretrained_path())
+        )
         if shipped is not None and not (shipped / "run.json").is_file():
-            _fail(f"quickstart: --pretrained {shipped} is not a run directory (no run.json); "
-                  "give a directory made by `softtrack export`, or --no-pretrained")
+            _fail(
+                f"quickstart: --pretrained {shipped} is not a run directory (no run.json); "
+                "give a directory made by `softtrack export`, or --no-pretrained"
+            )
         # evaluated in a copy in the runs directory, so the report reads this evaluation
         copy = None if shipped is None else api.copy_run(shipped, runs_dir=runs_dir)
         typer.echo(f"1/4 training {_shown(spec_path)} (progress on stderr)")
-        outcomes = api.train(spec_path, overrides or [], runs_dir=runs_dir,
-                             on_start=lambda record: typer.echo(f"    run {record.run_id}"))
+        outcomes = api.train(
+            spec_path,
+            overrides or [],
+            runs_dir=runs_dir,
+            on_start=lambda record: typer.echo(f"    run {record.run_id}"),
+        )
         if not outcomes or outcomes[-1].status != "completed":
             raise typer.Exit(max((o.exit_code for o in outcomes), default=1))
         run_ids = [o.run_id for o in outcomes]
@@ -976,13 +1234,20 @@ def quickstart(
         if shipped is None or copy is None:
             typer.echo("3/4 no shipped policy to show (skipped)")
         else:
-            typer.echo(f"3/4 the shipped policy {_shown(shipped)} on the same trajectories "
-                       f"(evaluated in its copy {_shown(copy)})")
+            typer.echo(
+                f"3/4 the shipped policy {_shown(shipped)} on the same trajectories "
+                f"(evaluated in its copy {_shown(copy)})"
+            )
             api.evaluate([str(copy)], on_episode=_print_episode)
             extra = [copy]
         typer.echo("4/4 building the report")
-        index = api.report(run_ids, out, runs_dir=runs_dir, extra_runs=extra,
-                           command_line=["softtrack", "quickstart", "--out", out])
+        index = api.report(
+            run_ids,
+            out,
+            runs_dir=runs_dir,
+            extra_runs=extra,
+            command_line=["softtrack", "quickstart", "--out", out],
+        )
     typer.echo(f"report: {index}")
 
 

@@ -25,8 +25,9 @@ def _kind(item: Any) -> str | None:
 
 
 @pytest.fixture(autouse=True)
-def _private_default_runs_dir(tmp_path_factory: pytest.TempPathFactory,
-                              monkeypatch: pytest.MonkeyPatch) -> None:
+def _private_default_runs_dir(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Commands run without --runs-dir write into a temporary directory, never the
     checkout's runs/."""
     monkeypatch.setenv("SOFTTRACK_RUNS_DIR", str(tmp_path_factory.mktemp("default-runs")))

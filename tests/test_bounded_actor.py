@@ -29,9 +29,15 @@ runner = CliRunner()
 
 def _model(penalty: float) -> PreactivationPenaltyTD3:
     venv = TrackingVecEnv(1, episode_duration=0.01)
-    return PreactivationPenaltyTD3("MlpPolicy", venv, learning_rate=1e-2, learning_starts=10,
-                                   policy_kwargs={"net_arch": [16, 16]}, seed=0,
-                                   preactivation_penalty=penalty)
+    return PreactivationPenaltyTD3(
+        "MlpPolicy",
+        venv,
+        learning_rate=1e-2,
+        learning_starts=10,
+        policy_kwargs={"net_arch": [16, 16]},
+        seed=0,
+        preactivation_penalty=penalty,
+    )
 
 
 def _preactivations(model: TD3, obs: jnp.ndarray) -> np.ndarray:
@@ -103,16 +109,23 @@ def test_train_evaluate_and_export_a_run(tmp_path: Path) -> None:
         "name": "tiny-bounded",
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "backend": "sbx", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 5000, "policy_kwargs": {"net_arch": [16, 16]},
-                 "actor_preactivation_penalty": 0.1},
+        "algo": {
+            "name": "td3",
+            "backend": "sbx",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+            "actor_preactivation_penalty": 0.1,
+        },
         "training": {"total_timesteps": 300, "n_envs": 2, "checkpoint_interval": 150},
     }
     spec_path = tmp_path / "bounded.yaml"
     spec_path.write_text(yaml.safe_dump(data), encoding="utf-8")
     runs_dir = tmp_path / "runs"
-    result = runner.invoke(app, ["train", str(spec_path), "--runs-dir", str(runs_dir)],
-                           env={"CI": "1"})
+    result = runner.invoke(
+        app, ["train", str(spec_path), "--runs-dir", str(runs_dir)], env={"CI": "1"}
+    )
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
     record = RunStore(runs_dir).get_run(run_id)
@@ -122,13 +135,16 @@ def test_train_evaluate_and_export_a_run(tmp_path: Path) -> None:
     assert isinstance(actor, PenalisedActor) and actor.preactivation_penalty == 0.1
 
     evaluated = runner.invoke(
-        app, ["evaluate", run_id, "--runs-dir", str(runs_dir), "--trajectory", "circle"])
+        app, ["evaluate", run_id, "--runs-dir", str(runs_dir), "--trajectory", "circle"]
+    )
     assert evaluated.exit_code == 0, evaluated.output
     exported = runner.invoke(
-        app, ["export", run_id, str(tmp_path / "export"), "--runs-dir", str(runs_dir)])
+        app, ["export", run_id, str(tmp_path / "export"), "--runs-dir", str(runs_dir)]
+    )
     assert exported.exit_code == 0, exported.output
     plain = TD3.load(str(tmp_path / "export" / "model.zip"), device="cpu")
     assert "softtrack" not in repr(plain.policy.actor_state.apply_fn)
     obs = np.zeros((3, 81), np.float32)
-    np.testing.assert_array_equal(plain.predict(obs, deterministic=True)[0],
-                                  model.predict(obs, deterministic=True)[0])
+    np.testing.assert_array_equal(
+        plain.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]
+    )

@@ -112,7 +112,7 @@ def test_runs_table(runs_dir: Path) -> None:
     assert len(lines) == 4
     assert lines[0].split()[:6] == ["ID", "NAME", "ALGO", "CONTROLLER", "SEED", "STATUS"]
     ids = [r.run_id for r in RunStore(runs_dir).list_runs()]
-    for line, run_id in zip(lines[1:], ids):
+    for line, run_id in zip(lines[1:], ids, strict=False):
         assert line.startswith(run_id)
     assert "completed" in lines[1] and "1000/1000" in lines[1] and "9.00" in lines[1]
     assert "running" in lines[2] and "300/1000" in lines[2]
@@ -156,8 +156,9 @@ def test_bad_format_is_a_usage_error(runs_dir: Path) -> None:
 
 def test_report_without_a_selection_is_a_one_line_error(runs_dir: Path) -> None:
     """Like every other command: one line saying what to give, exit code 2, no usage box."""
-    result = runner.invoke(app, ["report", "--runs-dir", str(runs_dir),
-                                 "--out", str(runs_dir.parent / "report")])
+    result = runner.invoke(
+        app, ["report", "--runs-dir", str(runs_dir), "--out", str(runs_dir.parent / "report")]
+    )
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
@@ -176,13 +177,16 @@ def test_copy_run_takes_a_shipped_run_without_its_evaluation(
     from softtrack.store.runs import RunStoreError
 
     shipped_store = RunStore(tmp_path / "models")
-    spec = parse_spec({"name": "shipped", "algo": {"learning_starts": 10},
-                       "training": {"total_timesteps": 1000}})
+    spec = parse_spec(
+        {"name": "shipped", "algo": {"learning_starts": 10}, "training": {"total_timesteps": 1000}}
+    )
     record = shipped_store.create_run(spec, seed=0)
     record.model_path.write_bytes(b"a trained model")
     for name in ("train_episodes", "eval_metrics", "eval_moments"):
-        append_rows(record.table_path(name), [{"run_id": record.run_id, "trajectory": "circle",
-                                               "rmse_3d": 0.0492}])
+        append_rows(
+            record.table_path(name),
+            [{"run_id": record.run_id, "trajectory": "circle", "rmse_3d": 0.0492}],
+        )
     (record.path / "checkpoints").mkdir(exist_ok=True)
     (record.path / "checkpoints" / "state.json").write_text("{}")
     before = {p: p.read_bytes() for p in record.path.rglob("*") if p.is_file()}

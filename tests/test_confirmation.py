@@ -68,8 +68,9 @@ def test_confirmation_keeps_the_better_candidate_and_evaluation_uses_it(tmp_path
     run_spec = record.load_spec()
     policy = PolicyDir.of_run(record.path)
     scores = _check_candidates(_confirmation(record), policy, [0, 1])
-    assert set(scores) == ({"best"} if policy.list_best()[-1].name.endswith("800") else
-                           {"best", "last"})
+    assert set(scores) == (
+        {"best"} if policy.list_best()[-1].name.endswith("800") else {"best", "last"}
+    )
 
     # two distinct candidates, confirmed again from scratch
     _make_best_an_early_checkpoint(policy, 200)
@@ -113,8 +114,11 @@ def test_a_stopped_confirmation_writes_nothing(tmp_path: Path) -> None:
     # as if the process had been stopped there: resuming confirms the policy again
     store = RunStore(record.path.parent)
     store.mark_finished(record.run_id, "interrupted")
-    result = runner.invoke(app, ["train", "--resume", record.run_id, "--runs-dir",
-                                 str(record.path.parent)], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        ["train", "--resume", record.run_id, "--runs-dir", str(record.path.parent)],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     assert store.get_run(record.run_id).info.status == "completed"
     _check_candidates(_confirmation(record), policy, [0, 1])

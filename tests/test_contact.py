@@ -47,8 +47,12 @@ def _clearance(nodes: np.ndarray, radius: float) -> float:
         for j in range(nodes.shape[-1] - 1):
             if np.linalg.norm(nodes[0, :, i] - nodes[1, :, j]) > 0.25:
                 continue
-            best = min(best, _segment_distance(nodes[0, :, i], nodes[0, :, i + 1],
-                                               nodes[1, :, j], nodes[1, :, j + 1]))
+            best = min(
+                best,
+                _segment_distance(
+                    nodes[0, :, i], nodes[0, :, i + 1], nodes[1, :, j], nodes[1, :, j + 1]
+                ),
+            )
     return best - 2 * radius
 
 

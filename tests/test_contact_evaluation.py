@@ -23,22 +23,40 @@ runner = CliRunner()
 
 def test_contact_statistics() -> None:
     stats = contact_statistics([0.0, 0.002, np.nan, 0.0], [0.0, 30.0, 0.0, 10.0])
-    assert stats == {"max_penetration": 0.002, "contact_steps": 2,
-                     "mean_contact_force": 10.0, "max_contact_force": 30.0}
+    assert stats == {
+        "max_penetration": 0.002,
+        "contact_steps": 2,
+        "mean_contact_force": 10.0,
+        "max_contact_force": 30.0,
+    }
     ghost = contact_statistics([0.0, 0.05, 0.01], [0.0, 0.0, 0.0])  # contact off: overlaps
     assert ghost["contact_steps"] == 2 and ghost["max_penetration"] == 0.05
 
 
 def _train_and_evaluate(tmp: Path, controller: str = "centralized") -> tuple[Path, str]:
     spec: dict[str, Any] = {
-        "name": f"tiny-contact-{controller}", "seeds": [0], "controller": controller,
-        "env": {"episode_duration": 0.1,
-                "physics": {"contact_k": 1e6, "contact_nu": 600.0},
-                "task": {"name": "viewpoints", "standoff": 0.1}},
-        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
-                     "eval_duration": 0.4},
+        "name": f"tiny-contact-{controller}",
+        "seeds": [0],
+        "controller": controller,
+        "env": {
+            "episode_duration": 0.1,
+            "physics": {"contact_k": 1e6, "contact_nu": 600.0},
+            "task": {"name": "viewpoints", "standoff": 0.1},
+        },
+        "algo": {
+            "name": "td3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 2000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 200,
+            "n_envs": 2,
+            "checkpoint_interval": 0,
+            "eval_duration": 0.4,
+        },
     }
     path = tmp / f"contact-{controller}.yaml"
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
@@ -65,11 +83,9 @@ def test_evaluation_tables_hold_contact(contact_run: tuple[Path, str]) -> None:
     arm0 = steps[steps.arm == 0]
     arm1 = steps[steps.arm == 1]
     # viewpoints: each arm's row holds its own point, 0.2 m apart along x
-    assert np.allclose(arm1["target_x"].to_numpy() - arm0["target_x"].to_numpy(), 0.2,
-                       atol=1e-6)
+    assert np.allclose(arm1["target_x"].to_numpy() - arm0["target_x"].to_numpy(), 0.2, atol=1e-6)
     metrics = read_table(tables / "eval_metrics.parquet")
-    for column in ("max_penetration", "contact_steps", "mean_contact_force",
-                   "max_contact_force"):
+    for column in ("max_penetration", "contact_steps", "mean_contact_force", "max_contact_force"):
         assert column in metrics
     snapshots = read_table(tables / "eval_snapshots.parquet")
     assert set(snapshots["trajectory"]) == {"circle", "rectangle", "figure8"}

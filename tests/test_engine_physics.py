@@ -336,7 +336,7 @@ def test_gravity_upright_arm_shortens_by_its_weight() -> None:
     advance_to(batch, 6.0)
     dl = p.length / p.n_elem
     masses = _node_masses(p)
-    w = np.array([p.gravity * masses[k + 1:].sum() for k in range(p.n_elem)])
+    w = np.array([p.gravity * masses[k + 1 :].sum() for k in range(p.n_elem)])
     w /= p.youngs_modulus * p.area
     expected = np.sum(dl * w / (1.0 + w))
     drop = batch.constants.rest_position[:, 1, -1] - batch.position[0, :, 1, -1]
@@ -357,8 +357,8 @@ def _discrete_cantilever_sag(p: SimParams) -> float:
     """
     n, dl = p.n_elem, p.length / p.n_elem
     masses = _node_masses(p)
-    shear_force = np.array([p.gravity * masses[k + 1:].sum() for k in range(n)])
-    moment = np.array([dl * shear_force[j + 1:].sum() for j in range(n - 1)])
+    shear_force = np.array([p.gravity * masses[k + 1 :].sum() for k in range(n)])
+    moment = np.array([dl * shear_force[j + 1 :].sum() for j in range(n - 1)])
     phi = np.concatenate([[0.0], np.cumsum(moment * dl / p.bending_stiffness)])
     shear_stiffness = p.shear_correction * p.shear_modulus * p.area
     return float(np.sum(dl * phi) + np.sum(dl * shear_force / shear_stiffness))

@@ -27,18 +27,28 @@ from softtrack.store.tables import read_table
 runner = CliRunner()
 N_ENVS = 2
 
-_NO_SBX = pytest.mark.skipif(importlib.util.find_spec("sbx") is None,
-                             reason="sbx-rl (JAX) not installed")
-_NO_CONTRIB = pytest.mark.skipif(importlib.util.find_spec("sb3_contrib") is None,
-                                 reason="sb3-contrib not installed")
+_NO_SBX = pytest.mark.skipif(
+    importlib.util.find_spec("sbx") is None, reason="sbx-rl (JAX) not installed"
+)
+_NO_CONTRIB = pytest.mark.skipif(
+    importlib.util.find_spec("sb3_contrib") is None, reason="sb3-contrib not installed"
+)
 
 
-def _case(algo: str, backend: str, controller: str = "centralized",
-          mirror: bool = False, slow: bool = False) -> Any:
+def _case(
+    algo: str,
+    backend: str,
+    controller: str = "centralized",
+    mirror: bool = False,
+    slow: bool = False,
+) -> Any:
     marks = [_NO_SBX] if backend == "sbx" else [_NO_CONTRIB] if algo == "tqc" else []
     marks += [pytest.mark.slow] if slow else []
-    tags = [algo, backend] + (["independent"] if controller == "independent" else []) + (
-        ["mirror"] if mirror else [])
+    tags = (
+        [algo, backend]
+        + (["independent"] if controller == "independent" else [])
+        + (["mirror"] if mirror else [])
+    )
     return pytest.param((algo, backend, controller, mirror), marks=marks, id="-".join(tags))
 
 
@@ -71,8 +81,13 @@ def _plain_class(algo: str, backend: str) -> Any:
 
 def _algo_section(algo: str, backend: str, mirror: bool = False) -> dict[str, Any]:
     section: dict[str, Any] = {
-        "name": algo, "backend": backend, "device": "cpu", "batch_size": 16,
-        "learning_starts": 50, "buffer_size": 2000, "mirror_replay": mirror,
+        "name": algo,
+        "backend": backend,
+        "device": "cpu",
+        "batch_size": 16,
+        "learning_starts": 50,
+        "buffer_size": 2000,
+        "mirror_replay": mirror,
         "policy_kwargs": {"net_arch": [16, 16]},
     }
     if algo == "tqc":
@@ -98,17 +113,26 @@ def test_trains_evaluates_exports_and_loads_with_the_plain_class(
     export``, whose model files load with the library's own class and act as the run's."""
     algo, backend, controller, mirror = case
     data = {
-        "name": f"tiny-{algo}-{backend}", "seeds": [0], "controller": controller,
+        "name": f"tiny-{algo}-{backend}",
+        "seeds": [0],
+        "controller": controller,
         "env": {"episode_duration": 0.1},
         "algo": _algo_section(algo, backend, mirror),
-        "training": {"total_timesteps": 200, "n_envs": N_ENVS, "checkpoint_interval": 100,
-                     "eval_duration": 0.1, "eval_trajectories": ["circle"],
-                     "validation_episodes": 1, "final_policy": "best_validated",
-                     "confirm_episodes": 1},
+        "training": {
+            "total_timesteps": 200,
+            "n_envs": N_ENVS,
+            "checkpoint_interval": 100,
+            "eval_duration": 0.1,
+            "eval_trajectories": ["circle"],
+            "validation_episodes": 1,
+            "final_policy": "best_validated",
+            "confirm_episodes": 1,
+        },
     }
     runs = tmp_path / "runs"
-    result = runner.invoke(app, ["train", str(_write(tmp_path, data, algo)),
-                                 "--runs-dir", str(runs)], env={"CI": "1"})
+    result = runner.invoke(
+        app, ["train", str(_write(tmp_path, data, algo)), "--runs-dir", str(runs)], env={"CI": "1"}
+    )
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
     record = RunStore(runs).get_run(run_id)
@@ -137,13 +161,17 @@ def test_trains_evaluates_exports_and_loads_with_the_plain_class(
     result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)])
     assert result.exit_code == 0, result.output
     cls = _plain_class(algo, backend)
-    observations = np.random.default_rng(0).normal(
-        size=(16, 44 if independent else 81)).astype(np.float32)
+    observations = (
+        np.random.default_rng(0).normal(size=(16, 44 if independent else 81)).astype(np.float32)
+    )
     exported_record = RunStore(dest.parent).get_run(dest.name)
     pairs = list(zip(policies, model_paths(exported_record, spec), strict=True))
     for source, exported in pairs:
-        assert exported.parent.relative_to(dest) in (Path(), Path("models/arm0"),
-                                                     Path("models/arm1"))
+        assert exported.parent.relative_to(dest) in (
+            Path(),
+            Path("models/arm0"),
+            Path("models/arm1"),
+        )
         manifest = json.loads((exported.parent / "policy.json").read_text(encoding="utf-8"))
         assert manifest["model"] in ("best", "last")
         full = cls.load(str(source), device="cpu")
@@ -158,17 +186,26 @@ def test_trains_evaluates_exports_and_loads_with_the_plain_class(
     assert result.exit_code == 0, result.output
 
 
-@pytest.mark.parametrize("algo, backend", [
-    pytest.param("tqc", "sb3", marks=_NO_CONTRIB),
-    pytest.param("crossq", "sbx", marks=[_NO_SBX, pytest.mark.slow]),  # 30 s: compiles twice
-])
+@pytest.mark.parametrize(
+    "algo, backend",
+    [
+        pytest.param("tqc", "sb3", marks=_NO_CONTRIB),
+        pytest.param("crossq", "sbx", marks=[_NO_SBX, pytest.mark.slow]),  # 30 s: compiles twice
+    ],
+)
 def test_resumes_after_an_interrupted_run(tmp_path: Path, algo: str, backend: str) -> None:
     total, n_envs = 1200, 4
     data = {
-        "name": f"tiny-{algo}", "seeds": [0], "env": {"episode_duration": 0.1},
+        "name": f"tiny-{algo}",
+        "seeds": [0],
+        "env": {"episode_duration": 0.1},
         "algo": _algo_section(algo, backend),
-        "training": {"total_timesteps": total, "n_envs": n_envs, "checkpoint_interval": 200,
-                     "heartbeat_interval": 0.5},
+        "training": {
+            "total_timesteps": total,
+            "n_envs": n_envs,
+            "checkpoint_interval": 200,
+            "heartbeat_interval": 0.5,
+        },
     }
     runs = tmp_path / "runs"
     run_dir, out, err = _interrupt(_write(tmp_path, data, algo), runs)
@@ -186,8 +223,11 @@ def test_report_groups_and_labels_the_new_algorithms(tmp_path: Path) -> None:
     records = [
         store.create_run(parse_spec({"name": name, "algo": algo}), 0)
         for name, algo in [
-            ("c", {"name": "crossq", "backend": "sbx"}), ("t", {"name": "tqc"}),
-            ("s", {"name": "sac"}), ("d", {"name": "td3"}), ("p", {"name": "ppo"}),
+            ("c", {"name": "crossq", "backend": "sbx"}),
+            ("t", {"name": "tqc"}),
+            ("s", {"name": "sac"}),
+            ("d", {"name": "td3"}),
+            ("p", {"name": "ppo"}),
         ]
     ]
     groups = group_runs(load_runs(records))
@@ -200,8 +240,10 @@ def _algo(**algo: Any) -> AlgoSpec:
     return parse_spec({"algo": algo}).algo
 
 
-@pytest.mark.parametrize("name, backend", [("sac", "sb3"), ("sac", "sbx"), ("tqc", "sb3"),
-                                           ("tqc", "sbx"), ("crossq", "sbx")])
+@pytest.mark.parametrize(
+    "name, backend",
+    [("sac", "sb3"), ("sac", "sbx"), ("tqc", "sb3"), ("tqc", "sbx"), ("crossq", "sbx")],
+)
 def test_kwargs_are_accepted_by_the_library_classes(name: str, backend: str) -> None:
     pytest.importorskip("sbx" if backend == "sbx" else "sb3_contrib")
     from softtrack.rl.factory import algo_class
@@ -216,9 +258,19 @@ def test_kwargs_are_accepted_by_the_library_classes(name: str, backend: str) -> 
     assert ("top_quantiles_to_drop_per_net" in kwargs) == (name == "tqc")
     policy_cls = cls.policy_aliases["MlpPolicy"]
     extra = set(kwargs["policy_kwargs"]) - {"net_arch", "activation_fn"}
-    assert extra == {"tqc": {"n_quantiles", "n_critics"}, "sac": set(),
-                     "crossq": {"batch_norm", "batch_norm_actor", "batch_norm_momentum",
-                                "renorm_warmup_steps"}}[name]
+    assert (
+        extra
+        == {
+            "tqc": {"n_quantiles", "n_critics"},
+            "sac": set(),
+            "crossq": {
+                "batch_norm",
+                "batch_norm_actor",
+                "batch_norm_momentum",
+                "renorm_warmup_steps",
+            },
+        }[name]
+    )
     assert extra <= set(inspect.signature(policy_cls.__init__).parameters)
     # the spec's defaults of these keys are the library's
     defaults = {k: p.default for k, p in inspect.signature(cls.__init__).parameters.items()}
@@ -227,6 +279,7 @@ def test_kwargs_are_accepted_by_the_library_classes(name: str, backend: str) -> 
     policy_defaults = inspect.signature(policy_cls.__init__).parameters
     for key in extra:
         assert policy_defaults[key].default == getattr(AlgoSpec().policy_kwargs, key)
+
 
 def test_crossq_policy_delay_defaults_to_crossqs_own() -> None:
     assert _algo(name="crossq", backend="sbx").policy_delay == 3
@@ -251,8 +304,14 @@ def test_new_fields_at_their_defaults_keep_every_spec_hash() -> None:
     data = spec.model_dump(mode="json")
     for key in ("target_entropy", "top_quantiles_to_drop_per_net"):
         del data["algo"][key]
-    for key in ("n_quantiles", "n_critics", "batch_norm", "batch_norm_actor",
-                "batch_norm_momentum", "renorm_warmup_steps"):
+    for key in (
+        "n_quantiles",
+        "n_critics",
+        "batch_norm",
+        "batch_norm_actor",
+        "batch_norm_momentum",
+        "renorm_warmup_steps",
+    ):
         del data["algo"]["policy_kwargs"][key]
     assert spec_hash(parse_spec(data)) == spec_hash(spec)
 
@@ -261,12 +320,21 @@ def test_new_fields_at_their_defaults_keep_every_spec_hash() -> None:
     "algo, field, message",
     [
         ({"name": "crossq"}, "algo.backend", "set algo.backend: sbx"),
-        ({"name": "sac", "backend": "sbx", "critic": "per_arm"}, "algo.critic",
-         "set algo.name: td3"),
-        ({"name": "tqc", "backend": "sbx", "policy_kwargs": {"n_critics": 3}},
-         "algo.policy_kwargs.n_critics", "n_critics: 2"),
-        ({"name": "tqc", "top_quantiles_to_drop_per_net": 25},
-         "algo.top_quantiles_to_drop_per_net", "below policy_kwargs.n_quantiles"),
+        (
+            {"name": "sac", "backend": "sbx", "critic": "per_arm"},
+            "algo.critic",
+            "set algo.name: td3",
+        ),
+        (
+            {"name": "tqc", "backend": "sbx", "policy_kwargs": {"n_critics": 3}},
+            "algo.policy_kwargs.n_critics",
+            "n_critics: 2",
+        ),
+        (
+            {"name": "tqc", "top_quantiles_to_drop_per_net": 25},
+            "algo.top_quantiles_to_drop_per_net",
+            "below policy_kwargs.n_quantiles",
+        ),
         ({"name": "sac", "target_entropy": "high"}, "algo.target_entropy", "auto"),
         ({"name": "tqc", "ent_coef": "automatic"}, "algo.ent_coef", "auto_<initial value>"),
     ],

@@ -131,8 +131,9 @@ def test_keywords_reach_every_part_of_the_config() -> None:
 
 
 def test_target_keywords_change_the_target_motion() -> None:
-    env = DualArmTrackingEnv(target="circle", period=5.0, center=(0.1, 0.5, -0.1),
-                             circle_radius=0.2)
+    env = DualArmTrackingEnv(
+        target="circle", period=5.0, center=(0.1, 0.5, -0.1), circle_radius=0.2
+    )
     env.reset(seed=0)
     for k in range(1, 6):
         obs, _, _, _, info = env.step(np.zeros(24, np.float32))
@@ -157,9 +158,13 @@ def test_gravity_keyword_changes_the_physics() -> None:
 
 def test_reward_keywords_change_the_reward() -> None:
     # Straight arms at rest, fixed target: d = ‖(±0.1, 1, 0) − (0, 0.8, 0)‖ = √0.05 ≈ 0.224 m.
-    env = DualArmTrackingEnv(target="fixed", fixed_position=(0.0, 0.8, 0.0),
-                             bonus_thresholds=(0.3, 0.2), collision_penalty=2.0,
-                             collision_margin=0.15)
+    env = DualArmTrackingEnv(
+        target="fixed",
+        fixed_position=(0.0, 0.8, 0.0),
+        bonus_thresholds=(0.3, 0.2),
+        collision_penalty=2.0,
+        collision_margin=0.15,
+    )
     env.reset(seed=0)
     _, reward, _, _, info = env.step(np.zeros(24, np.float32))
     d = info["distances"]
@@ -169,12 +174,15 @@ def test_reward_keywords_change_the_reward() -> None:
     assert reward == pytest.approx(-(d @ d) + 2 * 0.5 - 2.0, abs=1e-12)
 
 
-@pytest.mark.parametrize("factory", [
-    lambda **kw: DualArmTrackingEnv(**kw),
-    lambda **kw: SingleArmTrackingEnv(arm=0, **kw),
-    lambda **kw: gym.make("softtrack/DualArmTracking-v0", **kw),
-    lambda **kw: TrackingVecEnv(2, **kw),
-])
+@pytest.mark.parametrize(
+    "factory",
+    [
+        lambda **kw: DualArmTrackingEnv(**kw),
+        lambda **kw: SingleArmTrackingEnv(arm=0, **kw),
+        lambda **kw: gym.make("softtrack/DualArmTracking-v0", **kw),
+        lambda **kw: TrackingVecEnv(2, **kw),
+    ],
+)
 def test_unknown_keyword_is_named(factory) -> None:
     with pytest.raises(InvalidParameterError, match="'dampening'") as excinfo:
         factory(target="circle", dampening=30.0)
@@ -210,27 +218,32 @@ def test_observation_layout_against_engine_state(kind: str) -> None:
         for c in range(3):  # x block, then y block, then z block
             for j in range(11):  # nodes 0, 2, …, 20
                 assert obs[base + 11 * c + j] == np.float32(engine.position[0, arm, c, 2 * j]), (
-                    arm, c, j)
+                    arm,
+                    c,
+                    j,
+                )
         v_tip = engine.velocity[0, arm, :, 20]
         speed = np.linalg.norm(v_tip)
         assert speed > 0
         assert obs[base + 33] == pytest.approx(speed, rel=1e-6)
-        np.testing.assert_allclose(obs[base + 34 : base + 37], v_tip / speed, rtol=1e-6,
-                                   atol=1e-7)
+        np.testing.assert_allclose(obs[base + 34 : base + 37], v_tip / speed, rtol=1e-6, atol=1e-7)
     tail = 37 * n_arms
     np.testing.assert_array_equal(obs[tail : tail + 3], targets.position[0].astype(np.float32))
     target_speed = np.linalg.norm(targets.velocity[0])
     assert obs[tail + 3] == pytest.approx(0.3, rel=1e-6)  # random target, default speed
     assert obs[tail + 3] == pytest.approx(target_speed, rel=1e-6)
-    np.testing.assert_allclose(obs[tail + 4 : tail + 7], targets.velocity[0] / target_speed,
-                               rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(
+        obs[tail + 4 : tail + 7], targets.velocity[0] / target_speed, rtol=1e-6, atol=1e-7
+    )
     # node 0 is the clamped base, node 20 the tip
     bases = {"dual": [-0.1, 0.1], "single0": [-0.1], "single1": [0.1]}[kind]
     for arm, x in enumerate(bases):
-        np.testing.assert_array_equal(obs[37 * arm + np.array([0, 11, 22])],
-                                      np.float32([x, 0.0, 0.0]))
-        np.testing.assert_array_equal(obs[37 * arm + np.array([10, 21, 32])],
-                                      engine.tip_position[0, arm].astype(np.float32))
+        np.testing.assert_array_equal(
+            obs[37 * arm + np.array([0, 11, 22])], np.float32([x, 0.0, 0.0])
+        )
+        np.testing.assert_array_equal(
+            obs[37 * arm + np.array([10, 21, 32])], engine.tip_position[0, arm].astype(np.float32)
+        )
 
 
 def test_initial_observation_straight_arms_at_rest() -> None:
@@ -261,8 +274,13 @@ def test_reward_and_info_every_step(kind: str) -> None:
     for k, action in enumerate(actions, start=1):
         _, reward, terminated, truncated, info = env.step(action)
         assert not terminated and not truncated
-        assert set(info) == {"tip_positions", "target_position", "distances",
-                             "element_torques", "time"}
+        assert set(info) == {
+            "tip_positions",
+            "target_position",
+            "distances",
+            "element_torques",
+            "time",
+        }
         tips = info["tip_positions"]
         assert tips.shape == (n_arms, 3)
         assert info["target_position"].shape == (3,)
@@ -271,14 +289,18 @@ def test_reward_and_info_every_step(kind: str) -> None:
         np.testing.assert_array_equal(tips, env.unwrapped.core.engine.tip_position[0])
         np.testing.assert_array_equal(info["target_position"], target)
         np.testing.assert_allclose(
-            info["distances"], np.linalg.norm(tips - info["target_position"], axis=1),
-            rtol=1e-14, atol=1e-15)
+            info["distances"],
+            np.linalg.norm(tips - info["target_position"], axis=1),
+            rtol=1e-14,
+            atol=1e-15,
+        )
         assert reward == pytest.approx(_expected_reward(info["distances"], n_arms), abs=1e-12)
         bonus_seen |= bool(np.any(info["distances"] <= 0.10))
         control = np.clip(action.astype(np.float64), -1, 1).reshape(n_arms, 2, 6)
         expected_torques = 75.0 * np.einsum("ej,adj->ade", B, control)
-        np.testing.assert_allclose(info["element_torques"], expected_torques, rtol=1e-12,
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            info["element_torques"], expected_torques, rtol=1e-12, atol=1e-12
+        )
         assert info["time"] == pytest.approx(CONTROL_DT * k, rel=1e-12)
     assert bonus_seen
 
@@ -294,7 +316,7 @@ def test_each_arm_moves_only_with_its_own_actions() -> None:
         env.reset(seed=0)
         other = _actions(60, 12, seed=other_seed, scale=1.0)
         blocks, tips = [], []
-        for a1, a2 in zip(own, other):
+        for a1, a2 in zip(own, other, strict=False):
             obs, _, _, _, info = env.step(np.concatenate([a1, a2]))
             blocks.append(obs[:37])
             tips.append(info["tip_positions"])
@@ -337,7 +359,9 @@ def test_out_of_range_actions_are_clipped(kind: str) -> None:
         results.append(trace)
     for a, b in zip(*results, strict=True):
         np.testing.assert_array_equal(a, b)
-    assert np.max(np.abs(results[0][-1])) > 75.0  # spline overshoot is not clipped (docs/physics.md)
+    assert (
+        np.max(np.abs(results[0][-1])) > 75.0
+    )  # spline overshoot is not clipped (docs/physics.md)
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
@@ -449,8 +473,9 @@ def test_same_seed_same_random_target_past_redirects() -> None:
         np.testing.assert_array_equal(a, b)
     # the direction was drawn anew at 1.0 s, i.e. by control step 500 (walls may flip it too)
     direction = [runs[0][2 * k - 1][78:81] for k in range(1, 601)]  # obs after step k = 1…600
-    changed = [k for k in range(2, 601)
-               if not np.allclose(direction[k - 1], direction[k - 2], atol=1e-3)]
+    changed = [
+        k for k in range(2, 601) if not np.allclose(direction[k - 1], direction[k - 2], atol=1e-3)
+    ]
     assert 500 in changed
 
 
@@ -492,8 +517,11 @@ def test_vec_env_matches_dummy_vec_env(target: str) -> None:
     expected = _collect(dummy, actions)
     got = _collect(vec, actions)
     _assert_same_traces(got, expected)
-    n_finished = sum(int(np.count_nonzero(venv_dones)) for venv_dones in got
-                     if isinstance(venv_dones, np.ndarray) and venv_dones.dtype == np.bool_)
+    n_finished = sum(
+        int(np.count_nonzero(venv_dones))
+        for venv_dones in got
+        if isinstance(venv_dones, np.ndarray) and venv_dones.dtype == np.bool_
+    )
     assert n_finished == 9  # 50 steps: three auto-resets of each of the 3 environments
     # reset again without a new seed: both continue their random streams
     _assert_same_traces(_collect(vec, actions[:20]), _collect(dummy, actions[:20]))
@@ -523,8 +551,9 @@ def test_vec_env_auto_resets_and_truncates() -> None:
                 assert info["TimeLimit.truncated"] is True
                 assert info["terminal_observation"].shape == (81,)
             # the returned observation is the new episode's first one: arms straight again
-            np.testing.assert_allclose(obs[:, 11:22], np.tile(np.linspace(0, 1, 11), (2, 1)),
-                                       atol=1e-7)
+            np.testing.assert_allclose(
+                obs[:, 11:22], np.tile(np.linspace(0, 1, 11), (2, 1)), atol=1e-7
+            )
         else:
             assert not dones.any()
 
@@ -550,8 +579,9 @@ def test_vec_env_non_finite_state_matches_dummy_vec_env() -> None:
             obs, rewards, dones, infos = venv.step(action)
             trace += [obs, rewards, dones]
             trace += [bool(info.get("TimeLimit.truncated", False)) for info in infos]
-            trace += [info["terminal_observation"] for info in infos if "terminal_observation"
-                      in info]
+            trace += [
+                info["terminal_observation"] for info in infos if "terminal_observation" in info
+            ]
             if step == 4:
                 assert rewards[1] == -1000.0 and dones.tolist() == [False, True, False]
                 assert infos[1]["TimeLimit.truncated"] is False
@@ -572,8 +602,7 @@ def test_vec_env_full_info_matches_single_env_info() -> None:
         _, _, _, expected = dummy.step(action)
         _, _, _, got = vec.step(action)
         for e, g in zip(expected, got, strict=True):
-            for key in ("tip_positions", "target_position", "distances", "element_torques",
-                        "time"):
+            for key in ("tip_positions", "target_position", "distances", "element_torques", "time"):
                 np.testing.assert_array_equal(g[key], e[key], err_msg=key)
     # by default the per-step info keys are left out (training speed)
     lean = TrackingVecEnv(2)
@@ -631,8 +660,15 @@ def test_td3_learns_on_vec_env_smoke() -> None:
     from stable_baselines3 import TD3
 
     venv = VecMonitor(TrackingVecEnv(4, episode_duration=0.1))
-    model = TD3("MlpPolicy", venv, learning_starts=100, batch_size=32,
-                policy_kwargs={"net_arch": [64, 64]}, seed=0, device="cpu")
+    model = TD3(
+        "MlpPolicy",
+        venv,
+        learning_starts=100,
+        batch_size=32,
+        policy_kwargs={"net_arch": [64, 64]},
+        seed=0,
+        device="cpu",
+    )
     model.learn(total_timesteps=300)
     assert model.num_timesteps >= 300
     assert len(model.ep_info_buffer) >= 4  # 50-step episodes finished and were logged

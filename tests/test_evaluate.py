@@ -36,10 +36,20 @@ def _train_tiny(tmp_path: Path, controller: str = "centralized") -> tuple[Path, 
         "controller": controller,
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
-                     "eval_duration": EVAL_DURATION},
+        "algo": {
+            "name": "td3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 2000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 200,
+            "n_envs": 2,
+            "checkpoint_interval": 0,
+            "eval_duration": EVAL_DURATION,
+        },
     }
     path = tmp_path / f"{controller}.yaml"
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
@@ -86,8 +96,15 @@ def test_evaluate_writes_tables_and_metrics_match_trajectories(trained: tuple[Pa
     assert len(trajectories) == 3 * 2 * n_steps
     assert trajectories["tip_x"].dtype == np.float32
     assert len(moments) == 3 * 2 * 2 * n_steps
-    assert list(moments.columns) == ["run_id", "trajectory", "step", "t", "arm", "direction",
-                                     "rms_moment"]
+    assert list(moments.columns) == [
+        "run_id",
+        "trajectory",
+        "step",
+        "t",
+        "arm",
+        "direction",
+        "rms_moment",
+    ]
     assert moments["rms_moment"].dtype == np.float32
     assert len(peaks) == 3 * 2 * 2 * 20
     assert not (tables / "eval_element_moments.parquet").exists()  # only on request
@@ -121,15 +138,17 @@ def test_full_moments_on_request_agree_with_the_summaries(
     runs = _own_copy(trained, tmp_path)
     run_id = trained[1]
     tables = runs / run_id / "tables"
-    result = runner.invoke(app, ["evaluate", run_id, "--runs-dir", str(runs), "-t", "circle",
-                                 "--full-moments"])
+    result = runner.invoke(
+        app, ["evaluate", run_id, "--runs-dir", str(runs), "-t", "circle", "--full-moments"]
+    )
     assert result.exit_code == 0, result.output
     full = read_table(tables / "eval_element_moments.parquet")
     assert set(full["trajectory"]) == {"circle"}
     moments = read_table(tables / "eval_moments.parquet").query("trajectory == 'circle'")
     peaks = read_table(tables / "eval_moment_peaks.parquet").query("trajectory == 'circle'")
     assert list(full[["step", "arm", "direction"]].itertuples(index=False)) == list(
-        moments[["step", "arm", "direction"]].itertuples(index=False))
+        moments[["step", "arm", "direction"]].itertuples(index=False)
+    )
     torques = np.stack(full["element_torques"].to_numpy()).astype(np.float64)  # (rows, 20)
     assert np.allclose(np.sqrt((torques**2).mean(axis=1)), moments["rms_moment"], rtol=1e-6)
     for (arm, direction), rows in full.groupby(["arm", "direction"]):
@@ -147,20 +166,27 @@ def test_stored_action_statistics_match_the_episode_actions(trained: tuple[Path,
 
     runs, run_id = trained
     episodes = []
-    api.evaluate([run_id], ["circle", "figure8"], runs_dir=runs,
-                 on_episode=lambda record, episode, metrics: episodes.append(episode))
+    api.evaluate(
+        [run_id],
+        ["circle", "figure8"],
+        runs_dir=runs,
+        on_episode=lambda record, episode, metrics: episodes.append(episode),
+    )
     metrics = read_table(runs / run_id / "tables" / "eval_metrics.parquet")
     assert [e.trajectory for e in episodes] == ["circle", "figure8"]
     for episode in episodes:
         assert episode.actions.shape == (len(episode.t), 24)
         for arm in (0, 1):
-            expected = action_statistics(episode.actions[:, 12 * arm:12 * (arm + 1)])
-            stored = metrics[(metrics["trajectory"] == episode.trajectory)
-                             & (metrics["arm"] == arm)].iloc[0]
+            expected = action_statistics(episode.actions[:, 12 * arm : 12 * (arm + 1)])
+            stored = metrics[
+                (metrics["trajectory"] == episode.trajectory) & (metrics["arm"] == arm)
+            ].iloc[0]
             for key, value in expected.items():
                 assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
-            expected = {**torque_statistics(episode.element_torques[:, arm], episode.t),
-                        **safety_statistics(episode.clearance, episode.collision_margin)}
+            expected = {
+                **torque_statistics(episode.element_torques[:, arm], episode.t),
+                **safety_statistics(episode.clearance, episode.collision_margin),
+            }
             for key, value in expected.items():
                 assert stored[key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
 
@@ -258,7 +284,9 @@ def test_a_copied_run_directory_evaluates(trained: tuple[Path, str], tmp_path: P
     assert (copy / "tables" / "eval_metrics.parquet").is_file()
 
 
-def test_report_evaluates_runs_without_evaluation(trained: tuple[Path, str], tmp_path: Path) -> None:
+def test_report_evaluates_runs_without_evaluation(
+    trained: tuple[Path, str], tmp_path: Path
+) -> None:
     run_id = trained[1]
     fresh = _own_copy(trained, tmp_path)
     (fresh / run_id / "tables" / "eval_metrics.parquet").unlink(missing_ok=True)
@@ -333,8 +361,9 @@ def test_export_keeps_what_evaluation_needs_and_drops_checkpoints(
     result = runner.invoke(app, ["evaluate", str(dest), "-t", "circle", "--in-place"])
     assert result.exit_code == 0, result.output
     out = tmp_path / "report"
-    result = runner.invoke(app, ["report", "tiny-centralized", "--runs-dir",
-                                 str(dest.parent), "--out", str(out)])
+    result = runner.invoke(
+        app, ["report", "tiny-centralized", "--runs-dir", str(dest.parent), "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     assert "tiny-seed0" in (out / "index.md").read_text(encoding="utf-8")
 
@@ -353,8 +382,9 @@ def test_export_refuses_an_existing_destination_and_unfinished_runs(
     from softtrack.spec import ExperimentSpec
 
     record = RunStore(runs).create_run(ExperimentSpec(name="unfinished"), 0)
-    result = runner.invoke(app, ["export", record.run_id, str(tmp_path / "new"),
-                                 "--runs-dir", str(runs)])
+    result = runner.invoke(
+        app, ["export", record.run_id, str(tmp_path / "new"), "--runs-dir", str(runs)]
+    )
     assert result.exit_code == 2 and "no final model" in result.output
     assert not (tmp_path / "new").exists()
     shutil.rmtree(record.path)
@@ -378,16 +408,30 @@ def test_evaluate_without_writing_leaves_the_run_untouched(
     assert _files(shipped) == before
     stored = read_table(shipped / "tables" / "eval_metrics.parquet")
     key = ["trajectory", "arm"]
-    assert np.array_equal(live.sort_values(key)["rmse_3d"].to_numpy(),
-                          stored.sort_values(key)["rmse_3d"].to_numpy())
+    assert np.array_equal(
+        live.sort_values(key)["rmse_3d"].to_numpy(), stored.sort_values(key)["rmse_3d"].to_numpy()
+    )
 
 
 TINY_QUICKSTART = [
-    "--set", "training.total_timesteps=200", "--set", "training.n_envs=2",
-    "--set", "training.checkpoint_interval=0", "--set", f"training.eval_duration={EVAL_DURATION}",
-    "--set", "env.episode_duration=0.1", "--set", "algo.learning_starts=50",
-    "--set", "algo.batch_size=16", "--set", "algo.buffer_size=2000",
-    "--set", "algo.policy_kwargs.net_arch=[16, 16]",
+    "--set",
+    "training.total_timesteps=200",
+    "--set",
+    "training.n_envs=2",
+    "--set",
+    "training.checkpoint_interval=0",
+    "--set",
+    f"training.eval_duration={EVAL_DURATION}",
+    "--set",
+    "env.episode_duration=0.1",
+    "--set",
+    "algo.learning_starts=50",
+    "--set",
+    "algo.batch_size=16",
+    "--set",
+    "algo.buffer_size=2000",
+    "--set",
+    "algo.policy_kwargs.net_arch=[16, 16]",
 ]
 
 
@@ -396,13 +440,25 @@ def test_quickstart_reports_the_shipped_policy_beside_its_own_run(
 ) -> None:
     runs, run_id = trained
     shipped = tmp_path / "models" / "shipped-td3"
-    assert runner.invoke(app, ["export", run_id, str(shipped), "--runs-dir", str(runs)]).exit_code == 0
+    assert (
+        runner.invoke(app, ["export", run_id, str(shipped), "--runs-dir", str(runs)]).exit_code == 0
+    )
     assert runner.invoke(app, ["evaluate", str(shipped), "--in-place"]).exit_code == 0
     before = _files(shipped)
     out = tmp_path / "report"
-    result = runner.invoke(app, ["quickstart", *TINY_QUICKSTART, "--runs-dir",
-                                 str(tmp_path / "runs"), "--out", str(out),
-                                 "--pretrained", str(shipped)])
+    result = runner.invoke(
+        app,
+        [
+            "quickstart",
+            *TINY_QUICKSTART,
+            "--runs-dir",
+            str(tmp_path / "runs"),
+            "--out",
+            str(out),
+            "--pretrained",
+            str(shipped),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "3/4 the shipped policy" in result.output
     assert result.output.count("3-D RMSE arm 1 / arm 2") == 6  # own run + shipped policy
@@ -410,9 +466,19 @@ def test_quickstart_reports_the_shipped_policy_beside_its_own_run(
     index = (out / "index.md").read_text(encoding="utf-8")
     assert "shipped-td3" in index and "quickstart" in index
 
-    result = runner.invoke(app, ["quickstart", *TINY_QUICKSTART, "--runs-dir",
-                                 str(tmp_path / "runs"), "--out", str(tmp_path / "r2"),
-                                 "--pretrained", str(tmp_path / "nothing")])
+    result = runner.invoke(
+        app,
+        [
+            "quickstart",
+            *TINY_QUICKSTART,
+            "--runs-dir",
+            str(tmp_path / "runs"),
+            "--out",
+            str(tmp_path / "r2"),
+            "--pretrained",
+            str(tmp_path / "nothing"),
+        ],
+    )
     assert result.exit_code == 2 and "not a run directory" in result.output
     assert not (tmp_path / "r2").exists()
 
@@ -424,17 +490,29 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
     shipped = Path("models/td3-sbx-1e7-seed0")
     before = _files(shipped)
     runs = tmp_path / "runs"
-    result = runner.invoke(app, ["evaluate", str(shipped), "-t", "circle", "--runs-dir",
-                                 str(runs)])
+    result = runner.invoke(app, ["evaluate", str(shipped), "-t", "circle", "--runs-dir", str(runs)])
     assert result.exit_code == 0, result.output
     assert "read-only" in result.stderr and str(runs / shipped.name) in result.stderr
     assert _files(shipped) == before
     copy = runs / shipped.name
     assert read_table(copy / "tables" / "eval_metrics.parquet")["trajectory"].tolist() == [
-        "circle", "circle"]
+        "circle",
+        "circle",
+    ]
     assert json.loads((copy / "run.json").read_text())["notes"]["copy_of"] == str(shipped)
-    result = runner.invoke(app, ["robustness", str(shipped), "-t", "circle", "--grid",
-                                 "obs_noise=0.01", "--runs-dir", str(runs)])
+    result = runner.invoke(
+        app,
+        [
+            "robustness",
+            str(shipped),
+            "-t",
+            "circle",
+            "--grid",
+            "obs_noise=0.01",
+            "--runs-dir",
+            str(runs),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert _files(shipped) == before and (copy / "tables" / "eval_robustness.parquet").is_file()
     assert (copy / "tables" / "eval_metrics.parquet").is_file()  # the copy is reused, kept
@@ -442,7 +520,8 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "--in-place" in result.stderr
     mine = tmp_path / "mine"
     shutil.copytree(shipped, mine / shipped.name)
-    result = runner.invoke(app, ["evaluate", str(mine / shipped.name), "-t", "circle",
-                                 "--in-place"])
+    result = runner.invoke(
+        app, ["evaluate", str(mine / shipped.name), "-t", "circle", "--in-place"]
+    )
     assert result.exit_code == 0 and "read-only" not in result.stderr
     assert _files(mine / shipped.name) != _files(shipped)  # written where asked

@@ -25,11 +25,22 @@ def _train_sbx(tmp_path: Path) -> tuple[Path, str]:
         "name": "tiny-sbx",
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "backend": "sbx", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 300, "n_envs": 2, "checkpoint_interval": 100,
-                     "eval_duration": 0.1, "validation_episodes": 1,
-                     "final_policy": "best_validated"},
+        "algo": {
+            "name": "td3",
+            "backend": "sbx",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 2000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 300,
+            "n_envs": 2,
+            "checkpoint_interval": 100,
+            "eval_duration": 0.1,
+            "validation_episodes": 1,
+            "final_policy": "best_validated",
+        },
     }
     path = tmp_path / "tiny.yaml"
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
@@ -64,16 +75,19 @@ def test_exported_policy_loads_with_plain_sbx_and_acts_as_the_run(
     assert manifest["model"] == "best"
     policy_file = model_paths(record, record.load_spec())[0]
     observations = np.random.default_rng(0).normal(size=(32, 81)).astype(np.float32)
-    assert np.array_equal(_actions(dest / "model.zip", observations),
-                          _actions(policy_file, observations))
+    assert np.array_equal(
+        _actions(dest / "model.zip", observations), _actions(policy_file, observations)
+    )
     assert (dest / "model.zip").stat().st_size < 0.6 * policy_file.stat().st_size
     last = dest / "other_models" / "last" / "model.zip"
-    assert np.array_equal(_actions(last, observations),
-                          _actions(record.path / "model.zip", observations))
+    assert np.array_equal(
+        _actions(last, observations), _actions(record.path / "model.zip", observations)
+    )
 
 
-def test_upgrade_relayouts_an_old_export_in_place(sbx_run: tuple[Path, str], tmp_path: Path
-                                                  ) -> None:
+def test_upgrade_relayouts_an_old_export_in_place(
+    sbx_run: tuple[Path, str], tmp_path: Path
+) -> None:
     runs, run_id = sbx_run
     old = tmp_path / "models" / "tiny-sbx-seed0"  # the earlier export: a copy, checkpoints left out
     shutil.copytree(runs / run_id, old, ignore=shutil.ignore_patterns("checkpoints", "run.lock"))
@@ -103,19 +117,24 @@ def test_exported_policy_in_plain_gymnasium_tracks_as_softtrack_evaluate(
     dest = tmp_path / "exported"
     assert runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs)]).exit_code == 0
     spec = RunStore(runs).get_run(run_id).load_spec()
-    for arm, env_id in ((None, "softtrack/DualArmTracking-v0"),
-                        (1, "softtrack/SingleArmTracking-v0")):
+    for arm, env_id in (
+        (None, "softtrack/DualArmTracking-v0"),
+        (1, "softtrack/SingleArmTracking-v0"),
+    ):
         assert gym.make(env_id, **env_kwargs(spec, arm)).unwrapped.config == env_config(spec, arm)
     import sbx
 
     model = sbx.TD3.load(str(dest / "model.zip"), device="cpu")
-    env = gym.make("softtrack/DualArmTracking-v0",
-                   **{**env_kwargs(spec), "target": "circle", "episode_duration": 0.1})
+    env = gym.make(
+        "softtrack/DualArmTracking-v0",
+        **{**env_kwargs(spec), "target": "circle", "episode_duration": 0.1},
+    )
     observation, _ = env.reset(seed=0)
     squared, steps, done = np.zeros(2), 0, False
     while not done:
         observation, _, terminated, truncated, info = env.step(
-            model.predict(observation, deterministic=True)[0])
+            model.predict(observation, deterministic=True)[0]
+        )
         squared += np.asarray(info["distances"]) ** 2
         steps, done = steps + 1, terminated or truncated
     expected = api.evaluate([str(dest)], ["circle"], write=False).sort_values("arm")

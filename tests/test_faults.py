@@ -16,7 +16,6 @@ import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -43,10 +42,22 @@ def _spec_data(**training: Any) -> dict[str, Any]:
         "name": "tiny",
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 2000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
-                     "heartbeat_interval": 0.5, "eval_duration": EVAL_DURATION, **training},
+        "algo": {
+            "name": "td3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 2000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 200,
+            "n_envs": 2,
+            "checkpoint_interval": 0,
+            "heartbeat_interval": 0.5,
+            "eval_duration": EVAL_DURATION,
+            **training,
+        },
     }
 
 
@@ -72,7 +83,8 @@ def _snapshot(root: Path) -> dict[str, str]:
     """Every file under ``root``: relative path → SHA-256."""
     return {
         str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-        for p in sorted(root.rglob("*")) if p.is_file() and p.name != "run.lock"
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and p.name != "run.lock"
     }
 
 
@@ -101,24 +113,28 @@ def runs(trained: tuple[Path, str], tmp_path: Path) -> tuple[Path, str]:
 def _raise_oserror(code: int, where: Path) -> Any:
     def fail(*_args: Any, **_kwargs: Any) -> None:
         raise OSError(code, os.strerror(code), str(where))
+
     return fail
 
 
 # ---- 1. a query is read-only -----------------------------------------------------------------
 @pytest.mark.faults("lost")
-@pytest.mark.parametrize("sql", [
-    "COPY (SELECT * FROM eval_metrics WHERE false) TO '{run}/tables/eval_metrics.parquet'",
-    "COPY (SELECT 'x') TO '{run}/run.json'",
-    "ATTACH '{run}/new.db' AS extra",
-    "INSTALL httpfs",
-    "LOAD httpfs",
-    "SELECT * FROM read_csv('/etc/passwd')",
-    "SELECT * FROM read_parquet('{run}/tables/*.parquet')",
-    "SET enable_external_access = true",
-    "EXPORT DATABASE '{run}/dump'",
-    "SELECT 1; COPY (SELECT 1) TO '{run}/x.csv'",
-    "CREATE TABLE sneaky AS SELECT 1",
-])
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "COPY (SELECT * FROM eval_metrics WHERE false) TO '{run}/tables/eval_metrics.parquet'",
+        "COPY (SELECT 'x') TO '{run}/run.json'",
+        "ATTACH '{run}/new.db' AS extra",
+        "INSTALL httpfs",
+        "LOAD httpfs",
+        "SELECT * FROM read_csv('/etc/passwd')",
+        "SELECT * FROM read_parquet('{run}/tables/*.parquet')",
+        "SET enable_external_access = true",
+        "EXPORT DATABASE '{run}/dump'",
+        "SELECT 1; COPY (SELECT 1) TO '{run}/x.csv'",
+        "CREATE TABLE sneaky AS SELECT 1",
+    ],
+)
 def test_query_cannot_write_read_outside_or_install(runs: tuple[Path, str], sql: str) -> None:
     root, run_id = runs
     run = root / run_id
@@ -127,8 +143,12 @@ def test_query_cannot_write_read_outside_or_install(runs: tuple[Path, str], sql:
     assert result.exit_code == 2
     assert _one_line(result).startswith("error: query: ")
     assert _snapshot(root) == before  # nothing written, nothing removed
-    assert _cli("query", "SELECT count(*) AS n FROM eval_metrics", "--runs-dir",
-                str(root)).stdout.split()[-1] == "6"  # the store still reads
+    assert (
+        _cli(
+            "query", "SELECT count(*) AS n FROM eval_metrics", "--runs-dir", str(root)
+        ).stdout.split()[-1]
+        == "6"
+    )  # the store still reads
 
 
 # ---- 2. tune: a retry is its own trial's run ---------------------------------------------------
@@ -156,16 +176,36 @@ def test_tune_killed_everywhere_then_rerun_keeps_every_trial_its_run(tmp_path: P
     from softtrack.spec import spec_hash
     from softtrack.tune.study import decode_params, default_storage, load_study, trial_spec
 
-    data = _spec_data(total_timesteps=1600, n_envs=2, checkpoint_interval=200,
-                      validation_episodes=1)
+    data = _spec_data(
+        total_timesteps=1600, n_envs=2, checkpoint_interval=200, validation_episodes=1
+    )
     data["tune"] = TUNE_PARAMS
     spec = tmp_path / "tune.yaml"
     spec.write_text(yaml.safe_dump(data), encoding="utf-8")
     root = tmp_path / "runs"
-    command = [sys.executable, "-m", "softtrack.cli", "tune", str(spec), "--trials", "3",
-               "--study", "k", "--workers", "2", "--runs-dir", str(root)]
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "CI": "1"}, start_new_session=True)
+    command = [
+        sys.executable,
+        "-m",
+        "softtrack.cli",
+        "tune",
+        str(spec),
+        "--trials",
+        "3",
+        "--study",
+        "k",
+        "--workers",
+        "2",
+        "--runs-dir",
+        str(root),
+    ]
+    proc = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
+        start_new_session=True,
+    )
     deadline = time.monotonic() + 300
     workers: set[int] = set()
     while time.monotonic() < deadline:
@@ -185,8 +225,9 @@ def test_tune_killed_everywhere_then_rerun_keeps_every_trial_its_run(tmp_path: P
     while any(_alive(pid) for pid in workers):
         time.sleep(0.05)
 
-    result = subprocess.run(command, capture_output=True, text=True, timeout=900,
-                            env={**os.environ, "CI": "1"})
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=900, env={**os.environ, "CI": "1"}
+    )
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -214,8 +255,9 @@ def test_disk_full_during_train_marks_the_run_interrupted(
 
     root = tmp_path / "runs"
     spec = _spec(tmp_path, total_timesteps=400, checkpoint_interval=200)
-    monkeypatch.setattr(callbacks, "atomic_dir",
-                        _raise_oserror(errno.ENOSPC, root / "x" / "checkpoints" / ".tmp"))
+    monkeypatch.setattr(
+        callbacks, "atomic_dir", _raise_oserror(errno.ENOSPC, root / "x" / "checkpoints" / ".tmp")
+    )
     result = _cli("train", str(spec), "--runs-dir", str(root))
     assert result.exit_code not in (0, 2) and result.exit_code < 128
     err = _one_line(result)
@@ -229,8 +271,9 @@ def test_disk_full_during_train_marks_the_run_interrupted(
 
 
 @pytest.mark.faults("traceback")
-@pytest.mark.parametrize("code, words", [(errno.ENOSPC, "no space left"),
-                                         (errno.EROFS, "read-only file system")])
+@pytest.mark.parametrize(
+    "code, words", [(errno.ENOSPC, "no space left"), (errno.EROFS, "read-only file system")]
+)
 def test_disk_faults_during_evaluate_are_one_line_and_keep_the_tables(
     runs: tuple[Path, str], monkeypatch: pytest.MonkeyPatch, code: int, words: str
 ) -> None:
@@ -238,8 +281,11 @@ def test_disk_faults_during_evaluate_are_one_line_and_keep_the_tables(
 
     root, run_id = runs
     before = _snapshot(root / run_id / "tables")
-    monkeypatch.setattr(tables, "_write_parquet",
-                        _raise_oserror(code, root / run_id / "tables" / ".x.tmp-1-a.parquet"))
+    monkeypatch.setattr(
+        tables,
+        "_write_parquet",
+        _raise_oserror(code, root / run_id / "tables" / ".x.tmp-1-a.parquet"),
+    )
     result = _cli("evaluate", run_id, "--runs-dir", str(root))
     assert result.exit_code == 2
     err = _one_line(result)
@@ -262,8 +308,11 @@ def test_read_only_runs_directory_train_and_report_are_one_line(
 
     for table in (root / run_id / "tables").glob("eval_*.parquet"):
         table.unlink()  # an unevaluated run: report must evaluate (and write) it
-    monkeypatch.setattr(tables, "_write_parquet",
-                        _raise_oserror(errno.EROFS, root / run_id / "tables" / ".t.parquet"))
+    monkeypatch.setattr(
+        tables,
+        "_write_parquet",
+        _raise_oserror(errno.EROFS, root / run_id / "tables" / ".t.parquet"),
+    )
     result = _cli("report", run_id, "--runs-dir", str(root), "--out", str(tmp_path / "rep"))
     assert result.exit_code == 2 and "read-only file system" in _one_line(result)
 
@@ -273,8 +322,12 @@ def _can_mount() -> bool:
         return False
     probe = Path(f"/tmp/softtrack-mount-probe-{os.getpid()}")
     probe.mkdir(exist_ok=True)
-    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(probe)],
-                        capture_output=True).returncode == 0
+    ok = (
+        subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(probe)], capture_output=True
+        ).returncode
+        == 0
+    )
     if ok:
         subprocess.run(["umount", str(probe)], capture_output=True)
     probe.rmdir()
@@ -307,10 +360,10 @@ def test_a_really_full_disk_during_train(tmp_path: Path, tmpfs: Any) -> None:
     disk = tmpfs(600)  # room for the run, not for a checkpoint with its replay buffer
     root = disk / "runs"
     spec = _spec(tmp_path, total_timesteps=400, checkpoint_interval=200)
-    command = [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir",
-               str(root)]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=300,
-                            env={**os.environ, "CI": "1"})
+    command = [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir", str(root)]
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=300, env={**os.environ, "CI": "1"}
+    )
     assert result.returncode not in (0, 2), result.stderr
     lines = [ln for ln in result.stderr.splitlines() if ln.startswith("error:")]
     assert "Traceback" not in result.stderr and len(lines) == 1, result.stderr
@@ -322,16 +375,21 @@ def test_a_really_full_disk_during_train(tmp_path: Path, tmpfs: Any) -> None:
 
 @pytest.mark.slow
 @pytest.mark.faults("traceback")
-def test_a_really_read_only_runs_directory(runs: tuple[Path, str], tmp_path: Path,
-                                           tmpfs: Any) -> None:
+def test_a_really_read_only_runs_directory(
+    runs: tuple[Path, str], tmp_path: Path, tmpfs: Any
+) -> None:
     root, run_id = runs
     ro = tmpfs(4096)
     shutil.copytree(root, ro / "runs")
     subprocess.run(["mount", "-o", "remount,ro", str(ro)], check=True)
     for args in (["evaluate", run_id], ["train", str(_spec(tmp_path))]):
-        result = subprocess.run([sys.executable, "-m", "softtrack.cli", *args, "--runs-dir",
-                                 str(ro / "runs")], capture_output=True, text=True,
-                                timeout=300, env={**os.environ, "CI": "1"})
+        result = subprocess.run(
+            [sys.executable, "-m", "softtrack.cli", *args, "--runs-dir", str(ro / "runs")],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={**os.environ, "CI": "1"},
+        )
         assert result.returncode == 2, result.stderr
         assert "Traceback" not in result.stderr
         assert "read-only file system" in result.stderr.strip().splitlines()[-1]
@@ -347,14 +405,18 @@ def _alias_bomb(levels: int) -> str:
 
 
 @pytest.mark.faults("traceback")
-@pytest.mark.parametrize("text, words", [
-    (_alias_bomb(9), "expands to more than"),
-    (_alias_bomb(7), "expands to more than"),
-    ("name: x\nseeds: " + "[" * 20000 + "\n", "nests lists/mappings more than"),
-    ("name: x\nseeds: " + "[" * 20000 + "]" * 20000 + "\n", "nests lists/mappings more than"),
-])
-def test_yaml_bombs_and_deep_nesting_are_rejected_fast(tmp_path: Path, text: str,
-                                                       words: str) -> None:
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (_alias_bomb(9), "expands to more than"),
+        (_alias_bomb(7), "expands to more than"),
+        ("name: x\nseeds: " + "[" * 20000 + "\n", "nests lists/mappings more than"),
+        ("name: x\nseeds: " + "[" * 20000 + "]" * 20000 + "\n", "nests lists/mappings more than"),
+    ],
+)
+def test_yaml_bombs_and_deep_nesting_are_rejected_fast(
+    tmp_path: Path, text: str, words: str
+) -> None:
     path = tmp_path / "bomb.yaml"
     path.write_text(text, encoding="utf-8")
     start = time.monotonic()
@@ -372,8 +434,14 @@ def test_an_override_bomb_is_rejected(tmp_path: Path) -> None:
 @pytest.mark.faults("degraded")
 def test_integers_beyond_64_bits_are_refused(tmp_path: Path) -> None:
     spec = _spec(tmp_path)
-    result = _cli("train", str(spec), "--set", "training.total_timesteps=9223372036854775808",
-                  "--runs-dir", str(tmp_path / "runs"))
+    result = _cli(
+        "train",
+        str(spec),
+        "--set",
+        "training.total_timesteps=9223372036854775808",
+        "--runs-dir",
+        str(tmp_path / "runs"),
+    )
     assert result.exit_code == 2 and "64-bit" in _one_line(result)
     assert not (tmp_path / "runs").exists()
 
@@ -426,8 +494,9 @@ tables.write_tables({Path(sys.argv[1]): pd.DataFrame({"a": [1.0, 2.0]})})
 @pytest.mark.faults("degraded")
 def test_sigterm_during_a_table_write_leaves_no_temporary(tmp_path: Path) -> None:
     target = tmp_path / "tables" / "eval_metrics.parquet"
-    proc = subprocess.Popen([sys.executable, "-c", _SLOW_WRITER, str(target)],
-                            stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SLOW_WRITER, str(target)], stdout=subprocess.PIPE, text=True
+    )
     assert proc.stdout is not None and proc.stdout.readline().strip() == "written"
     assert [p for p in target.parent.iterdir() if is_temp_file(p)]  # mid-write
     proc.send_signal(signal.SIGTERM)
@@ -436,15 +505,15 @@ def test_sigterm_during_a_table_write_leaves_no_temporary(tmp_path: Path) -> Non
 
 
 @pytest.mark.faults("degraded")
-def test_a_killed_writers_temporary_is_swept_by_the_next_evaluation(
-    runs: tuple[Path, str]
-) -> None:
+def test_a_killed_writers_temporary_is_swept_by_the_next_evaluation(runs: tuple[Path, str]) -> None:
     root, run_id = runs
     tables = root / run_id / "tables"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    stale = [tables / f".eval_metrics.tmp-{dead.pid}-deadbeef.parquet",
-             tables / ".eval_trajectories.tmp-cafebabe.parquet"]  # an older version's name
+    stale = [
+        tables / f".eval_metrics.tmp-{dead.pid}-deadbeef.parquet",
+        tables / ".eval_trajectories.tmp-cafebabe.parquet",
+    ]  # an older version's name
     for path in stale:
         path.write_bytes(b"half")
     result = _cli("evaluate", run_id, "--runs-dir", str(root))
@@ -483,7 +552,10 @@ def _interrupted_run(tmp_path: Path) -> tuple[Path, str]:
     root = tmp_path / "runs"
     proc = subprocess.Popen(
         [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir", str(root)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "CI": "1"},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
     )
     deadline = time.monotonic() + 180
     while time.monotonic() < deadline:
@@ -524,7 +596,7 @@ def test_resume_with_a_broken_spec_keeps_the_status(tmp_path: Path, damage: str)
 
 @pytest.mark.faults("degraded")
 def test_evaluate_finds_a_run_by_its_id_in_a_directory_named_otherwise(
-    runs: tuple[Path, str]
+    runs: tuple[Path, str],
 ) -> None:
     root, run_id = runs
     (root / run_id).rename(root / "td3-tiny-seed0")
@@ -535,15 +607,23 @@ def test_evaluate_finds_a_run_by_its_id_in_a_directory_named_otherwise(
 
 # ---- 12. resume keeps the history ------------------------------------------------------------
 @pytest.mark.faults("degraded")
-def test_resume_keeps_started_the_killed_sessions_step_and_every_env_step(
-    tmp_path: Path
-) -> None:
+def test_resume_keeps_started_the_killed_sessions_step_and_every_env_step(tmp_path: Path) -> None:
     spec = _spec(tmp_path, total_timesteps=2000, checkpoint_interval=220, n_envs=2)
     root = tmp_path / "runs"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "softtrack.cli", "train", str(spec), "--runs-dir",
-         os.path.abspath(root)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "CI": "1"},
+        [
+            sys.executable,
+            "-m",
+            "softtrack.cli",
+            "train",
+            str(spec),
+            "--runs-dir",
+            os.path.abspath(root),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
     )
     deadline = time.monotonic() + 180
     record = None
@@ -562,7 +642,7 @@ def test_resume_keeps_started_the_killed_sessions_step_and_every_env_step(
     assert result.exit_code == 0, result.output
     info = RunStore(root).get_run(record.run_id).info
     assert info.started == started  # the first start, not the resume's
-    lost, done = info.sessions
+    lost, _done = info.sessions
     assert lost["status"] == "lost" and lost["end_step"] >= checkpoint > 0
     runs_dir_arg = info.command[info.command.index("--runs-dir") + 1]
     assert not os.path.isabs(runs_dir_arg)

@@ -18,7 +18,7 @@ def test_constant_offset() -> None:
     target = np.random.default_rng(0).normal(size=(n, 3))
     offset = np.array([0.03, -0.04, 0.12])
     m = tracking_metrics(target + offset, target)
-    for axis, value in zip("xyz", offset):
+    for axis, value in zip("xyz", offset, strict=False):
         assert m[f"rmse_{axis}"] == pytest.approx(abs(value), rel=1e-12)
         assert m[f"mae_{axis}"] == pytest.approx(abs(value), rel=1e-12)
     norm = float(np.linalg.norm(offset))  # 0.13
@@ -62,7 +62,9 @@ def test_rmse_3d_is_root_sum_of_axis_rmse_squares() -> None:
     rng = np.random.default_rng(1)
     tip, target = rng.normal(size=(500, 3)), rng.normal(size=(500, 3))
     m = tracking_metrics(tip, target)
-    assert m["rmse_3d"] ** 2 == pytest.approx(m["rmse_x"] ** 2 + m["rmse_y"] ** 2 + m["rmse_z"] ** 2)
+    assert m["rmse_3d"] ** 2 == pytest.approx(
+        m["rmse_x"] ** 2 + m["rmse_y"] ** 2 + m["rmse_z"] ** 2
+    )
     assert m["mean_spatial_error"] <= m["rmse_3d"] <= m["max_error"]
 
 
@@ -77,8 +79,8 @@ def test_bad_shapes() -> None:
 
 def test_moments() -> None:
     torques = np.zeros((3, 2, 2, 20))  # steps, arms, directions, elements
-    torques[1, 0, 0, :] = 10.0          # uniform 10 N·m: RMS 10
-    torques[2, 1, 1, 5] = -138.9        # one element: RMS 138.9/√20, peak 138.9
+    torques[1, 0, 0, :] = 10.0  # uniform 10 N·m: RMS 10
+    torques[2, 1, 1, 5] = -138.9  # one element: RMS 138.9/√20, peak 138.9
     rms = moment_rms(torques)
     assert rms.shape == (3, 2, 2)
     assert rms[1, 0, 0] == pytest.approx(10.0)

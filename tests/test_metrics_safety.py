@@ -23,8 +23,9 @@ DT = 0.002  # s: the default control step
 N_ELEM = 20
 
 
-def _episode(torques: np.ndarray, clearance: np.ndarray | None = None,
-             margin: float = 0.0) -> Episode:
+def _episode(
+    torques: np.ndarray, clearance: np.ndarray | None = None, margin: float = 0.0
+) -> Episode:
     n, n_arms = torques.shape[:2]
     return Episode(
         trajectory="circle",
@@ -39,8 +40,9 @@ def _episode(torques: np.ndarray, clearance: np.ndarray | None = None,
     )
 
 
-def _straight_arms(separation: float, n_nodes: int = N_ELEM + 1, length: float = 1.0,
-                   tilt: float = 0.0) -> np.ndarray:
+def _straight_arms(
+    separation: float, n_nodes: int = N_ELEM + 1, length: float = 1.0, tilt: float = 0.0
+) -> np.ndarray:
     """(2, 3, n_nodes): two vertical arms from (∓separation/2, 0, 0), the second tilted by
     ``tilt`` rad towards +x (so its base stays the closest point)."""
     s = np.linspace(0.0, length, n_nodes)
@@ -72,7 +74,8 @@ def test_bang_bang_torque_rate_and_peak() -> None:
     n = 10
     t = DT * np.arange(1, n + 1)
     torques = np.where(np.arange(n) % 2 == 0, 100.0, -100.0)[:, None, None] * np.ones(
-        (1, 2, N_ELEM))
+        (1, 2, N_ELEM)
+    )
     stats = torque_statistics(torques, t)
     assert stats["torque_rate_rms"] == pytest.approx(200.0 / DT, rel=1e-9)
     assert stats["peak_moment"] == 100.0
@@ -117,7 +120,8 @@ def test_straight_arms_clearance_is_separation_minus_radii(separation: float) ->
     assert clearance == pytest.approx(separation - 0.1, abs=1e-15)
     # a tilted second arm moves away from the first: the bases stay the closest pair
     assert arm_clearance(_straight_arms(separation, tilt=0.3), 0.04) == pytest.approx(
-        separation - 0.08, abs=1e-15)
+        separation - 0.08, abs=1e-15
+    )
 
 
 def test_clearance_of_crossing_arms_is_minus_both_radii() -> None:
@@ -172,11 +176,16 @@ def test_metrics_table_safety_columns() -> None:
     # the new columns follow every existing one, whose order is unchanged
     columns = list(table.columns)
     assert columns[-4:] == [*TORQUE_STATISTICS, *SAFETY_STATISTICS]
-    assert columns[columns.index("action_rms") - 2:columns.index("action_rms") + 3] == [
-        *ACTION_STATISTICS, "terminated", "duration"]
+    assert columns[columns.index("action_rms") - 2 : columns.index("action_rms") + 3] == [
+        *ACTION_STATISTICS,
+        "terminated",
+        "duration",
+    ]
     # not recorded (None) and a single arm: no clearance
-    for episode in (_episode(np.zeros((n, 2, 2, N_ELEM))),
-                    _episode(np.zeros((n, 1, 2, N_ELEM)), np.full(n, np.nan))):
+    for episode in (
+        _episode(np.zeros((n, 2, 2, N_ELEM))),
+        _episode(np.zeros((n, 1, 2, N_ELEM)), np.full(n, np.nan)),
+    ):
         rows = metrics_table("run", episode)
         assert rows["min_arm_distance"].isna().all()
         assert (rows["collision_steps"] == 0).all()

@@ -29,8 +29,9 @@ def test_mirror_maps_swap_the_arms_and_negate_x() -> None:
     np.testing.assert_array_equal(mirrored[74:81], [-74, 75, 76, 77, -78, 79, 80])
     action = np.arange(24, dtype=np.float32)
     np.testing.assert_array_equal(
-        mirror_action(action), np.r_[-np.arange(12, 18), np.arange(18, 24),
-                                     -np.arange(0, 6), np.arange(6, 12)])
+        mirror_action(action),
+        np.r_[-np.arange(12, 18), np.arange(18, 24), -np.arange(0, 6), np.arange(6, 12)],
+    )
     rng = np.random.default_rng(0)
     obs, action = rng.normal(size=(5, 81)), rng.normal(size=(3, 5, 24))
     np.testing.assert_array_equal(mirror_observation(mirror_observation(obs)), obs)
@@ -87,8 +88,13 @@ def test_train_a_mirror_replay_run(tmp_path: Path, backend: str) -> None:
         "seeds": [0],
         "env": {"episode_duration": 0.1},
         "algo": {
-            "name": "td3", "backend": backend, "batch_size": 16, "learning_starts": 50,
-            "buffer_size": 5000, "mirror_replay": True, "policy_kwargs": {"net_arch": [16, 16]},
+            "name": "td3",
+            "backend": backend,
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "mirror_replay": True,
+            "policy_kwargs": {"net_arch": [16, 16]},
         },
         "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 200},
     }
@@ -111,4 +117,3 @@ def test_train_a_mirror_replay_run(tmp_path: Path, backend: str) -> None:
     np.testing.assert_array_equal(
         buffer.actions[1 : buffer.pos : 2], mirror_action(buffer.actions[0 : buffer.pos : 2])
     )
-

@@ -105,15 +105,24 @@ def test_default_env_has_no_model_error_and_no_parameters_info() -> None:
     spec = parse_spec({"env": {"realism": {"radius_scale": 1.0, "damping_scale": [1, 1]}}})
     assert spec_hash(spec) == spec_hash(parse_spec({}))
     assert "realism" not in env_kwargs(spec)
-    ranged = parse_spec({"env": {"physics": {"dt": 1e-4, "steps_per_action": 20},
-                                 "realism": {"radius_scale": [0.9, 1.1]}}})
-    fixed = parse_spec({"env": {"physics": {"dt": 1e-4, "steps_per_action": 20},
-                                "realism": {"radius_scale": 0.9}}})
+    ranged = parse_spec(
+        {
+            "env": {
+                "physics": {"dt": 1e-4, "steps_per_action": 20},
+                "realism": {"radius_scale": [0.9, 1.1]},
+            }
+        }
+    )
+    fixed = parse_spec(
+        {"env": {"physics": {"dt": 1e-4, "steps_per_action": 20}, "realism": {"radius_scale": 0.9}}}
+    )
     hashes = {spec_hash(s) for s in (ranged, fixed, parse_spec({}))}
     assert len(hashes) == 3
     assert ranged.env.realism.radius_scale == (0.9, 1.1)
-    assert parse_spec({"env": {"realism": {"density_scale": [1.1, 1.1]}}}
-                      ).env.realism.density_scale == 1.1  # a point range is a fixed factor
+    assert (
+        parse_spec({"env": {"realism": {"density_scale": [1.1, 1.1]}}}).env.realism.density_scale
+        == 1.1
+    )  # a point range is a fixed factor
 
 
 # ---- the physics of a scaled rod ---------------------------------------------------------------
@@ -138,12 +147,20 @@ def test_scaled_constants_are_those_of_the_scaled_rod() -> None:
     assert np.array_equal(batch._bend[1], c.bend_stiffness)
     assert batch._damping[1] == q.damping and batch._damping[0] == p.damping
     rod = elastica.CosseratRod.straight_rod(
-        q.n_elem, np.zeros(3), np.array(q.direction), np.array(q.normal), q.length, q.radius,
-        q.density, youngs_modulus=q.youngs_modulus, shear_modulus=q.shear_modulus,
+        q.n_elem,
+        np.zeros(3),
+        np.array(q.direction),
+        np.array(q.normal),
+        q.length,
+        q.radius,
+        q.density,
+        youngs_modulus=q.youngs_modulus,
+        shear_modulus=q.shear_modulus,
     )
     np.testing.assert_allclose(batch._mass[1], rod.mass, rtol=1e-12)
-    np.testing.assert_allclose(batch._inertia[1],
-                               np.diagonal(rod.mass_second_moment_of_inertia).T, rtol=1e-12)
+    np.testing.assert_allclose(
+        batch._inertia[1], np.diagonal(rod.mass_second_moment_of_inertia).T, rtol=1e-12
+    )
     np.testing.assert_allclose(batch._shear[1], np.diagonal(rod.shear_matrix).T, rtol=1e-12)
     np.testing.assert_allclose(batch._bend[1], np.diagonal(rod.bend_matrix).T, rtol=1e-12)
     # env 0 kept the nominal rod
@@ -159,13 +176,20 @@ def _pyelastica_run(params: SimParams, torques: np.ndarray) -> list[dict[str, np
     for tau in torques:
         arm.set_element_torques(tau)
         arm.advance(params.steps_per_action)
-        out.append({"position": arm.positions, "velocity": arm.velocities,
-                    "directors": arm.directors, "omega": arm.omegas})
+        out.append(
+            {
+                "position": arm.positions,
+                "velocity": arm.velocities,
+                "directors": arm.directors,
+                "omega": arm.omegas,
+            }
+        )
     return out
 
 
-def _assert_parity(ours: list[dict[str, np.ndarray]], env: int,
-                   reference: list[dict[str, np.ndarray]]) -> None:
+def _assert_parity(
+    ours: list[dict[str, np.ndarray]], env: int, reference: list[dict[str, np.ndarray]]
+) -> None:
     for k, (got, want) in enumerate(zip(ours, reference, strict=True)):
         tip = np.linalg.norm(got["position"][env, :, :, -1] - want["position"][:, :, -1], axis=-1)
         assert tip.max() <= TIP_TOL_M, f"tip error {tip.max():.3e} m at control step {k}"
@@ -185,8 +209,9 @@ def test_gravity_on_matches_pyelastica() -> None:
     assert p.gravity == 9.81
     actions = _actions(150, 1, seed=2, scale=0.4)
     ours = _run(RodBatch(1, p), actions)
-    torques = np.stack([actions_to_element_torques(a[0], p.n_elem, p.torque_scale)
-                        for a in actions])
+    torques = np.stack(
+        [actions_to_element_torques(a[0], p.n_elem, p.torque_scale) for a in actions]
+    )
     _assert_parity(ours, 0, _pyelastica_run(p, torques))
     # gravity really acts: the same actions without it end elsewhere
     free = _run(RodBatch(1, SimParams()), actions)
@@ -205,10 +230,12 @@ def test_altered_materials_match_pyelastica_rods_built_with_them(factors: dict) 
     batch = RodBatch(2, p)
     batch.set_parameters([1], factors)
     ours = _run(batch, actions)
-    torques = np.stack([actions_to_element_torques(a[1], q.n_elem, q.torque_scale)
-                        for a in actions])
-    np.testing.assert_allclose(np.stack([s["torques"][1] for s in ours]), torques,
-                               rtol=1e-13, atol=1e-12)
+    torques = np.stack(
+        [actions_to_element_torques(a[1], q.n_elem, q.torque_scale) for a in actions]
+    )
+    np.testing.assert_allclose(
+        np.stack([s["torques"][1] for s in ours]), torques, rtol=1e-13, atol=1e-12
+    )
     _assert_parity(ours, 1, _pyelastica_run(q, torques))
     # the factors matter: the nominal rod with the same actions ends centimetres away
     nominal = _run(RodBatch(1, p), actions[:, 1:2])
@@ -253,7 +280,7 @@ def test_set_parameters_rejects_bad_factors() -> None:
     for bad in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(InvalidParameterError, match="finite numbers > 0"):
             batch.set_parameters([0], {"density_scale": bad})
-    with pytest.raises(InvalidParameterError, match="environment 1 .*stability limit"):
+    with pytest.raises(InvalidParameterError, match=r"environment 1 .*stability limit"):
         batch.set_parameters([1], {"youngs_modulus_scale": 3.0})
     assert np.array_equal(batch.factors, np.ones((2, 5)))  # nothing was changed
 
@@ -269,8 +296,10 @@ def test_worst_case_of_the_ranges_is_the_smallest_limit() -> None:
     low = (0.7, 0.8, 0.9, 0.5)
     high = (1.4, 1.3, 1.2, 1.5)
     worst = scaled_params(p, dict(zip(names, (high[0], low[1], low[2], high[3]), strict=True)))
-    corners = [scaled_params(p, dict(zip(names, c, strict=True))).dt_limit
-               for c in itertools.product(*zip(low, high, strict=True))]
+    corners = [
+        scaled_params(p, dict(zip(names, c, strict=True))).dt_limit
+        for c in itertools.product(*zip(low, high, strict=True))
+    ]
     assert min(corners) == worst.dt_limit
     rng = np.random.default_rng(0)
     for _ in range(10):
@@ -291,8 +320,9 @@ def test_worst_case_of_the_ranges_is_the_smallest_limit() -> None:
 
 
 def test_unstable_range_is_a_config_error_and_a_spec_error() -> None:
-    with pytest.raises(InvalidParameterError,
-                       match=r"youngs_modulus_scale: up to 3 needs dt ≤ .* lower dt to"):
+    with pytest.raises(
+        InvalidParameterError, match=r"youngs_modulus_scale: up to 3 needs dt ≤ .* lower dt to"
+    ):
         make_config(realism={"youngs_modulus_scale": [1.0, 3.0]})
     with pytest.raises(SpecError) as info:
         parse_spec({"env": {"realism": {"youngs_modulus_scale": [1.0, 3.0]}}})
@@ -300,18 +330,27 @@ def test_unstable_range_is_a_config_error_and_a_spec_error() -> None:
     assert "env.realism.youngs_modulus_scale: up to 3 needs dt ≤" in message
     assert "lower env.physics.dt to" in message and "or narrow the range" in message
     # a smaller dt makes the same range valid
-    spec = parse_spec({"env": {"physics": {"dt": 1e-4, "steps_per_action": 20},
-                               "realism": {"youngs_modulus_scale": [1.0, 3.0]}}})
+    spec = parse_spec(
+        {
+            "env": {
+                "physics": {"dt": 1e-4, "steps_per_action": 20},
+                "realism": {"youngs_modulus_scale": [1.0, 3.0]},
+            }
+        }
+    )
     assert env_config(spec).realism.youngs_modulus_scale == (1.0, 3.0)
 
 
-@pytest.mark.parametrize(("value", "fix"), [
-    (0.0, "finite number > 0"),
-    (-1.0, "finite number > 0"),
-    ([1.2, 0.9], "write it as [0.9, 1.2]"),
-    ([0.9, 1.0, 1.1], "a range has 2 values"),
-    (True, "expected a number, got true"),
-])
+@pytest.mark.parametrize(
+    ("value", "fix"),
+    [
+        (0.0, "finite number > 0"),
+        (-1.0, "finite number > 0"),
+        ([1.2, 0.9], "write it as [0.9, 1.2]"),
+        ([0.9, 1.0, 1.1], "a range has 2 values"),
+        (True, "expected a number, got true"),
+    ],
+)
 def test_bad_factors_are_spec_errors_and_config_errors(value, fix: str) -> None:
     with pytest.raises(SpecError) as info:
         parse_spec({"env": {"realism": {"density_scale": value}}})
@@ -329,8 +368,15 @@ def _trace(env: DualArmTrackingEnv, actions: np.ndarray, seed: int) -> list[np.n
     out = [obs, info["tip_positions"], info["target_position"]]
     for action in actions:
         obs, reward, terminated, truncated, info = env.step(action)
-        out += [obs, np.float64(reward), np.bool_(terminated), np.bool_(truncated),
-                info["tip_positions"], info["target_position"], info["element_torques"]]
+        out += [
+            obs,
+            np.float64(reward),
+            np.bool_(terminated),
+            np.bool_(truncated),
+            info["tip_positions"],
+            info["target_position"],
+            info["element_torques"],
+        ]
     return out
 
 
@@ -338,13 +384,19 @@ def test_fixed_factors_equal_the_changed_physics_bit_for_bit() -> None:
     """realism={E: 1.2, ...} is the env whose physics holds the products, step for step (the
     torque factor is applied after the spline, so it is left at 1 here)."""
     p = SimParams()
-    factors = {"youngs_modulus_scale": 1.2, "density_scale": 1.3, "radius_scale": 1.1,
-               "damping_scale": 0.8}
+    factors = {
+        "youngs_modulus_scale": 1.2,
+        "density_scale": 1.3,
+        "radius_scale": 1.1,
+        "damping_scale": 0.8,
+    }
     actions = np.random.default_rng(5).uniform(-1, 1, (40, 24))
     realism_env = DualArmTrackingEnv(realism=factors)
     physics_env = DualArmTrackingEnv(
-        youngs_modulus=p.youngs_modulus * 1.2, density=p.density * 1.3,
-        radius=p.radius * 1.1, damping=p.damping * 0.8,
+        youngs_modulus=p.youngs_modulus * 1.2,
+        density=p.density * 1.3,
+        radius=p.radius * 1.1,
+        damping=p.damping * 0.8,
     )
     a, b = _trace(realism_env, actions, 7), _trace(physics_env, actions, 7)
     for k, (x, y) in enumerate(zip(a, b, strict=True)):
@@ -365,8 +417,14 @@ def test_torque_factor_scales_the_applied_torques() -> None:
 
 
 def _factor_config(**extra) -> object:
-    return make_config(realism={"youngs_modulus_scale": [0.8, 1.2], "radius_scale": [1.0, 1.1],
-                                "torque_scale_factor": [0.7, 1.3], **extra})
+    return make_config(
+        realism={
+            "youngs_modulus_scale": [0.8, 1.2],
+            "radius_scale": [1.0, 1.1],
+            "torque_scale_factor": [0.7, 1.3],
+            **extra,
+        }
+    )
 
 
 def test_ranges_are_drawn_per_episode_and_env_reproducibly() -> None:
@@ -397,9 +455,12 @@ def test_randomisation_leaves_the_target_and_noise_streams_alone() -> None:
     and the observation noise are those of the same env without model error."""
     actions = np.random.default_rng(9).uniform(-1, 1, (30, 24))
     noisy = {"obs_noise_speed": 0.05}
-    envs = [DualArmTrackingEnv(realism=noisy),
-            DualArmTrackingEnv(realism={**noisy, "youngs_modulus_scale": [0.8, 1.2],
-                                        "density_scale": [1.0, 1.2]})]
+    envs = [
+        DualArmTrackingEnv(realism=noisy),
+        DualArmTrackingEnv(
+            realism={**noisy, "youngs_modulus_scale": [0.8, 1.2], "density_scale": [1.0, 1.2]}
+        ),
+    ]
     traces = []
     for env in envs:
         obs, _ = env.reset(seed=11)
@@ -447,14 +508,17 @@ def test_vec_env_with_ranges_equals_single_envs_and_reports_parameters() -> None
 
 
 def test_spec_reaches_the_environment() -> None:
-    spec = parse_spec({"env": {"realism": {"torque_scale_factor": [0.8, 1.2],
-                                           "youngs_modulus_scale": 1.1}}})
+    spec = parse_spec(
+        {"env": {"realism": {"torque_scale_factor": [0.8, 1.2], "youngs_modulus_scale": 1.1}}}
+    )
     kwargs = env_kwargs(spec)
     assert kwargs["realism"]["torque_scale_factor"] == (0.8, 1.2)
     for arm in (None, 0):
         config = env_config(spec, arm)
         assert config.realism.model_error_ranges == {
-            "youngs_modulus_scale": (1.1, 1.1), "torque_scale_factor": (0.8, 1.2)}
+            "youngs_modulus_scale": (1.1, 1.1),
+            "torque_scale_factor": (0.8, 1.2),
+        }
         core = TrackingCore(1, config)
         core.reset([0], [np.random.default_rng(0)])
         assert core.engine.factors[0, 0] == 1.1

@@ -83,19 +83,30 @@ def test_mpc_is_deterministic_with_a_seed() -> None:
 
 def test_cem_and_a_wrong_model_run() -> None:
     config = _fixed_config()
-    cem = PlannerConfig(method="cem", samples=8, horizon=10, knots=3, replan_interval=5,
-                        iterations=2, elite_fraction=0.25)
-    episode = run_episode(MpcController(cem, seed=0, model_scales={"youngs_modulus_scale": 0.7}),
-                          config, "fixed", 0.1)
+    cem = PlannerConfig(
+        method="cem",
+        samples=8,
+        horizon=10,
+        knots=3,
+        replan_interval=5,
+        iterations=2,
+        elite_fraction=0.25,
+    )
+    episode = run_episode(
+        MpcController(cem, seed=0, model_scales={"youngs_modulus_scale": 0.7}), config, "fixed", 0.1
+    )
     assert np.isfinite(episode.tips).all()
 
 
-@pytest.mark.parametrize(("mpc", "message"), [
-    ({"knots": 20, "horizon": 10}, "knots"),
-    ({"replan_interval": 20, "horizon": 10}, "replan_interval"),
-    ({"model_scales": {"stiffness": 2.0}}, "unknown factor 'stiffness'"),
-    ({"samples": 1}, "samples"),
-])
+@pytest.mark.parametrize(
+    ("mpc", "message"),
+    [
+        ({"knots": 20, "horizon": 10}, "knots"),
+        ({"replan_interval": 20, "horizon": 10}, "replan_interval"),
+        ({"model_scales": {"stiffness": 2.0}}, "unknown factor 'stiffness'"),
+        ({"samples": 1}, "samples"),
+    ],
+)
 def test_mpc_section_errors_name_the_field(mpc: dict, message: str) -> None:
     with pytest.raises(SpecError, match=message):
         from softtrack.spec.api import parse_spec
@@ -114,11 +125,18 @@ def test_a_default_mpc_section_keeps_every_spec_hash() -> None:
 
 def _mpc_spec(tmp_path: Path) -> Path:
     path = tmp_path / "mpc.yaml"
-    path.write_text(yaml.safe_dump({
-        "name": "tiny-mpc", "controller": "mpc", "seeds": [0],
-        "mpc": {"samples": 4, "horizon": 6, "knots": 3, "replan_interval": 3},
-        "training": {"eval_duration": 0.1},
-    }), encoding="utf-8")
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "tiny-mpc",
+                "controller": "mpc",
+                "seeds": [0],
+                "mpc": {"samples": 4, "horizon": 6, "knots": 3, "replan_interval": 3},
+                "training": {"eval_duration": 0.1},
+            }
+        ),
+        encoding="utf-8",
+    )
     return path
 
 
@@ -136,8 +154,9 @@ def test_train_refuses_and_evaluate_creates_the_run(tmp_path: Path) -> None:
     metrics = read_table(run / "tables" / "eval_metrics.parquet")
     assert (metrics["planning_time"] > 0).all()
     assert load_spec(run / "spec.yaml").controller == "mpc"
-    report = runner.invoke(app, ["report", "tiny-mpc", "--runs-dir", str(runs), "--out",
-                                 str(tmp_path / "report")])
+    report = runner.invoke(
+        app, ["report", "tiny-mpc", "--runs-dir", str(runs), "--out", str(tmp_path / "report")]
+    )
     assert report.exit_code == 0, report.output
     index = (tmp_path / "report" / "index.md").read_text(encoding="utf-8")
     assert "### Planning cost (MPC)" in index and "MPC (MPPI)" in index
@@ -157,8 +176,9 @@ def test_evaluate_refuses_a_spec_that_needs_training(tmp_path: Path) -> None:
     assert "needs training" in result.output
 
 
-def test_budget_benchmark_writes_its_table_and_figure(tmp_path: Path,
-                                                      capsys: pytest.CaptureFixture[str]) -> None:
+def test_budget_benchmark_writes_its_table_and_figure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import importlib.util
 
     path = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_mpc_budget.py"
@@ -167,12 +187,31 @@ def test_budget_benchmark_writes_its_table_and_figure(tmp_path: Path,
     bench = importlib.util.module_from_spec(module_spec)
     module_spec.loader.exec_module(bench)
     assert bench.parse_budgets("16x50,8x25x2,8x25x2x1", 5) == [
-        (16, 50, 1, 5), (8, 25, 2, 5), (8, 25, 2, 1)]
+        (16, 50, 1, 5),
+        (8, 25, 2, 5),
+        (8, 25, 2, 1),
+    ]
     csv, figure = tmp_path / "b.csv", tmp_path / "b.png"
     spec = str(_mpc_spec(tmp_path))
-    assert bench.main(["--spec", spec, "--budgets", "4x6,4x6x2",
-                       "--duration", "0.06", "--trajectories", "circle",
-                       "--csv", str(csv), "--figure", str(figure)]) == 0
+    assert (
+        bench.main(
+            [
+                "--spec",
+                spec,
+                "--budgets",
+                "4x6,4x6x2",
+                "--duration",
+                "0.06",
+                "--trajectories",
+                "circle",
+                "--csv",
+                str(csv),
+                "--figure",
+                str(figure),
+            ]
+        )
+        == 0
+    )
     table = pd.read_csv(csv)
     assert sorted(set(zip(table["samples"], table["iterations"], strict=True))) == [(4, 1), (4, 2)]
     assert set(table["replan_interval"]) == {3}  # the spec's
@@ -180,8 +219,25 @@ def test_budget_benchmark_writes_its_table_and_figure(tmp_path: Path,
     assert "at or below 0.5 × the study in all six cells: none" in capsys.readouterr().out
     # a sweep in pieces: one more budget, merged with the first piece's rows
     merged = tmp_path / "merged.csv"
-    assert bench.main(["--spec", spec, "--budgets", "4x6x1x1", "--duration", "0.06",
-                       "--trajectories", "circle", "--merge", str(csv), "--csv", str(merged)]) == 0
+    assert (
+        bench.main(
+            [
+                "--spec",
+                spec,
+                "--budgets",
+                "4x6x1x1",
+                "--duration",
+                "0.06",
+                "--trajectories",
+                "circle",
+                "--merge",
+                str(csv),
+                "--csv",
+                str(merged),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert all(f"  {label} " in out for label in ("4x6x1x3", "4x6x2x3", "4x6x1x1"))
     assert len(pd.read_csv(merged)) == 3 * 2

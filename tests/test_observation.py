@@ -18,13 +18,16 @@ from softtrack.env.observation import (
 def _hand_built_state() -> tuple[np.ndarray, ...]:
     """Two environments, two arms; node (e, a, c, k) holds 1000e + 100(a+1) + 10c + k/100."""
     n, arms, n_nodes = 2, 2, 21
-    e, a, c, k = np.meshgrid(np.arange(n), np.arange(arms), np.arange(3), np.arange(n_nodes),
-                             indexing="ij")
+    e, a, c, k = np.meshgrid(
+        np.arange(n), np.arange(arms), np.arange(3), np.arange(n_nodes), indexing="ij"
+    )
     nodes = 1000.0 * e + 100.0 * (a + 1) + 10.0 * c + k / 100.0
-    tip_velocity = np.array([
-        [[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]],   # env 0: arm 1 at 5 m/s, arm 2 still
-        [[0.0, 0.0, -2.0], [1.0, 1.0, 1.0]],  # env 1
-    ])
+    tip_velocity = np.array(
+        [
+            [[3.0, 4.0, 0.0], [0.0, 0.0, 0.0]],  # env 0: arm 1 at 5 m/s, arm 2 still
+            [[0.0, 0.0, -2.0], [1.0, 1.0, 1.0]],  # env 1
+        ]
+    )
     target_position = np.array([[0.1, 0.6, -0.2], [-0.3, 0.7, 0.25]])
     target_velocity = np.array([[0.0, 0.0, 0.0], [0.0, 0.3, 0.0]])
     return nodes, tip_velocity, target_position, target_velocity
@@ -64,8 +67,9 @@ def test_tip_node_and_base_node_positions() -> None:
     for arm in range(2):
         base = 37 * arm
         np.testing.assert_array_equal(obs[:, [base, base + 11, base + 22]], nodes[:, arm, :, 0])
-        np.testing.assert_array_equal(obs[:, [base + 10, base + 21, base + 32]],
-                                      nodes[:, arm, :, 20].astype(np.float32))
+        np.testing.assert_array_equal(
+            obs[:, [base + 10, base + 21, base + 32]], nodes[:, arm, :, 20].astype(np.float32)
+        )
 
 
 def test_single_arm_layout() -> None:
@@ -82,11 +86,24 @@ def test_labels() -> None:
     assert len(labels) == 81 == observation_size(2) and len(set(labels)) == 81
     assert len(observation_labels(1)) == 44 == observation_size(1)
     expected = {
-        0: "arm1.node0.x", 1: "arm1.node2.x", 10: "arm1.node20.x", 11: "arm1.node0.y",
-        15: "arm1.node8.y", 22: "arm1.node0.z", 32: "arm1.node20.z", 33: "arm1.tip_speed",
-        34: "arm1.tip_dir.x", 36: "arm1.tip_dir.z", 37: "arm2.node0.x", 70: "arm2.tip_speed",
-        73: "arm2.tip_dir.z", 74: "target.pos.x", 76: "target.pos.z", 77: "target.speed",
-        78: "target.dir.x", 80: "target.dir.z",
+        0: "arm1.node0.x",
+        1: "arm1.node2.x",
+        10: "arm1.node20.x",
+        11: "arm1.node0.y",
+        15: "arm1.node8.y",
+        22: "arm1.node0.z",
+        32: "arm1.node20.z",
+        33: "arm1.tip_speed",
+        34: "arm1.tip_dir.x",
+        36: "arm1.tip_dir.z",
+        37: "arm2.node0.x",
+        70: "arm2.tip_speed",
+        73: "arm2.tip_dir.z",
+        74: "target.pos.x",
+        76: "target.pos.z",
+        77: "target.speed",
+        78: "target.dir.x",
+        80: "target.dir.z",
     }
     for index, name in expected.items():
         assert labels[index] == name, index

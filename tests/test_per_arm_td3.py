@@ -57,16 +57,24 @@ def test_buffer_without_shares_in_the_infos_names_the_fix() -> None:
 
 def _model(per_arm_networks: bool) -> PerArmTD3:
     venv = TrackingVecEnv(2, reward_shares=True, episode_duration=0.01)
-    return PerArmTD3("MlpPolicy", venv, learning_rate=1e-2, learning_starts=10,
-                     policy_kwargs={"net_arch": [16, 16]}, seed=0,
-                     per_arm_networks=per_arm_networks)
+    return PerArmTD3(
+        "MlpPolicy",
+        venv,
+        learning_rate=1e-2,
+        learning_starts=10,
+        policy_kwargs={"net_arch": [16, 16]},
+        seed=0,
+        per_arm_networks=per_arm_networks,
+    )
 
 
 def _perturbed(params: Any, arm_axis: int, arm: int) -> Any:
     """``params`` with 1 added to every weight of arm ``arm``'s networks (stacked on an axis)."""
+
     def bump(leaf: jax.Array) -> jax.Array:
         index = (slice(None),) * arm_axis + (arm,)
         return leaf.at[index].add(1.0)
+
     return jax.tree_util.tree_map(bump, params)
 
 
@@ -109,8 +117,17 @@ def test_each_critic_output_learns_its_own_arms_reward(per_arm_networks: bool) -
     terminal = jnp.ones(32)  # no bootstrap: the target is the reward itself
     for _ in range(300):
         qf_state, _, key = PerArmTD3.update_critic(
-            model.policy.actor_state, qf_state, obs, actions, obs, rewards, terminal,
-            jnp.full(32, 0.99), 0.2, 0.5, key,
+            model.policy.actor_state,
+            qf_state,
+            obs,
+            actions,
+            obs,
+            rewards,
+            terminal,
+            jnp.full(32, 0.99),
+            0.2,
+            0.5,
+            key,
         )
     q = np.asarray(qf_state.apply_fn(qf_state.params, obs, actions))
     assert q.shape == (2, 32, 2)  # (twin critics, batch, arms)
@@ -124,9 +141,15 @@ def _spec(tmp_path: Path, per_arm_networks: bool = False, actor_observation: str
         "seeds": [0],
         "env": {"episode_duration": 0.1},
         "algo": {
-            "name": "td3", "backend": "sbx", "critic": "per_arm", "batch_size": 16,
-            "learning_starts": 50, "buffer_size": 5000, "gradient_steps": 2,
-            "policy_kwargs": {"net_arch": [16, 16]}, "per_arm_networks": per_arm_networks,
+            "name": "td3",
+            "backend": "sbx",
+            "critic": "per_arm",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "gradient_steps": 2,
+            "policy_kwargs": {"net_arch": [16, 16]},
+            "per_arm_networks": per_arm_networks,
             "actor_observation": actor_observation,
         },
         "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 200},
@@ -189,8 +212,15 @@ def test_a_model_saved_before_per_arm_networks_loads_as_one_network() -> None:
 
 def test_own_arm_actors_see_only_their_arm_and_the_target() -> None:
     venv = TrackingVecEnv(2, reward_shares=True, episode_duration=0.01)
-    model = PerArmTD3("MlpPolicy", venv, learning_starts=10, policy_kwargs={"net_arch": [16, 16]},
-                      seed=0, per_arm_networks=True, actor_observation="own_arm")
+    model = PerArmTD3(
+        "MlpPolicy",
+        venv,
+        learning_starts=10,
+        policy_kwargs={"net_arch": [16, 16]},
+        seed=0,
+        per_arm_networks=True,
+        actor_observation="own_arm",
+    )
     actor = model.policy.actor_state
     rng = np.random.default_rng(2)
     obs = rng.normal(size=(4, 81)).astype(np.float32)
@@ -199,7 +229,7 @@ def test_own_arm_actors_see_only_their_arm_and_the_target() -> None:
     for arm in (0, 1):
         mine, others = slice(12 * arm, 12 * arm + 12), slice(12 - 12 * arm, 24 - 12 * arm)
         moved_obs = obs.copy()
-        moved_obs[:, 37 * arm:37 * (arm + 1)] += 1.0  # this arm's block only
+        moved_obs[:, 37 * arm : 37 * (arm + 1)] += 1.0  # this arm's block only
         moved = np.asarray(actor.apply_fn(actor.params, moved_obs))
         assert not np.allclose(moved[:, mine], base[:, mine])
         np.testing.assert_array_equal(moved[:, others], base[:, others])

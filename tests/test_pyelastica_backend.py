@@ -9,7 +9,6 @@ them to ≤ 1e-6 m at every control step (it agrees to ~1e-14 m).
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 

@@ -7,9 +7,9 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -35,7 +35,10 @@ RMSE_A = {
     ("figure8", 1): [1.00, 2.00, 4.00],
 }
 RMSE_B = {
-    ("circle", 0): [0.40], ("circle", 1): [0.50], ("figure8", 0): [0.70], ("figure8", 1): [0.80],
+    ("circle", 0): [0.40],
+    ("circle", 1): [0.50],
+    ("figure8", 0): [0.70],
+    ("figure8", 1): [0.80],
 }
 
 
@@ -43,9 +46,17 @@ def _write_run(root: Path, dirname: str, run_id: str, name: str, seed: int, **ex
     path = root / dirname
     (path / "tables").mkdir(parents=True)
     info = RunInfo(
-        run_id=run_id, name=name, algo="td3", controller="centralized", seed=seed,
-        status="completed", created="2026-01-01T10:00:00.000Z", total_timesteps=1000,
-        global_step=1000, spec_hash="h-" + name, **extra,
+        run_id=run_id,
+        name=name,
+        algo="td3",
+        controller="centralized",
+        seed=seed,
+        status="completed",
+        created="2026-01-01T10:00:00.000Z",
+        total_timesteps=1000,
+        global_step=1000,
+        spec_hash="h-" + name,
+        **extra,
     )
     (path / "run.json").write_text(info.model_dump_json(indent=2), encoding="utf-8")
     (path / "spec.yaml").write_text(f"name: {name}\ntraining:\n  final_stage_fraction: 0.2\n")
@@ -66,19 +77,36 @@ def runs_dir(tmp_path: Path) -> Path:
     root = tmp_path / "runs"
     for k in range(3):
         path = _write_run(
-            root, f"a-seed{k}", f"01AAAAAAAAAAAAAAAAAAAAAAA{k}", "exp-a", k,
-            started="2026-01-01T10:00:00.000Z", ended=f"2026-01-01T10:0{k + 1}:00.000Z",
+            root,
+            f"a-seed{k}",
+            f"01AAAAAAAAAAAAAAAAAAAAAAA{k}",
+            "exp-a",
+            k,
+            started="2026-01-01T10:00:00.000Z",
+            ended=f"2026-01-01T10:0{k + 1}:00.000Z",
             steps_per_second=100.0 * (k + 1),
         )
         write_table(path / "tables" / "eval_metrics.parquet", _metrics(path.name, RMSE_A, k))
         # train_episodes: centralized (no arm column) for seeds 0 and 1, with arm for seed 2
-        rows = [{"run_id": f"01AAAAAAAAAAAAAAAAAAAAAAA{k}", "episode": i, "global_step": 100 * i,
-                 "return": float(i + k), "wall_time": 20.0 * i * (k + 1)} for i in range(1, 4)]
+        rows = [
+            {
+                "run_id": f"01AAAAAAAAAAAAAAAAAAAAAAA{k}",
+                "episode": i,
+                "global_step": 100 * i,
+                "return": float(i + k),
+                "wall_time": 20.0 * i * (k + 1),
+            }
+            for i in range(1, 4)
+        ]
         if k == 2:
             rows = [{**r, "arm": 1} for r in rows]
         write_table(path / "tables" / "train_episodes.parquet", rows)
     b = _write_run(
-        root, "b-seed0", "01BBBBBBBBBBBBBBBBBBBBBBB0", "exp-b", 0,
+        root,
+        "b-seed0",
+        "01BBBBBBBBBBBBBBBBBBBBBBB0",
+        "exp-b",
+        0,
         sessions=[
             {"started": "2026-01-02T00:00:00Z", "ended": "2026-01-02T00:00:30Z"},
             {"started": "2026-01-02T01:00:00Z", "ended": "2026-01-02T01:01:00Z"},
@@ -88,16 +116,35 @@ def runs_dir(tmp_path: Path) -> Path:
     write_table(b / "tables" / "eval_metrics.parquet", _metrics(b.name, RMSE_B, 0))
     # an old-format eval_moments (wide, float64) in exp-a seed 0, a new one (float32, without
     # run_id) in exp-b
-    pq.write_table(pa.table({
-        "run_id": ["a-seed0"] * 2, "trajectory": ["circle"] * 2, "step": [1, 2], "t": [0.1, 0.2],
-        "arm": [0, 0], "direction": [0, 0], "rms_moment": [1.0, 2.0],
-        "max_abs_moment": [3.0, 4.0],
-        "element_torques": pa.array([[1.0, -3.0], [2.0, 4.0]], pa.list_(pa.float32())),
-    }), root / "a-seed0" / "tables" / "eval_moments.parquet")
-    pq.write_table(pa.table({
-        "trajectory": ["circle"], "step": [1], "t": [0.1], "arm": [1], "direction": [2],
-        "rms_moment": pa.array([5.5], pa.float32()),
-    }), b / "tables" / "eval_moments.parquet")
+    pq.write_table(
+        pa.table(
+            {
+                "run_id": ["a-seed0"] * 2,
+                "trajectory": ["circle"] * 2,
+                "step": [1, 2],
+                "t": [0.1, 0.2],
+                "arm": [0, 0],
+                "direction": [0, 0],
+                "rms_moment": [1.0, 2.0],
+                "max_abs_moment": [3.0, 4.0],
+                "element_torques": pa.array([[1.0, -3.0], [2.0, 4.0]], pa.list_(pa.float32())),
+            }
+        ),
+        root / "a-seed0" / "tables" / "eval_moments.parquet",
+    )
+    pq.write_table(
+        pa.table(
+            {
+                "trajectory": ["circle"],
+                "step": [1],
+                "t": [0.1],
+                "arm": [1],
+                "direction": [2],
+                "rms_moment": pa.array([5.5], pa.float32()),
+            }
+        ),
+        b / "tables" / "eval_moments.parquet",
+    )
     # leftovers that must be ignored: a writer's temporary file, an aborted run creation
     (b / "tables" / ".eval_metrics.tmp-0123abcd.parquet").write_bytes(b"partial")
     (b / "tables" / ".ghost.tmp-0123abcd.parquet").write_bytes(b"partial")
@@ -110,11 +157,31 @@ def test_views_and_their_columns(runs_dir: Path) -> None:
     assert list(views) == ["runs", "experiments", "eval_metrics", "eval_moments", "train_episodes"]
     assert views["eval_metrics"].runs == 4 and views["eval_moments"].runs == 2
     assert [c for c, _ in views["eval_metrics"].columns] == [
-        "run_id", "trajectory", "arm", "rmse_3d"]
+        "run_id",
+        "trajectory",
+        "arm",
+        "rmse_3d",
+    ]
     runs_columns = [c for c, _ in views["runs"].columns]
-    for column in ("run_id", "dir", "name", "algo", "controller", "seed", "status",
-                   "total_timesteps", "global_step", "steps_per_second", "spec_hash",
-                   "git_commit", "created", "started", "ended", "host", "train_seconds"):
+    for column in (
+        "run_id",
+        "dir",
+        "name",
+        "algo",
+        "controller",
+        "seed",
+        "status",
+        "total_timesteps",
+        "global_step",
+        "steps_per_second",
+        "spec_hash",
+        "git_commit",
+        "created",
+        "started",
+        "ended",
+        "host",
+        "train_seconds",
+    ):
         assert column in runs_columns
     con = connect(runs_dir)
     assert con.execute("SELECT count(*) FROM runs").fetchone() == (4,)
@@ -159,7 +226,8 @@ def test_seed_mean_per_experiment_trajectory_and_arm(runs_dir: Path) -> None:
 def test_run_id_comes_from_run_json(runs_dir: Path) -> None:
     ids = query("SELECT DISTINCT run_id FROM eval_metrics ORDER BY 1", runs_dir)["run_id"]
     assert list(ids) == [f"01AAAAAAAAAAAAAAAAAAAAAAA{k}" for k in range(3)] + [
-        "01BBBBBBBBBBBBBBBBBBBBBBB0"]
+        "01BBBBBBBBBBBBBBBBBBBBBBB0"
+    ]
     # the new eval_moments file has no run_id column: it still gets its run's id
     df = query("SELECT run_id, rms_moment FROM eval_moments WHERE arm = 1", runs_dir)
     assert list(df["run_id"]) == ["01BBBBBBBBBBBBBBBBBBBBBBB0"]
@@ -167,28 +235,43 @@ def test_run_id_comes_from_run_json(runs_dir: Path) -> None:
 
 def test_union_by_name_across_schemas(runs_dir: Path) -> None:
     moments = query("SELECT * FROM eval_moments ORDER BY arm, step", runs_dir)
-    assert list(moments.columns) == ["run_id", "trajectory", "step", "t", "arm", "direction",
-                                     "rms_moment", "max_abs_moment", "element_torques"]
+    assert list(moments.columns) == [
+        "run_id",
+        "trajectory",
+        "step",
+        "t",
+        "arm",
+        "direction",
+        "rms_moment",
+        "max_abs_moment",
+        "element_torques",
+    ]
     assert list(moments["rms_moment"]) == [1.0, 2.0, 5.5]
     assert moments["max_abs_moment"].isna().tolist() == [False, False, True]
     episodes = query(
         "SELECT run_id, count(*) AS n, count(arm) AS with_arm, sum(return) AS total "
-        "FROM train_episodes GROUP BY run_id ORDER BY run_id", runs_dir,
+        "FROM train_episodes GROUP BY run_id ORDER BY run_id",
+        runs_dir,
     )
     assert list(episodes["n"]) == [3, 3, 3] and list(episodes["with_arm"]) == [0, 0, 3]
     assert list(episodes["total"]) == [6.0, 9.0, 12.0]
 
 
 def test_cli_formats(runs_dir: Path) -> None:
-    sql = ("SELECT name, trajectory, arm, avg(rmse_3d) AS rmse FROM eval_metrics "
-           "JOIN runs USING (run_id) WHERE trajectory = 'circle' GROUP BY ALL ORDER BY ALL")
+    sql = (
+        "SELECT name, trajectory, arm, avg(rmse_3d) AS rmse FROM eval_metrics "
+        "JOIN runs USING (run_id) WHERE trajectory = 'circle' GROUP BY ALL ORDER BY ALL"
+    )
     base = ["query", sql, "--runs-dir", str(runs_dir)]
 
     result = runner.invoke(app, [*base, "--format", "csv"])
     assert result.exit_code == 0, result.output
     assert result.stdout.splitlines() == [
-        "name,trajectory,arm,rmse", "exp-a,circle,0,0.3", "exp-a,circle,1,0.5",
-        "exp-b,circle,0,0.4", "exp-b,circle,1,0.5",
+        "name,trajectory,arm,rmse",
+        "exp-a,circle,0,0.3",
+        "exp-a,circle,1,0.5",
+        "exp-b,circle,0,0.4",
+        "exp-b,circle,1,0.5",
     ]
 
     result = runner.invoke(app, [*base, "--format", "json"])
@@ -252,8 +335,9 @@ def test_missing_and_empty_runs_dir(tmp_path: Path) -> None:
 def test_corrupt_parquet_file(runs_dir: Path) -> None:
     bad = runs_dir / "a-seed1" / "tables" / "train_episodes.parquet"
     bad.write_bytes(b"not parquet at all")
-    result = runner.invoke(app, ["query", "SELECT count(*) FROM train_episodes",
-                                 "--runs-dir", str(runs_dir)])
+    result = runner.invoke(
+        app, ["query", "SELECT count(*) FROM train_episodes", "--runs-dir", str(runs_dir)]
+    )
     assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
     assert str(bad) in result.stderr and "not readable Parquet" in result.stderr
     # the other views still work

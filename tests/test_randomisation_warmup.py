@@ -20,8 +20,12 @@ from softtrack.rl.callbacks import RandomisationWarmup
 from softtrack.spec import SpecError, parse_spec, spec_hash
 from softtrack.spec.api import _FIELDS_ADDED_LATER
 
-RANGES = {"youngs_modulus_scale": [0.6, 1.3], "damping_scale": [0.8, 1.25],
-          "torque_scale_factor": [0.85, 1.15], "density_scale": 1.1}
+RANGES = {
+    "youngs_modulus_scale": [0.6, 1.3],
+    "damping_scale": [0.8, 1.25],
+    "torque_scale_factor": [0.85, 1.15],
+    "density_scale": 1.1,
+}
 NOISE = {"obs_noise_node_position": 0.005, "obs_noise_speed": 0.02}
 DR = {**RANGES, **NOISE, "action_delay": 1, "action_delay_max": 5}
 
@@ -38,8 +42,9 @@ def test_strength_narrows_the_ranges_towards_one_with_the_same_draws() -> None:
     f = full.engine.factors
     assert np.all((f[:, 0] >= 0.6) & (f[:, 0] <= 1.3)) and len(set(f[:, 0].tolist())) == 8
     ranged = [0, 3, 4]  # E, damping, actuator gain
-    np.testing.assert_allclose(quarter.engine.factors[:, ranged], 1 + 0.25 * (f[:, ranged] - 1),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        quarter.engine.factors[:, ranged], 1 + 0.25 * (f[:, ranged] - 1), rtol=1e-12
+    )
     np.testing.assert_array_equal(none.engine.factors[:, ranged], 1.0)
     for core in (full, quarter, none):  # a fixed factor is the plant: never ramped
         np.testing.assert_array_equal(core.engine.factors[:, 1], 1.1)
@@ -79,8 +84,13 @@ class _Recorder(BaseCallback):
         self.rows: list[tuple[int, float, int]] = []
 
     def _on_step(self) -> bool:
-        self.rows.append((self.num_timesteps, self.core.realism.strength,
-                          int(self.core.realism.action_delays.max())))
+        self.rows.append(
+            (
+                self.num_timesteps,
+                self.core.realism.strength,
+                int(self.core.realism.action_delays.max()),
+            )
+        )
         return True
 
 
@@ -105,36 +115,44 @@ def test_warmup_ramps_the_training_environments_through_their_wrappers() -> None
 
 
 def test_warmup_needs_realism_and_a_positive_length() -> None:
-    with pytest.raises(ValueError, match="needs env.realism"):
+    with pytest.raises(ValueError, match=r"needs env.realism"):
         RandomisationWarmup(10, VecMonitor(TrackingVecEnv(1, make_config())))
     with pytest.raises(ValueError, match="must be > 0"):
         RandomisationWarmup(0, TrackingVecEnv(1, make_config(realism=DR)))
 
 
 def _spec(realism: dict | None = None, **training: object) -> dict:
-    return {"env": {"realism": realism or {"youngs_modulus_scale": [0.7, 1.3]}},
-            "algo": {"learning_starts": 100},
-            "training": {"total_timesteps": 1000, **training}}
+    return {
+        "env": {"realism": realism or {"youngs_modulus_scale": [0.7, 1.3]}},
+        "algo": {"learning_starts": 100},
+        "training": {"total_timesteps": 1000, **training},
+    }
 
 
 def test_spec_field_is_hash_neutral_off_and_checked_on() -> None:
     assert _FIELDS_ADDED_LATER[("training", "randomisation_warmup_steps")] == 0
-    assert spec_hash(parse_spec(_spec())) == spec_hash(parse_spec(_spec(
-        randomisation_warmup_steps=0)))
+    assert spec_hash(parse_spec(_spec())) == spec_hash(
+        parse_spec(_spec(randomisation_warmup_steps=0))
+    )
     assert spec_hash(parse_spec(_spec(randomisation_warmup_steps=500))) != spec_hash(
-        parse_spec(_spec()))
+        parse_spec(_spec())
+    )
     with pytest.raises(SpecError, match="randomisation_warmup_steps 2000 > total_timesteps"):
         parse_spec(_spec(randomisation_warmup_steps=2000))
     fixed_only = {"action_delay": 2, "action_delay_max": 2, "youngs_modulus_scale": 0.7}
     with pytest.raises(SpecError, match="has none"):
         parse_spec(_spec(fixed_only, randomisation_warmup_steps=10))
-    for random in ({"obs_noise_direction": 0.01}, {"obs_drop_probability": 0.1},
-                   {"action_delay_max": 1}):
+    for random in (
+        {"obs_noise_direction": 0.01},
+        {"obs_drop_probability": 0.1},
+        {"action_delay_max": 1},
+    ):
         parse_spec(_spec(random, randomisation_warmup_steps=10))
 
 
 def test_training_a_spec_with_a_warmup_ramps_its_environments(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
 
     made: list[RandomisationWarmup] = []
 
@@ -150,13 +168,26 @@ def test_training_a_spec_with_a_warmup_ramps_its_environments(
             return result
 
     monkeypatch.setattr(policy_training, "RandomisationWarmup", Recorded)
-    spec = {"name": "tiny-warmup", "seeds": [0],
-            "env": {"episode_duration": 0.1, "realism": {"youngs_modulus_scale": [0.9, 1.1]}},
-            "algo": {"name": "td3", "backend": "sb3", "device": "cpu", "batch_size": 16,
-                     "learning_starts": 50, "buffer_size": 5000,
-                     "policy_kwargs": {"net_arch": [16, 16]}},
-            "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 0,
-                         "randomisation_warmup_steps": 200}}
+    spec = {
+        "name": "tiny-warmup",
+        "seeds": [0],
+        "env": {"episode_duration": 0.1, "realism": {"youngs_modulus_scale": [0.9, 1.1]}},
+        "algo": {
+            "name": "td3",
+            "backend": "sb3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 400,
+            "n_envs": 2,
+            "checkpoint_interval": 0,
+            "randomisation_warmup_steps": 200,
+        },
+    }
     path = tmp_path / "warmup.yaml"
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
     [outcome] = api.train(path, runs_dir=tmp_path / "runs", show_progress=False)

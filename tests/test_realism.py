@@ -68,8 +68,19 @@ def _core(realism: dict | None = None, n_envs: int = 1, seed: int = 3, **kwargs)
 def test_off_is_bit_identical_and_builds_no_model(target: str) -> None:
     actions = _actions(40, 24, scale=1.2)  # some clipped
     defaults = {name: getattr(RealismConfig(), name) for name in OBSERVATION_GROUPS.values()}
-    spec = parse_spec({"env": {"target": {"name": target}, "realism": {
-        "obs_delay": 0, "action_delay": 0, "torque_limit": None, "obs_stuck_steps": 1}}})
+    spec = parse_spec(
+        {
+            "env": {
+                "target": {"name": target},
+                "realism": {
+                    "obs_delay": 0,
+                    "action_delay": 0,
+                    "torque_limit": None,
+                    "obs_stuck_steps": 1,
+                },
+            }
+        }
+    )
     envs = [
         DualArmTrackingEnv(target=target),
         DualArmTrackingEnv(target=target, realism=RealismConfig()),
@@ -95,16 +106,18 @@ def test_off_matches_the_plain_pipeline() -> None:
     engine = RodBatch(1, config.sim)
     targets = BatchedTargets(config.target, 1)
     targets.reset(np.array([0]), [np.random.default_rng(4)])
-    expected = build_observation(engine.position, engine.tip_velocity, targets.position,
-                                 targets.velocity)
+    expected = build_observation(
+        engine.position, engine.tip_velocity, targets.position, targets.velocity
+    )
     np.testing.assert_array_equal(obs, expected)
     for action in _actions(20, 24, scale=1.3):
         result = core.step(action[None])
         engine.set_actions(np.clip(action, -1, 1).reshape(1, 2, 2, 6))
         engine.advance()
         targets.step(CONTROL_DT)
-        expected = build_observation(engine.position, engine.tip_velocity, targets.position,
-                                     targets.velocity)
+        expected = build_observation(
+            engine.position, engine.tip_velocity, targets.position, targets.velocity
+        )
         np.testing.assert_array_equal(result.observation, expected)
         np.testing.assert_array_equal(core.engine.torques, engine.torques)
 
@@ -113,8 +126,7 @@ def test_every_realism_field_is_a_later_field_at_its_default() -> None:
     for name, field in RealismSpec.model_fields.items():
         assert _FIELDS_ADDED_LATER[("env", "realism", name)] == field.default, name
     assert _FIELDS_ADDED_LATER[("env", "realism")] == {}
-    assert [f for f in RealismSpec.model_fields] == [
-        f for f in RealismConfig.__dataclass_fields__]
+    assert [f for f in RealismSpec.model_fields] == [f for f in RealismConfig.__dataclass_fields__]
     assert RealismConfig(**RealismSpec().realism_kwargs()) == RealismConfig()
 
 
@@ -172,8 +184,10 @@ def test_noise_std_per_group() -> None:
 def test_noise_leaves_the_dynamics_and_target_stream_alone() -> None:
     actions = _actions(30, 24)
     plain = _trace(DualArmTrackingEnv(), actions)
-    noisy = _trace(DualArmTrackingEnv(realism={"obs_noise_node_position": 0.01,
-                                               "obs_drop_probability": 0.1}), actions)
+    noisy = _trace(
+        DualArmTrackingEnv(realism={"obs_noise_node_position": 0.01, "obs_drop_probability": 0.1}),
+        actions,
+    )
     # item 0 is the observation; then, per step: observation, reward, flags, info values
     per_step = 4 + 5
     assert not np.array_equal(noisy[0], plain[0])
@@ -274,8 +288,11 @@ def test_action_delay_max_below_the_delay_is_an_error() -> None:
 def _applied_controls(torques: np.ndarray) -> np.ndarray:
     """(…, A, 2, N) element torques → (…, A, 2, 6) control values (least squares; exact)."""
     b = 75.0 * spline_matrix(20)
-    return np.linalg.lstsq(b, np.moveaxis(torques, -1, 0).reshape(20, -1), rcond=None)[0] \
-        .reshape((6, *torques.shape[:-1])).transpose(*range(1, torques.ndim), 0)
+    return (
+        np.linalg.lstsq(b, np.moveaxis(torques, -1, 0).reshape(20, -1), rcond=None)[0]
+        .reshape((6, *torques.shape[:-1]))
+        .transpose(*range(1, torques.ndim), 0)
+    )
 
 
 def test_first_order_lag_step_response() -> None:
@@ -293,8 +310,9 @@ def test_rate_limit_caps_the_change_exactly() -> None:
     rate = 40.0  # control units/s: 0.08 per control step
     limit = rate * CONTROL_DT
     model = RealismModel(RealismConfig(action_rate_limit=rate), 2, 2, 21, CONTROL_DT)
-    model.reset([0, 1], [np.random.default_rng(0), np.random.default_rng(1)],
-                np.zeros((2, 81), np.float32))
+    model.reset(
+        [0, 1], [np.random.default_rng(0), np.random.default_rng(1)], np.zeros((2, 81), np.float32)
+    )
     previous = np.zeros((2, 24))
     limited = free = 0
     for command in np.clip(_actions(200, 48, scale=1.3).reshape(200, 2, 24), -1, 1):
@@ -303,8 +321,7 @@ def test_rate_limit_caps_the_change_exactly() -> None:
         assert np.all(np.abs(change) <= limit * (1 + 1e-12))
         capped = np.abs(command - previous) > limit
         np.testing.assert_allclose(np.abs(change[capped]), limit, rtol=1e-12)
-        np.testing.assert_allclose(np.sign(change[capped]),
-                                   np.sign((command - previous)[capped]))
+        np.testing.assert_allclose(np.sign(change[capped]), np.sign((command - previous)[capped]))
         np.testing.assert_array_equal(applied[~capped], command[~capped])
         limited += int(capped.sum())
         free += int((~capped).sum())
@@ -318,8 +335,9 @@ def test_rate_limit_caps_the_change_exactly() -> None:
     for action in _actions(10, 24, scale=1.0):
         *_, info = env.step(action)
         expected = replay.filter_actions(action[None]).reshape(2, 2, 6)
-        np.testing.assert_allclose(_applied_controls(info["element_torques"]), expected,
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            _applied_controls(info["element_torques"]), expected, rtol=0, atol=1e-12
+        )
 
 
 def test_torque_saturation_caps_each_element_torque_exactly() -> None:
@@ -341,18 +359,30 @@ def test_torque_saturation_caps_each_element_torque_exactly() -> None:
         plain.core.engine.torques[0] = unsaturated
     assert reached > 0
     # the evaluation episodes record the saturated torques
-    episode = run_episode(lambda obs: np.ones(24), make_config(realism={"torque_limit": limit}),
-                          "circle", duration=0.02)
+    episode = run_episode(
+        lambda obs: np.ones(24),
+        make_config(realism={"torque_limit": limit}),
+        "circle",
+        duration=0.02,
+    )
     assert np.abs(episode.element_torques).max() == limit
 
 
 # ---- reproducibility ---------------------------------------------------------------------------
 
 ALL_ON = {
-    "obs_noise_node_position": 0.005, "obs_noise_target_position": 0.01,
-    "obs_noise_speed": 0.02, "obs_noise_direction": 0.05, "obs_drop_probability": 0.05,
-    "obs_stuck_probability": 0.05, "obs_stuck_steps": 2, "obs_delay": 1, "action_delay": 1,
-    "actuator_time_constant": 0.02, "action_rate_limit": 100.0, "torque_limit": 50.0,
+    "obs_noise_node_position": 0.005,
+    "obs_noise_target_position": 0.01,
+    "obs_noise_speed": 0.02,
+    "obs_noise_direction": 0.05,
+    "obs_drop_probability": 0.05,
+    "obs_stuck_probability": 0.05,
+    "obs_stuck_steps": 2,
+    "obs_delay": 1,
+    "action_delay": 1,
+    "actuator_time_constant": 0.02,
+    "action_rate_limit": 100.0,
+    "torque_limit": 50.0,
 }
 
 
@@ -363,8 +393,10 @@ def test_same_seed_same_episode_different_seed_different() -> None:
     other = _trace(DualArmTrackingEnv(realism=ALL_ON), actions, seed=8)
     assert not np.array_equal(other[-9], first[-9])
     # single-arm scene too
-    single = [_trace(SingleArmTrackingEnv(arm=1, realism=ALL_ON), actions[:, :12], seed=2)
-              for _ in range(2)]
+    single = [
+        _trace(SingleArmTrackingEnv(arm=1, realism=ALL_ON), actions[:, :12], seed=2)
+        for _ in range(2)
+    ]
     _same(*single)
 
 
@@ -381,8 +413,9 @@ def test_vec_env_matches_single_envs_with_realism() -> None:
         for action in actions:
             obs, reward, done, infos = venv.step(action)
             out += [obs, reward, done]
-            out += [info["terminal_observation"] for info in infos
-                    if "terminal_observation" in info]
+            out += [
+                info["terminal_observation"] for info in infos if "terminal_observation" in info
+            ]
         results.append(out)
     _same(*results)
 
@@ -401,18 +434,21 @@ def test_evaluation_episode_is_reproducible_with_realism() -> None:
 # ---- bad values --------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("field", "value", "fix"), [
-    ("obs_noise_node_position", -0.01, "≥ 0"),
-    ("obs_noise_direction", -1.0, "≥ 0"),
-    ("obs_drop_probability", 1.0, "< 1"),
-    ("obs_stuck_probability", -0.1, "≥ 0"),
-    ("obs_stuck_steps", 0, "≥ 1"),
-    ("obs_delay", -1, "≥ 0"),
-    ("action_delay", -2, "≥ 0"),
-    ("actuator_time_constant", 0.0, "> 0"),
-    ("action_rate_limit", -5.0, "> 0"),
-    ("torque_limit", 0.0, "> 0"),
-])
+@pytest.mark.parametrize(
+    ("field", "value", "fix"),
+    [
+        ("obs_noise_node_position", -0.01, "≥ 0"),
+        ("obs_noise_direction", -1.0, "≥ 0"),
+        ("obs_drop_probability", 1.0, "< 1"),
+        ("obs_stuck_probability", -0.1, "≥ 0"),
+        ("obs_stuck_steps", 0, "≥ 1"),
+        ("obs_delay", -1, "≥ 0"),
+        ("action_delay", -2, "≥ 0"),
+        ("actuator_time_constant", 0.0, "> 0"),
+        ("action_rate_limit", -5.0, "> 0"),
+        ("torque_limit", 0.0, "> 0"),
+    ],
+)
 def test_bad_values_are_spec_errors_and_config_errors(field: str, value: float, fix: str) -> None:
     with pytest.raises(SpecError) as info:
         parse_spec({"env": {"realism": {field: value}}})

@@ -154,11 +154,11 @@ def test_select_by_name_id_prefix_and_spec(store: RunStore, tmp_path: Path) -> N
 def test_empty_selection_is_a_clear_error(store: RunStore, tmp_path: Path) -> None:
     with pytest.raises(EmptySelectionError, match="nothing to report"):
         select_report_runs(store, [])
-    with pytest.raises(EmptySelectionError, match="neither an experiment name.*known: ddpg"):
+    with pytest.raises(EmptySelectionError, match=r"neither an experiment name.*known: ddpg"):
         select_report_runs(store, ["sac-nonexistent"])
     other = tmp_path / "other.yaml"
     other.write_text("name: other\n")
-    with pytest.raises(EmptySelectionError, match="no run .* has this spec"):
+    with pytest.raises(EmptySelectionError, match=r"no run .* has this spec"):
         select_report_runs(store, [str(other)])
     with pytest.raises(EmptySelectionError, match="no runs"):
         build_report([], tmp_path / "out", COMMAND)
@@ -173,7 +173,7 @@ def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
     table = final_stage_table(groups)
     td3 = table[table["group"] == "TD3"].iloc[0]
     per_run = [final_stage_return(r.record)[0] for r in groups[0].runs]
-    assert td3["values"] == pytest.approx(dict(zip((0, 1), per_run)))
+    assert td3["values"] == pytest.approx(dict(zip((0, 1), per_run, strict=False)))
     assert td3["mean"] == pytest.approx(np.mean(per_run))
     assert td3["std"] == pytest.approx(np.std(per_run, ddof=1))
     independent = table[table["group"] == "TD3 (independent)"]
@@ -227,15 +227,25 @@ def test_controller_differences_match_welch_t_test_on_the_seeds() -> None:
         ("D", "circle", 0): [0.14, 0.15],
         ("D", "circle", 1): [0.13, 0.12],
     }
-    summary = pd.DataFrame([
-        {"group": g, "trajectory": t, "arm": a, "rmse_3d_mean": np.mean(v),
-         "rmse_3d_std": np.std(v, ddof=1) if len(v) > 1 else np.nan, "rmse_3d_n": len(v)}
-        for (g, t, a), v in values.items()
-    ])
+    summary = pd.DataFrame(
+        [
+            {
+                "group": g,
+                "trajectory": t,
+                "arm": a,
+                "rmse_3d_mean": np.mean(v),
+                "rmse_3d_std": np.std(v, ddof=1) if len(v) > 1 else np.nan,
+                "rmse_3d_n": len(v),
+            }
+            for (g, t, a), v in values.items()
+        ]
+    )
     groups = [
         Group(algo, controller, label, "0" * 12, label, label)
         for algo, controller, label in (
-            ("td3", "centralized", "C"), ("td3", "independent", "I"), ("ddpg", "centralized", "D")
+            ("td3", "centralized", "C"),
+            ("td3", "independent", "I"),
+            ("ddpg", "centralized", "D"),
         )
     ]
     diff = controller_differences(summary, groups)
@@ -359,8 +369,11 @@ def test_policy_actions_table(report: Path) -> None:
     assert "| TD3 (independent) | rectangle | arm 2 | 100.0 | 2.000 | 1.000 | 1 of 1 |" in actions
     # smoothness and safety: arm 1's constant torques do not change, arm 2's flip at every
     # step; the arms never touch in 0.2 s, about 0.1 m apart
-    cells = [[c.strip() for c in r.strip("|").split("|")]
-             for r in body if r.startswith("| TD3 | circle |")]
+    cells = [
+        [c.strip() for c in r.strip("|").split("|")]
+        for r in body
+        if r.startswith("| TD3 | circle |")
+    ]
     assert cells[0][7] == "0 ± 0"
     rate, peak = float(cells[1][7].split(" ± ")[0]), float(cells[1][8].split(" ± ")[0])
     assert 1e4 < rate <= 2 * peak / 0.002 * 1.001  # 2·RMS of |τ| over the elements, per 2 ms
@@ -398,7 +411,9 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["action_saturation_n"] == 1).all() and (summary["rmse_3d_n"] == 2).all()
-    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    index = build_report(
+        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
+    )
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert any(
@@ -410,7 +425,9 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     record = select_report_runs(store, ["td3"])[1]
     path = record.table_path("eval_metrics")
     write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
-    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
+    index = build_report(
+        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
+    )
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
@@ -428,8 +445,9 @@ def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
     groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["torque_rate_rms_n"] == 1).all() and (summary["action_rms_n"] == 2).all()
-    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out",
-                         "softtrack report td3")
+    index = build_report(
+        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
+    )
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     row = next(r for r in rows if r.startswith("| TD3 | circle | arm 2 |"))
@@ -441,8 +459,9 @@ def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
     record = select_report_runs(store, ["td3"])[1]
     path = record.table_path("eval_metrics")
     write_table(path, read_table(path).drop(columns=new_columns))
-    index = build_report(select_report_runs(store, ["td3"]), tmp_path / "out",
-                         "softtrack report td3")
+    index = build_report(
+        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
+    )
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
@@ -493,14 +512,14 @@ def test_provenance_names_every_commit_a_resumed_run_trained_on(tmp_path: Path) 
     assert commit_text(SimpleNamespace(record=store.get_run(run_id))) == "unknown"
 
 
-def test_provenance_names_the_runs_a_derived_run_came_from(
-    store: RunStore, tmp_path: Path
-) -> None:
-    derived = store.create_run(_spec("derived"), 0, notes={
-        "derived_from": {"run_id": "01ABC", "name": "base-experiment"}})
+def test_provenance_names_the_runs_a_derived_run_came_from(store: RunStore, tmp_path: Path) -> None:
+    derived = store.create_run(
+        _spec("derived"), 0, notes={"derived_from": {"run_id": "01ABC", "name": "base-experiment"}}
+    )
     try:
         md = build_report([derived], tmp_path / "derived", "softtrack report derived").read_text(
-            encoding="utf-8")
+            encoding="utf-8"
+        )
         assert "derived from the runs of `base-experiment` (the same training" in md
     finally:
         shutil.rmtree(derived.path)
@@ -620,8 +639,14 @@ def test_moment_peaks_read_the_old_and_the_new_table_format(tmp_path: Path) -> N
 # ---- training curves of runs of different lengths -------------------------------------------
 def _episode_rows(record: RunRecord, n: int, spacing: int, episode_return: float) -> list[dict]:
     return [
-        {"run_id": record.run_id, "episode": i, "global_step": spacing * (i + 1),
-         "return": episode_return, "length": spacing, "wall_time": 0.1 * i}
+        {
+            "run_id": record.run_id,
+            "episode": i,
+            "global_step": spacing * (i + 1),
+            "return": episode_return,
+            "length": spacing,
+            "wall_time": 0.1 * i,
+        }
         for i in range(n)
     ]
 
@@ -635,11 +660,20 @@ def test_training_curves_scale_with_each_run_and_compare_returns_per_second(
     from softtrack.report import figures as fg
 
     store = RunStore(tmp_path / "runs")
-    short = store.create_run(parse_spec({"name": "short", "env": {"episode_duration": 2.0},
-                                         "algo": {"learning_starts": 100},
-                                         "training": {"total_timesteps": 10_000}}), 0)
-    long = store.create_run(parse_spec({"name": "long",
-                                        "training": {"total_timesteps": 1_000_000}}), 0)
+    short = store.create_run(
+        parse_spec(
+            {
+                "name": "short",
+                "env": {"episode_duration": 2.0},
+                "algo": {"learning_starts": 100},
+                "training": {"total_timesteps": 10_000},
+            }
+        ),
+        0,
+    )
+    long = store.create_run(
+        parse_spec({"name": "long", "training": {"total_timesteps": 1_000_000}}), 0
+    )
     write_table(short.table_path("train_episodes"), _episode_rows(short, 1000, 10, -400.0))
     write_table(long.table_path("train_episodes"), _episode_rows(long, 1000, 1000, 15000.0))
     groups = group_runs(load_runs([short, long]))
@@ -668,32 +702,55 @@ def test_featured_groups_are_the_study_protocol_the_best_and_the_independent(
     store = RunStore(tmp_path / "runs")
     budgets = {"study": 10_000_000, "good": 4_000_000, "bad": 4_000_000, "ddpg": 1_000_000}
     records = [
-        store.create_run(parse_spec({"name": name,
-                                     "algo": {"name": "ddpg" if name == "ddpg" else "td3",
-                                              "learning_starts": 100},
-                                     "training": {"total_timesteps": budget}}), 0)
+        store.create_run(
+            parse_spec(
+                {
+                    "name": name,
+                    "algo": {"name": "ddpg" if name == "ddpg" else "td3", "learning_starts": 100},
+                    "training": {"total_timesteps": budget},
+                }
+            ),
+            0,
+        )
         for name, budget in budgets.items()
     ]
-    records += [store.create_run(parse_spec({"name": name, "controller": "independent",
-                                             "training": {"total_timesteps": 2_000_000}}), 0)
-                for name in ("ind-a", "ind-b")]
+    records += [
+        store.create_run(
+            parse_spec(
+                {
+                    "name": name,
+                    "controller": "independent",
+                    "training": {"total_timesteps": 2_000_000},
+                }
+            ),
+            0,
+        )
+        for name in ("ind-a", "ind-b")
+    ]
     groups = group_runs(load_runs(records))
     label = {g.name: g.label for g in groups}
     rmse = {"study": 0.05, "good": 0.03, "bad": 0.09, "ddpg": 0.2, "ind-a": 0.06, "ind-b": 0.04}
-    summary = pd.DataFrame([
-        {"group": label[name], "trajectory": t, "arm": arm, "rmse_3d_mean": value}
-        for name, value in rmse.items() for t in EVAL_TRAJECTORIES for arm in (0, 1)
-    ])
+    summary = pd.DataFrame(
+        [
+            {"group": label[name], "trajectory": t, "arm": arm, "rmse_3d_mean": value}
+            for name, value in rmse.items()
+            for t in EVAL_TRAJECTORIES
+            for arm in (0, 1)
+        ]
+    )
     featured = featured_groups(groups, summary)
     assert [(f.group.name, f.role) for f in featured] == [
-        ("study", "study protocol"), ("good", "best centralized"), ("ind-b", "best independent")
+        ("study", "study protocol"),
+        ("good", "best centralized"),
+        ("ind-b", "best independent"),
     ]
     assert featured[0].title == f"{label['study']} (study protocol)"
     # the study protocol is also the best: drawn once, with both roles
     summary.loc[summary["group"] == label["study"], "rmse_3d_mean"] = 0.01
     featured = featured_groups(groups, summary)
     assert [(f.group.name, f.role) for f in featured] == [
-        ("study", "study protocol, best centralized"), ("ind-b", "best independent")
+        ("study", "study protocol, best centralized"),
+        ("ind-b", "best independent"),
     ]
     assert len(featured_groups(groups, summary, all_groups=True)) == len(groups)
     assert [f.role for f in featured_groups(groups[:3], summary)] == ["", "", ""]
@@ -709,18 +766,28 @@ def test_a_report_of_many_controllers_draws_a_few_unless_all_figures(
     index = build_report(select_report_runs(store, selection), tmp_path / "few", "x")
     figures = sorted(p.name for p in (tmp_path / "few" / "figures").iterdir())
     groups = group_runs(load_runs(select_report_runs(store, selection)))
-    best = min(("td3", "ddpg"), key=lambda slug: metrics_summary(groups).query(
-        f"group == '{slug.upper()}'")["rmse_3d_mean"].mean())  # PPO has no evaluation
-    assert figures == sorted([
-        "training_curves.png", "final_returns.png", "rmse_comparison.png",
-        *[f"{kind}_{t}.png" for kind in ("trajectory", "errors") for t in EVAL_TRAJECTORIES],
-        f"moments_{best}.png", "moments_td3-independent.png",
-    ])
+    best = min(
+        ("td3", "ddpg"),
+        key=lambda slug: (
+            metrics_summary(groups).query(f"group == '{slug.upper()}'")["rmse_3d_mean"].mean()
+        ),
+    )  # PPO has no evaluation
+    assert figures == sorted(
+        [
+            "training_curves.png",
+            "final_returns.png",
+            "rmse_comparison.png",
+            *[f"{kind}_{t}.png" for kind in ("trajectory", "errors") for t in EVAL_TRAJECTORIES],
+            f"moments_{best}.png",
+            "moments_td3-independent.png",
+        ]
+    )
     md = index.read_text(encoding="utf-8")
-    assert (f"Drawn: {best.upper()} (best centralized), TD3 (independent) (best independent)"
-            in md)
+    assert f"Drawn: {best.upper()} (best centralized), TD3 (independent) (best independent)" in md
     assert "`softtrack report … --all-figures` draws every controller" in md
-    index = build_report(select_report_runs(store, selection), tmp_path / "all", "x", all_figures=True)
+    index = build_report(
+        select_report_runs(store, selection), tmp_path / "all", "x", all_figures=True
+    )
     figures = {p.name for p in (tmp_path / "all" / "figures").iterdir()}
     for slug in ("td3", "ddpg", "td3-independent", "ppo"):
         assert f"moments_{slug}.png" in figures
@@ -749,9 +816,14 @@ def test_trajectory_figure_labels_and_ticks_do_not_overlap(
     rows = []
     for run in runs[:1] + runs[-1:]:
         traj = run.trajectories[run.trajectories["trajectory"] == "figure8"]
-        rows.append(fg.PathRow(f"TD3 [a-rather-long-experiment-name-{run.seed}] (study protocol)",
-                               traj, f"seed {run.seed}, run {run.run_id} (median 3-D RMSE of "
-                               "3 seeds)", {0: 0.055, 1: 0.051}))
+        rows.append(
+            fg.PathRow(
+                f"TD3 [a-rather-long-experiment-name-{run.seed}] (study protocol)",
+                traj,
+                f"seed {run.seed}, run {run.run_id} (median 3-D RMSE of 3 seeds)",
+                {0: 0.055, 1: 0.051},
+            )
+        )
     path = fg.trajectory_3d_figure(rows, "figure8", tmp_path / "t.png", footer="x · y · z")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     fig = drawn[-1]
@@ -791,11 +863,14 @@ def test_the_command_line_chooses_the_drawn_controllers(store: RunStore, tmp_pat
     runner = CliRunner()
     base = ["report", "td3", "ddpg", "independent-td3", "ppo", "--runs-dir", str(store.root)]
     out = tmp_path / "chosen"
-    result = runner.invoke(app, [*base, "--out", str(out), "--figures-for", "ppo",
-                                 "--figures-for", "ddpg"])
+    result = runner.invoke(
+        app, [*base, "--out", str(out), "--figures-for", "ppo", "--figures-for", "ddpg"]
+    )
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in (out / "figures").glob("moments_*")) == [
-        "moments_ddpg.png", "moments_ppo.png"]
+        "moments_ddpg.png",
+        "moments_ppo.png",
+    ]
     assert "Drawn: PPO, DDPG (chosen with `--figures-for`)" in (out / "index.md").read_text()
     out = tmp_path / "all"
     result = runner.invoke(app, [*base, "--out", str(out), "--all-figures"])

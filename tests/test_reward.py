@@ -38,17 +38,17 @@ def test_defaults_match_spec() -> None:
     "d1, d2, expected",
     [
         (0.3, 0.4, -(0.09 + 0.16)),
-        (0.10, 0.2, -(0.01 + 0.04) + 0.5),                  # at 0.10: inside (≤)
-        (0.10 + EPS, 0.2, -((0.10 + EPS) ** 2 + 0.04)),     # just outside
-        (0.2, 0.10, -(0.04 + 0.01) + 0.5),                  # either arm
-        (0.075, 0.2, -(0.075**2 + 0.04) + 1.5),             # both individual bonuses
+        (0.10, 0.2, -(0.01 + 0.04) + 0.5),  # at 0.10: inside (≤)
+        (0.10 + EPS, 0.2, -((0.10 + EPS) ** 2 + 0.04)),  # just outside
+        (0.2, 0.10, -(0.04 + 0.01) + 0.5),  # either arm
+        (0.075, 0.2, -(0.075**2 + 0.04) + 1.5),  # both individual bonuses
         (0.075 + EPS, 0.2, -((0.075 + EPS) ** 2 + 0.04) + 0.5),
         (0.09, 0.08, -(0.0081 + 0.0064) + 1.0),
         (0.06, 0.07, -(0.0036 + 0.0049) + 3.0),
-        (0.05, 0.05, -(0.0025 + 0.0025) + 3.0 + 1.5),       # cooperative: both ≤ 0.05
+        (0.05, 0.05, -(0.0025 + 0.0025) + 3.0 + 1.5),  # cooperative: both ≤ 0.05
         (0.05, 0.05 + EPS, -(0.0025 + (0.05 + EPS) ** 2) + 3.0),
-        (0.01, 0.5, -(0.0001 + 0.25) + 1.5),                # one arm close: no cooperative
-        (0.0, 0.0, 4.5),                                    # the maximum
+        (0.01, 0.5, -(0.0001 + 0.25) + 1.5),  # one arm close: no cooperative
+        (0.0, 0.0, 4.5),  # the maximum
     ],
 )
 def test_dual_arm_reward(d1: float, d2: float, expected: float) -> None:
@@ -165,7 +165,7 @@ def test_collision_penalty_bent_arm_and_batch() -> None:
     "d1, d2, expected",
     [
         (0.3, 0.4, (-0.09, -0.16)),
-        (0.09, 0.2, (-0.0081 + 0.5, -0.04)),                  # the other arm earns nothing
+        (0.09, 0.2, (-0.0081 + 0.5, -0.04)),  # the other arm earns nothing
         (0.06, 0.07, (-0.0036 + 1.5, -0.0049 + 1.5)),
         (0.05, 0.01, (-0.0025 + 1.5 + 0.75, -0.0001 + 1.5 + 0.75)),  # cooperative: half each
         (0.01, 0.5, (-0.0001 + 1.5, -0.25)),
@@ -198,8 +198,9 @@ def test_action_penalty_is_the_weighted_mean_squares() -> None:
     config = RewardConfig(action_rate_penalty=2.0, action_penalty=0.5)
     expected_rate = np.array([(1 + 0 + 0.25 + 0) / 4, 1.0])
     expected_size = np.array([(1 + 1 + 0.25 + 0) / 4, 0.0])
-    np.testing.assert_allclose(action_penalty(actions, previous, config),
-                               -2.0 * expected_rate - 0.5 * expected_size)
+    np.testing.assert_allclose(
+        action_penalty(actions, previous, config), -2.0 * expected_rate - 0.5 * expected_size
+    )
     assert not RewardConfig().penalises_actions
     np.testing.assert_array_equal(action_penalty(actions, previous, RewardConfig()), 0.0)
 
@@ -209,8 +210,9 @@ def test_the_env_subtracts_the_action_penalties_from_the_step_after_reset() -> N
     from softtrack.env.core import TrackingCore
 
     plain = TrackingCore(1, make_config(target="circle"))
-    smooth = TrackingCore(1, make_config(target="circle", action_rate_penalty=1.0,
-                                         action_penalty=0.25))
+    smooth = TrackingCore(
+        1, make_config(target="circle", action_rate_penalty=1.0, action_penalty=0.25)
+    )
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.5, 1.5, (4, 1, 24))
     for core in (plain, smooth):
@@ -218,13 +220,18 @@ def test_the_env_subtracts_the_action_penalties_from_the_step_after_reset() -> N
     previous = np.zeros((1, 24))
     for action in actions:
         clipped = np.clip(action, -1, 1)
-        want = (plain.step(action).reward
-                - np.mean((clipped - previous) ** 2) - 0.25 * np.mean(clipped ** 2))
+        want = (
+            plain.step(action).reward
+            - np.mean((clipped - previous) ** 2)
+            - 0.25 * np.mean(clipped**2)
+        )
         np.testing.assert_allclose(smooth.step(action).reward, want, rtol=1e-12)
         previous = clipped
     smooth.reset([0], [np.random.default_rng(1)])
     plain.reset([0], [np.random.default_rng(1)])
     clipped = np.clip(actions[0], -1, 1)
-    np.testing.assert_allclose(smooth.step(actions[0]).reward,
-                               plain.step(actions[0]).reward - 1.25 * np.mean(clipped ** 2),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        smooth.step(actions[0]).reward,
+        plain.step(actions[0]).reward - 1.25 * np.mean(clipped**2),
+        rtol=1e-12,
+    )

@@ -240,14 +240,23 @@ ERROR_CASES = {
     "model-error-unstable": (
         "env:\n  realism:\n    youngs_modulus_scale: [0.8, 2.0]\n",
         [],
-        [":3:", "env.realism.youngs_modulus_scale", "up to 2 needs dt ≤",
-         "lower env.physics.dt to", "or narrow the range"],
+        [
+            ":3:",
+            "env.realism.youngs_modulus_scale",
+            "up to 2 needs dt ≤",
+            "lower env.physics.dt to",
+            "or narrow the range",
+        ],
     ),
     "model-error-unstable-override": (
         "{}\n",
         ["env.realism.radius_scale=[0.8, 1.2]"],
-        ["--set env.realism.radius_scale", "env.realism.radius_scale", "down to 0.8 needs dt",
-         "or narrow the range"],
+        [
+            "--set env.realism.radius_scale",
+            "env.realism.radius_scale",
+            "down to 0.8 needs dt",
+            "or narrow the range",
+        ],
     ),
     "bool-as-number": ("training: {n_envs: yes}\n", [], ["training.n_envs", "expected a number"]),
     "per-arm-critic-sb3": (
@@ -464,7 +473,7 @@ def test_overrides(tmp_path: Path) -> None:
 
 
 def test_override_into_scalar_is_an_error(tmp_path: Path) -> None:
-    with pytest.raises(SpecError, match="seeds.*no sub-fields"):
+    with pytest.raises(SpecError, match=r"seeds.*no sub-fields"):
         load_spec(write(tmp_path, "{}\n"), ["seeds.first=1"])
 
 
@@ -679,8 +688,11 @@ def test_base_chain_deep_merges(tmp_path: Path) -> None:
         {
             "name": "leaf",
             "seeds": [0],
-            "algo": {"name": "td3", "gradient_steps": 1,
-                     "policy_kwargs": {"net_arch": [128, 128], "activation_fn": "relu"}},
+            "algo": {
+                "name": "td3",
+                "gradient_steps": 1,
+                "policy_kwargs": {"net_arch": [128, 128], "activation_fn": "relu"},
+            },
             "training": {"total_timesteps": 200_000, "checkpoint_interval": 50_000},
         }
     )
@@ -693,40 +705,81 @@ def test_base_overrides_apply_after_the_chain(tmp_path: Path) -> None:
     assert spec.training.total_timesteps == 300_000 and spec.algo.policy_kwargs.net_arch == [32]
 
 
-def test_base_relative_to_the_file_not_the_cwd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-                                               ) -> None:
+def test_base_relative_to_the_file_not_the_cwd(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     _, _, leaf = _chain(tmp_path)
     monkeypatch.chdir(tmp_path / "study")
-    assert load_spec(Path("..") / "variants" / "leaf.yaml").algo.policy_kwargs.net_arch == [128, 128]
+    assert load_spec(Path("..") / "variants" / "leaf.yaml").algo.policy_kwargs.net_arch == [
+        128,
+        128,
+    ]
     assert load_spec(leaf).name == "leaf"
 
 
 BASE_ERRORS = {
     # name: (leaf text, mid text or None (keep), fragments, (file, line) of the error)
-    "missing": ("base: nowhere.yaml\n", None, ["base:", "'nowhere.yaml'", "no such file",
-                                                "relative to this file's directory"],
-                ("variants/leaf.yaml", 1)),
+    "missing": (
+        "base: nowhere.yaml\n",
+        None,
+        ["base:", "'nowhere.yaml'", "no such file", "relative to this file's directory"],
+        ("variants/leaf.yaml", 1),
+    ),
     "directory": ("base: ../study\n", None, ["base:", "is a directory"], ("variants/leaf.yaml", 1)),
-    "not-a-path": ("base: [mid.yaml]\n", None, ["base:", "expected the path of another spec file"],
-                   ("variants/leaf.yaml", 1)),
-    "cycle": ("base: mid.yaml\n", "base: leaf.yaml\n", ["base:", "closes a cycle",
-                                                        "leaf.yaml → ", "remove base:"],
-              ("variants/mid.yaml", 1)),
-    "self": ("name: x\nbase: leaf.yaml\n", None, ["base:", "closes a cycle"],
-             ("variants/leaf.yaml", 2)),
-    "base-not-mapping": ("base: mid.yaml\n", "- 1\n- 2\n", ["top level must be a mapping",
-                                                           "got a list", "the base of"],
-                         ("variants/mid.yaml", 1)),
-    "base-empty": ("base: mid.yaml\n", "# nothing\n", ["top level must be a mapping",
-                                                      "empty document"], ("variants/mid.yaml", None)),
-    "bad-key-in-base": ("base: mid.yaml\n", "base: ../study/root.yaml\nalgo:\n  learnig_rate: 1\n",
-                        ["algo.learnig_rate:", "unknown field", "did you mean 'learning_rate'?"],
-                        ("variants/mid.yaml", 3)),
-    "bad-value-in-leaf": ("base: mid.yaml\nalgo:\n  tau: 2\n", None, ["algo.tau:", "out of range"],
-                          ("variants/leaf.yaml", 3)),
-    "malformed-base": ("base: mid.yaml\n", "algo: [\n", ["malformed YAML"], ("variants/mid.yaml", None)),
-    "misspelt-base": ("bsae: mid.yaml\n", None, ["bsae:", "did you mean 'base'?"],
-                      ("variants/leaf.yaml", 1)),
+    "not-a-path": (
+        "base: [mid.yaml]\n",
+        None,
+        ["base:", "expected the path of another spec file"],
+        ("variants/leaf.yaml", 1),
+    ),
+    "cycle": (
+        "base: mid.yaml\n",
+        "base: leaf.yaml\n",
+        ["base:", "closes a cycle", "leaf.yaml → ", "remove base:"],
+        ("variants/mid.yaml", 1),
+    ),
+    "self": (
+        "name: x\nbase: leaf.yaml\n",
+        None,
+        ["base:", "closes a cycle"],
+        ("variants/leaf.yaml", 2),
+    ),
+    "base-not-mapping": (
+        "base: mid.yaml\n",
+        "- 1\n- 2\n",
+        ["top level must be a mapping", "got a list", "the base of"],
+        ("variants/mid.yaml", 1),
+    ),
+    "base-empty": (
+        "base: mid.yaml\n",
+        "# nothing\n",
+        ["top level must be a mapping", "empty document"],
+        ("variants/mid.yaml", None),
+    ),
+    "bad-key-in-base": (
+        "base: mid.yaml\n",
+        "base: ../study/root.yaml\nalgo:\n  learnig_rate: 1\n",
+        ["algo.learnig_rate:", "unknown field", "did you mean 'learning_rate'?"],
+        ("variants/mid.yaml", 3),
+    ),
+    "bad-value-in-leaf": (
+        "base: mid.yaml\nalgo:\n  tau: 2\n",
+        None,
+        ["algo.tau:", "out of range"],
+        ("variants/leaf.yaml", 3),
+    ),
+    "malformed-base": (
+        "base: mid.yaml\n",
+        "algo: [\n",
+        ["malformed YAML"],
+        ("variants/mid.yaml", None),
+    ),
+    "misspelt-base": (
+        "bsae: mid.yaml\n",
+        None,
+        ["bsae:", "did you mean 'base'?"],
+        ("variants/leaf.yaml", 1),
+    ),
 }
 
 
@@ -756,8 +809,9 @@ def test_parse_spec_rejects_base_in_data() -> None:
         parse_spec({"base": "x.yaml"})
 
 
-def test_cli_validate_and_spec_show_the_chain(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-                                              ) -> None:
+def test_cli_validate_and_spec_show_the_chain(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     _chain(tmp_path)
     monkeypatch.chdir(tmp_path)
     result = runner.invoke(app, ["validate", "variants/leaf.yaml"])
@@ -777,16 +831,24 @@ def test_cli_validate_and_spec_show_the_chain(tmp_path: Path, monkeypatch: pytes
     assert plain.exit_code == 0 and plain.stdout.startswith("name: root\n")  # no chain, no comment
 
 
-def test_run_spec_names_the_chain_and_loads_alone(tmp_path: Path,
-                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_run_spec_names_the_chain_and_loads_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from softtrack.store import RunStore
 
     _chain(tmp_path)
     monkeypatch.chdir(tmp_path)
     spec = load_spec("variants/leaf.yaml")
     record = RunStore(tmp_path / "runs").create_run(
-        spec, 0, [str(tmp_path / ".venv" / "bin" / "softtrack"), "train",
-                  str(tmp_path / "variants" / "leaf.yaml"), "--seed", "0"],
+        spec,
+        0,
+        [
+            str(tmp_path / ".venv" / "bin" / "softtrack"),
+            "train",
+            str(tmp_path / "variants" / "leaf.yaml"),
+            "--seed",
+            "0",
+        ],
         spec_files=[str(tmp_path / p) for p in spec_chain("variants/leaf.yaml")],
     )
     text = record.spec_path.read_text(encoding="utf-8")

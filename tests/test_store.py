@@ -201,7 +201,7 @@ def test_append_read_round_trip(tmp_path: Path) -> None:
 
 def test_write_table_and_missing_table(tmp_path: Path) -> None:
     path = tmp_path / "metrics.parquet"
-    with pytest.raises(TableNotFoundError, match="metrics.parquet"):
+    with pytest.raises(TableNotFoundError, match=r"metrics.parquet"):
         read_table(path)
     assert read_table(path, ["a"], missing_ok=True).columns.tolist() == ["a"]
     df = pd.DataFrame({"a": [1.0, 2.0], "b": ["x", "y"]}, index=[10, 11])
@@ -324,10 +324,14 @@ def test_sessions_record_each_training_process(tmp_path: Path, spec: ExperimentS
     store.mark_finished(run.run_id, "completed", global_step=1000, steps_per_second=250.0)
     first, second = store.get_run(run.run_id).info.sessions
     assert (first["end_step"], first["status"], first["steps_per_second"]) == (
-        400, "interrupted", 100.0
+        400,
+        "interrupted",
+        100.0,
     )
     assert (second["end_step"], second["status"], second["steps_per_second"]) == (
-        1000, "completed", 250.0
+        1000,
+        "completed",
+        250.0,
     )
     for session in (first, second):
         assert session["git_commit"] == run.info.git_commit and session["cpu"] == run.info.cpu

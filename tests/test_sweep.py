@@ -34,10 +34,21 @@ def _spec(tmp_path: Path, name: str = "tiny", **training: Any) -> Path:
         "name": name,
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 5000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 200, "n_envs": 2, "checkpoint_interval": 0,
-                     "heartbeat_interval": 0.5, **training},
+        "algo": {
+            "name": "td3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 200,
+            "n_envs": 2,
+            "checkpoint_interval": 0,
+            "heartbeat_interval": 0.5,
+            **training,
+        },
     }
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
@@ -54,8 +65,11 @@ def _check_contiguous(record: Any) -> None:
 def _sweep_proc(*args: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
         [sys.executable, "-m", "softtrack.cli", "sweep", *args],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, "CI": "1"}, start_new_session=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
+        start_new_session=True,
     )
 
 
@@ -102,7 +116,11 @@ def test_expand_grid(tmp_path: Path) -> None:
     )
     assert len(points) == 4 and all(p.spec.seeds == [0, 1] for p in points)
     assert [p.spec.name for p in points] == [
-        "tiny-td3-0.001", "tiny-td3-0.0003", "tiny-ddpg-0.001", "tiny-ddpg-0.0003"]
+        "tiny-td3-0.001",
+        "tiny-td3-0.0003",
+        "tiny-ddpg-0.001",
+        "tiny-ddpg-0.0003",
+    ]
     assert points[3].spec.algo.name == "ddpg" and points[3].spec.algo.learning_rate == 0.0003
     assert points[3].grid == {"algo.name": "ddpg", "algo.learning_rate": "0.0003"}
     # any spec field, including nested lists
@@ -122,8 +140,7 @@ def test_expand_grid(tmp_path: Path) -> None:
 )
 def test_sweep_user_errors_write_nothing(tmp_path: Path, args: list[str]) -> None:
     runs_dir = tmp_path / "runs"
-    result = runner.invoke(app, ["sweep", str(_spec(tmp_path)), *args, "--runs-dir",
-                                 str(runs_dir)])
+    result = runner.invoke(app, ["sweep", str(_spec(tmp_path)), *args, "--runs-dir", str(runs_dir)])
     assert result.exit_code == 2, result.output
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
     assert not runs_dir.exists() or not any(runs_dir.iterdir())
@@ -159,10 +176,14 @@ def test_sweep_failing_job_and_siblings(tmp_path: Path) -> None:
     (bad.path / "checkpoints").rmdir()
     (bad.path / "checkpoints").write_text("not a directory")  # the first checkpoint raises
     lines: list[str] = []
-    outcome = execute(store, [r.run_id for r in records], ExecOptions(workers=2), "S",
-                      on_progress=lines.append)
-    assert outcome.statuses == {records[0].run_id: "completed", bad.run_id: "failed",
-                                records[2].run_id: "completed"}
+    outcome = execute(
+        store, [r.run_id for r in records], ExecOptions(workers=2), "S", on_progress=lines.append
+    )
+    assert outcome.statuses == {
+        records[0].run_id: "completed",
+        bad.run_id: "failed",
+        records[2].run_id: "completed",
+    }
     assert outcome.missing == [(bad.run_id, "failed")] and outcome.exit_code == 1
     assert lines and "3 runs" in lines[-1] and "2 completed" in lines[-1]
     info = store.get_run(bad.run_id).info
@@ -202,8 +223,7 @@ def test_kill9_worker_then_resume(tmp_path: Path) -> None:
 def test_sigterm_sweep_then_resume_with_corrupt_checkpoint(tmp_path: Path) -> None:
     spec = _spec(tmp_path, total_timesteps=2400, n_envs=4, checkpoint_interval=200)
     runs_dir = tmp_path / "runs"
-    proc = _sweep_proc(str(spec), "--runs-dir", str(runs_dir), "--workers", "1",
-                       "--seeds", "0,1")
+    proc = _sweep_proc(str(spec), "--runs-dir", str(runs_dir), "--workers", "1", "--seeds", "0,1")
     record = _wait(lambda: _checkpointed(runs_dir), proc)
     _wait(lambda: len(RunStore(runs_dir).get_run(record.run_id).list_checkpoints()) >= 2, proc)
     proc.send_signal(signal.SIGTERM)
@@ -227,8 +247,18 @@ def test_sigterm_sweep_then_resume_with_corrupt_checkpoint(tmp_path: Path) -> No
 
 def test_two_sweeps_share_a_runs_dir(tmp_path: Path) -> None:
     runs_dir = tmp_path / "runs"
-    procs = [_sweep_proc(str(_spec(tmp_path, name)), "--runs-dir", str(runs_dir), "--workers",
-                         "1", "--seeds", "0,1") for name in ("one", "two")]
+    procs = [
+        _sweep_proc(
+            str(_spec(tmp_path, name)),
+            "--runs-dir",
+            str(runs_dir),
+            "--workers",
+            "1",
+            "--seeds",
+            "0,1",
+        )
+        for name in ("one", "two")
+    ]
     results = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], results
     records = RunStore(runs_dir).list_runs()
@@ -244,8 +274,21 @@ def test_slurm_executor_via_submitit_local(tmp_path: Path, monkeypatch: pytest.M
     pytest.importorskip("submitit")
     monkeypatch.setenv("SOFTTRACK_SUBMITIT_CLUSTER", "local")
     runs_dir = tmp_path / "runs"
-    result = runner.invoke(app, ["sweep", str(_spec(tmp_path)), "--executor", "slurm",
-                                 "--seeds", "0,1", "--time", "5", "--runs-dir", str(runs_dir)])
+    result = runner.invoke(
+        app,
+        [
+            "sweep",
+            str(_spec(tmp_path)),
+            "--executor",
+            "slurm",
+            "--seeds",
+            "0,1",
+            "--time",
+            "5",
+            "--runs-dir",
+            str(runs_dir),
+        ],
+    )
     assert result.exit_code == 0, result.output
     records = RunStore(runs_dir).list_runs()
     assert len(records) == 2 and all(r.info.status == "completed" for r in records)
@@ -262,9 +305,10 @@ def test_slurm_preemption_requeues_and_resumes(tmp_path: Path) -> None:
     spec = load_spec(_spec(tmp_path, total_timesteps=6000, n_envs=4, checkpoint_interval=200))
     store = RunStore(tmp_path / "runs")
     record = store.create_run(spec, 0)
-    (_job,) = submit_jobs([Job(str(store.root), record.run_id)],
-                         SlurmOptions(folder=str(tmp_path / "slurm"), time_min=10,
-                                      cluster="local"))
+    (_job,) = submit_jobs(
+        [Job(str(store.root), record.run_id)],
+        SlurmOptions(folder=str(tmp_path / "slurm"), time_min=10, cluster="local"),
+    )
     _wait(lambda: store.get_run(record.run_id).list_checkpoints(), timeout=120)
     worker = store.get_run(record.run_id).info.pid
     stat = Path(f"/proc/{worker}/stat").read_text()

@@ -87,8 +87,11 @@ def test_circle() -> None:
     np.testing.assert_allclose(p[:, 0], 0.3 * np.cos(OMEGA * T), atol=1e-15)
     np.testing.assert_allclose(p[:, 2], 0.3 * np.sin(OMEGA * T), atol=1e-15)
     np.testing.assert_allclose(p[0], [0.3, 0.6, 0.0])
-    np.testing.assert_allclose(trajectory_position(c, np.array([2.5, 5.0, 7.5])),
-                               [[0.0, 0.6, 0.3], [-0.3, 0.6, 0.0], [0.0, 0.6, -0.3]], atol=1e-15)
+    np.testing.assert_allclose(
+        trajectory_position(c, np.array([2.5, 5.0, 7.5])),
+        [[0.0, 0.6, 0.3], [-0.3, 0.6, 0.0], [0.0, 0.6, -0.3]],
+        atol=1e-15,
+    )
     np.testing.assert_allclose(_speed(v), 0.3 * OMEGA, rtol=1e-12)  # 0.1885 m/s
     assert 0.3 * OMEGA == pytest.approx(0.1885, abs=1e-4)
     np.testing.assert_allclose(v[:, 1], 0.0)
@@ -119,8 +122,12 @@ def test_rectangle() -> None:
     assert x.min() == pytest.approx(-0.3) and x.max() == pytest.approx(0.3)
     assert z.min() == pytest.approx(-0.2) and z.max() == pytest.approx(0.2)
     # the sides in order: +x, +z, −x, −z
-    for t, expected in [(1.0, [0.2, 0, 0]), (4.0, [0, 0, 0.2]), (6.0, [-0.2, 0, 0]),
-                        (9.0, [0, 0, -0.2])]:
+    for t, expected in [
+        (1.0, [0.2, 0, 0]),
+        (4.0, [0, 0, 0.2]),
+        (6.0, [-0.2, 0, 0]),
+        (9.0, [0, 0, -0.2]),
+    ]:
         np.testing.assert_allclose(trajectory_velocity(c, np.array(t)), expected, atol=1e-15)
     np.testing.assert_allclose(trajectory_position(c, T + 10.0), p, atol=1e-12)  # period
 
@@ -128,8 +135,10 @@ def test_rectangle() -> None:
 def test_rectangle_visits_corners_in_order() -> None:
     c = TargetConfig(name="rectangle")
     p = trajectory_position(c, T[T < 10.0])
-    order = [np.argmin(np.linalg.norm(p[:, [0, 2]] - corner, axis=1))
-             for corner in ([-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2])]
+    order = [
+        np.argmin(np.linalg.norm(p[:, [0, 2]] - corner, axis=1))
+        for corner in ([-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2])
+    ]
     assert order == sorted(order)
     np.testing.assert_allclose(T[order], [0.0, 3.0, 5.0, 8.0], atol=1e-3)
 
@@ -171,14 +180,21 @@ def test_velocity_is_derivative_of_position(name: str) -> None:
 @pytest.mark.parametrize("name", ["circle", "rectangle", "figure8"])
 def test_custom_centre_size_and_period(name: str) -> None:
     base = TargetConfig(name=name)
-    c = TargetConfig(name=name, center=(0.1, 0.5, -0.1), circle_radius=0.2,
-                     rectangle_size=(0.4, 0.8 / 3), figure8_amplitude=(0.2, 0.1), period=4.0)
+    c = TargetConfig(
+        name=name,
+        center=(0.1, 0.5, -0.1),
+        circle_radius=0.2,
+        rectangle_size=(0.4, 0.8 / 3),
+        figure8_amplitude=(0.2, 0.1),
+        period=4.0,
+    )
     t = np.linspace(0.0, 8.0, 801)
     p = trajectory_position(c, t)
     # the same shape scaled by 2/3 and shifted, traversed 2.5 times as fast
     ref = trajectory_position(base, t * 2.5)
-    np.testing.assert_allclose(p - [0.1, 0.5, -0.1], (ref - [0, 0.6, 0]) * [2 / 3, 0, 2 / 3],
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        p - [0.1, 0.5, -0.1], (ref - [0, 0.6, 0]) * [2 / 3, 0, 2 / 3], atol=1e-12
+    )
 
 
 def test_random_has_no_closed_form() -> None:
@@ -199,8 +215,9 @@ def test_batched_closed_forms_follow_trajectory(name: str) -> None:
     np.testing.assert_allclose(targets.time, [3.0, 1.6, 3.0, 1.6], atol=1e-12)
     np.testing.assert_allclose(targets.position, trajectory_position(c, targets.time), atol=1e-15)
     np.testing.assert_allclose(targets.velocity, trajectory_velocity(c, targets.time), atol=1e-15)
-    np.testing.assert_allclose(targets.position[0], trajectory_position(c, np.array(3.0)),
-                               atol=1e-10)
+    np.testing.assert_allclose(
+        targets.position[0], trajectory_position(c, np.array(3.0)), atol=1e-10
+    )
 
 
 # ---- random target ---------------------------------------------------------------------------
@@ -231,8 +248,9 @@ def test_random_reset_distribution() -> None:
     assert np.all(targets.position >= low - 1e-12) and np.all(targets.position <= high + 1e-12)
     # uniform in the shrunk box: mean at its centre, std = width / √12
     np.testing.assert_allclose(targets.position.mean(axis=0), [0, 0.6, 0], atol=0.02)
-    np.testing.assert_allclose(targets.position.std(axis=0), (high - low) / math.sqrt(12),
-                               rtol=0.05)
+    np.testing.assert_allclose(
+        targets.position.std(axis=0), (high - low) / math.sqrt(12), rtol=0.05
+    )
     # directions uniform on the unit sphere: zero mean, E[dᵢ²] = 1/3, speed 0.3
     np.testing.assert_allclose(_speed(targets.velocity), 0.3, rtol=1e-14)
     d = targets.velocity / 0.3

@@ -29,8 +29,10 @@ def test_goal_offsets() -> None:
 
 @pytest.mark.parametrize(
     ("kwargs", "message"),
-    [({"task": "juggling"}, "task 'juggling' is unknown"),
-     ({"task": "viewpoints", "standoff": -0.1}, "standoff=-0.1 must be")],
+    [
+        ({"task": "juggling"}, "task 'juggling' is unknown"),
+        ({"task": "viewpoints", "standoff": -0.1}, "standoff=-0.1 must be"),
+    ],
 )
 def test_bad_task_is_rejected(kwargs: dict, message: str) -> None:
     with pytest.raises(InvalidParameterError, match=message):
@@ -38,8 +40,9 @@ def test_bad_task_is_rejected(kwargs: dict, message: str) -> None:
 
 
 def test_viewpoints_distances_are_to_each_arms_point() -> None:
-    config = make_config(task="viewpoints", standoff=0.1, target="fixed",
-                         fixed_position=(0.0, 1.0, 0.0))
+    config = make_config(
+        task="viewpoints", standoff=0.1, target="fixed", fixed_position=(0.0, 1.0, 0.0)
+    )
     core = TrackingCore(1, config)
     core.reset([0], [np.random.default_rng(0)])
     result = core.step(np.zeros((1, 24)))
@@ -55,6 +58,7 @@ def test_viewpoints_distances_are_to_each_arms_point() -> None:
 def test_viewpoints_episode_metrics_use_each_arms_point() -> None:
     """A still policy with both tips on their points: zero error in the viewpoints task,
     the 0.1-m offset in the shared task; the trajectory table stores each arm's point."""
+
     def still(observation: np.ndarray) -> np.ndarray:
         return np.zeros(24)
 
@@ -69,8 +73,9 @@ def test_viewpoints_episode_metrics_use_each_arms_point() -> None:
 
 
 def test_spec_task_section() -> None:
-    spec = ExperimentSpec.model_validate({"env": {"task": {"name": "viewpoints",
-                                                           "standoff": 0.15}}})
+    spec = ExperimentSpec.model_validate(
+        {"env": {"task": {"name": "viewpoints", "standoff": 0.15}}}
+    )
     config = env_config(spec)
     assert config.task == TaskConfig("viewpoints", 0.15)
     single = env_config(spec, arm=1)
@@ -91,8 +96,9 @@ def test_new_fields_keep_every_shipped_hash() -> None:
 
 
 def test_single_arm_scene_has_no_contact() -> None:
-    spec = ExperimentSpec.model_validate({"env": {"physics": {"contact_k": 1e6,
-                                                              "contact_nu": 600}}})
+    spec = ExperimentSpec.model_validate(
+        {"env": {"physics": {"contact_k": 1e6, "contact_nu": 600}}}
+    )
     assert env_config(spec).sim.contact_k == 1e6
     assert env_config(spec, arm=0).sim.contact_k == 0.0
     with pytest.raises(InvalidParameterError, match="needs two arms"):

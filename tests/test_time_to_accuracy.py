@@ -36,8 +36,13 @@ def _load() -> ModuleType:
 tta = _load()
 
 
-def _rows(step: int, random: list[float], cells: dict[tuple[str, int], float] | None,
-          wall_time: float | None = None, arms: tuple[int, ...] = (0, 1)) -> list[dict[str, Any]]:
+def _rows(
+    step: int,
+    random: list[float],
+    cells: dict[tuple[str, int], float] | None,
+    wall_time: float | None = None,
+    arms: tuple[int, ...] = (0, 1),
+) -> list[dict[str, Any]]:
     """One checkpoint's rows as the validator writes them: random-target episodes (one row per
     episode and arm, ``random`` holds the rmse of each in turn) and, with ``cells``, one row
     per evaluation trajectory and arm."""
@@ -45,13 +50,33 @@ def _rows(step: int, random: list[float], cells: dict[tuple[str, int], float] | 
     values = iter(random)
     for episode in range(len(random) // len(arms)):
         for arm in arms:
-            rows.append({"run_id": "r", "global_step": step, "trajectory": "random",
-                         "episode": episode, "seed": 2_000_000 + episode, "arm": arm,
-                         "rmse_3d": next(values), "terminated": False, "duration": 10.0})
+            rows.append(
+                {
+                    "run_id": "r",
+                    "global_step": step,
+                    "trajectory": "random",
+                    "episode": episode,
+                    "seed": 2_000_000 + episode,
+                    "arm": arm,
+                    "rmse_3d": next(values),
+                    "terminated": False,
+                    "duration": 10.0,
+                }
+            )
     for (trajectory, arm), value in (cells or {}).items():
-        rows.append({"run_id": "r", "global_step": step, "trajectory": trajectory,
-                     "episode": 0, "seed": 0, "arm": arm, "rmse_3d": value,
-                     "terminated": False, "duration": 10.0})
+        rows.append(
+            {
+                "run_id": "r",
+                "global_step": step,
+                "trajectory": trajectory,
+                "episode": 0,
+                "seed": 0,
+                "arm": arm,
+                "rmse_3d": value,
+                "terminated": False,
+                "duration": 10.0,
+            }
+        )
     if wall_time is not None:
         for row in rows:
             row["wall_time"] = wall_time
@@ -66,14 +91,29 @@ def _cells(scale: float = 1.0, bump: tuple[str, int] | None = None) -> dict[tupl
     return out
 
 
-def _run_dir(root: Path, run_id: str, name: str, seed: int, rows: list[dict[str, Any]],
-             controller: str = "centralized", total: int = 1_000_000) -> Path:
+def _run_dir(
+    root: Path,
+    run_id: str,
+    name: str,
+    seed: int,
+    rows: list[dict[str, Any]],
+    controller: str = "centralized",
+    total: int = 1_000_000,
+) -> Path:
     path = root / run_id
     (path / "tables").mkdir(parents=True)
-    (path / "run.json").write_text(json.dumps({
-        "run_id": run_id, "name": name, "seed": seed, "controller": controller,
-        "total_timesteps": total, "steps_per_second": 500.0,
-    }))
+    (path / "run.json").write_text(
+        json.dumps(
+            {
+                "run_id": run_id,
+                "name": name,
+                "seed": seed,
+                "controller": controller,
+                "total_timesteps": total,
+                "steps_per_second": 500.0,
+            }
+        )
+    )
     write_table(path / "tables" / "validation.parquet", rows)
     return path
 
@@ -85,18 +125,21 @@ def _curve(rows: list[dict[str, Any]], independent: bool = False) -> pd.DataFram
 def test_steps_to_accuracy_is_the_first_checkpoint_with_all_six_cells_at_the_study() -> None:
     study = tta.study_cells()
     assert len(study) == 6 and study[tta.cell_name("circle", 0)] == 0.065
-    rows = (_rows(STEPS[0], [0.2] * 4, _cells(2.0), 100.0)
-            + _rows(STEPS[1], [0.1] * 4, _cells(0.9, bump=("figure8", 1)), 200.0)
-            + _rows(STEPS[2], [0.08] * 4, _cells(1.0), 300.0)  # exactly at the study: reached
-            + _rows(STEPS[3], [0.05] * 4, _cells(0.5), 400.0))
+    rows = (
+        _rows(STEPS[0], [0.2] * 4, _cells(2.0), 100.0)
+        + _rows(STEPS[1], [0.1] * 4, _cells(0.9, bump=("figure8", 1)), 200.0)
+        + _rows(STEPS[2], [0.08] * 4, _cells(1.0), 300.0)  # exactly at the study: reached
+        + _rows(STEPS[3], [0.05] * 4, _cells(0.5), 400.0)
+    )
     curve = _curve(rows)
     assert curve["global_step"].tolist() == STEPS
     row = tta.first_at_study(curve, study)
     assert row is not None and int(row["global_step"]) == STEPS[2] and row["wall_time"] == 300.0
 
     # one cell just above the study at a checkpoint → a later one
-    rows = (_rows(STEPS[0], [0.1] * 4, _cells(0.9, bump=("circle", 0)))
-            + _rows(STEPS[1], [0.1] * 4, _cells(0.9)))
+    rows = _rows(STEPS[0], [0.1] * 4, _cells(0.9, bump=("circle", 0))) + _rows(
+        STEPS[1], [0.1] * 4, _cells(0.9)
+    )
     row = tta.first_at_study(_curve(rows), study)
     assert row is not None and int(row["global_step"]) == STEPS[1]
     assert math.isnan(row["wall_time"])  # older tables have no wall_time
@@ -110,8 +153,11 @@ def test_steps_to_accuracy_is_the_first_checkpoint_with_all_six_cells_at_the_stu
 def test_not_reached_and_no_trajectory_rows() -> None:
     study = tta.study_cells()
     bumps = [("circle", 0), ("rectangle", 1)]
-    rows = [r for k, step in enumerate(STEPS)
-            for r in _rows(step, [0.1] * 4, _cells(0.5, bump=bumps[k % 2]))]
+    rows = [
+        r
+        for k, step in enumerate(STEPS)
+        for r in _rows(step, [0.1] * 4, _cells(0.5, bump=bumps[k % 2]))
+    ]
     info = tta.run_info(Path("x"), {"name": "a", "seed": 0, "total_timesteps": 1_000_000})
     result = tta.summarize_run(info, pd.DataFrame(rows), study)
     assert result.tracked and result.reached_step is None
@@ -124,8 +170,9 @@ def test_not_reached_and_no_trajectory_rows() -> None:
 
 
 def test_the_score_ignores_trajectory_rows() -> None:
-    rows = (_rows(STEPS[0], [0.10, 0.20, 0.30, 0.40], _cells(50.0))
-            + _rows(STEPS[1], [0.05, 0.05, 0.07, 0.07], _cells(0.1)))
+    rows = _rows(STEPS[0], [0.10, 0.20, 0.30, 0.40], _cells(50.0)) + _rows(
+        STEPS[1], [0.05, 0.05, 0.07, 0.07], _cells(0.1)
+    )
     curve = _curve(rows)
     assert curve["score"].tolist() == pytest.approx([0.25, 0.06])
     assert curve[tta.cell_name("circle", 0)].tolist() == pytest.approx([50 * 0.065, 0.1 * 0.065])
@@ -145,8 +192,10 @@ def test_independent_runs_pair_the_arms_at_equal_per_arm_steps() -> None:
 
 
 def test_grouping_statistics_and_throughput_rounds() -> None:
-    infos = [tta.run_info(Path(f"r{k}"), {"name": name, "seed": seed, "total_timesteps": 10})
-             for k, (name, seed) in enumerate([("b", 1), ("a", 0), ("b", 0), ("a", 2)])]
+    infos = [
+        tta.run_info(Path(f"r{k}"), {"name": name, "seed": seed, "total_timesteps": 10})
+        for k, (name, seed) in enumerate([("b", 1), ("a", 0), ("b", 0), ("a", 2)])
+    ]
     groups = tta.group_by_config(infos)
     assert list(groups) == ["b", "a"]
     assert [r.seed for r in groups["b"]] == [0, 1] and [r.seed for r in groups["a"]] == [0, 2]
@@ -170,17 +219,29 @@ def test_grouping_statistics_and_throughput_rounds() -> None:
 
 
 def test_throughput_spec_keeps_the_cost_per_step() -> None:
-    spec = ExperimentSpec.model_validate({
-        "name": "x",
-        "algo": {"name": "td3", "buffer_size": 4_000_000, "learning_starts": 50_000,
-                 "batch_size": 256, "gradient_steps": 8, "mirror_replay": True,
-                 "policy_kwargs": {"net_arch": [128, 128]}},
-        "training": {"n_envs": 8},
-    })
+    spec = ExperimentSpec.model_validate(
+        {
+            "name": "x",
+            "algo": {
+                "name": "td3",
+                "buffer_size": 4_000_000,
+                "learning_starts": 50_000,
+                "batch_size": 256,
+                "gradient_steps": 8,
+                "mirror_replay": True,
+                "policy_kwargs": {"net_arch": [128, 128]},
+            },
+            "training": {"n_envs": 8},
+        }
+    )
     timed = tta.throughput_spec(spec)
     assert timed.algo.buffer_size == 200_000 and timed.algo.learning_starts == 2_000
-    assert (timed.algo.batch_size, timed.algo.gradient_steps, timed.algo.mirror_replay,
-            timed.training.n_envs) == (256, 8, True, 8)
+    assert (
+        timed.algo.batch_size,
+        timed.algo.gradient_steps,
+        timed.algo.mirror_replay,
+        timed.training.n_envs,
+    ) == (256, 8, True, 8)
     assert timed.algo.policy_kwargs == spec.algo.policy_kwargs
 
 
@@ -189,20 +250,35 @@ def test_main_prints_tables_and_writes_the_figure_and_csv(
 ) -> None:
     runs = tmp_path / "runs"
     dirs = [
-        _run_dir(runs, "fast0", "fast", 0,
-                 _rows(STEPS[0], [0.2] * 4, _cells(2.0), 60.0)
-                 + _rows(STEPS[1], [0.06] * 4, _cells(0.9), 120.0)),
-        _run_dir(runs, "fast1", "fast", 1,
-                 _rows(STEPS[0], [0.3] * 4, _cells(2.0), 50.0)
-                 + _rows(STEPS[1], [0.08] * 4, _cells(1.5), 100.0)
-                 + _rows(STEPS[2], [0.05] * 4, _cells(0.8), 150.0)),
-        _run_dir(runs, "slow0", "slow", 0,
-                 _rows(STEPS[0], [0.4] * 4, _cells(3.0))
-                 + _rows(STEPS[1], [0.2] * 4, _cells(2.0))),
+        _run_dir(
+            runs,
+            "fast0",
+            "fast",
+            0,
+            _rows(STEPS[0], [0.2] * 4, _cells(2.0), 60.0)
+            + _rows(STEPS[1], [0.06] * 4, _cells(0.9), 120.0),
+        ),
+        _run_dir(
+            runs,
+            "fast1",
+            "fast",
+            1,
+            _rows(STEPS[0], [0.3] * 4, _cells(2.0), 50.0)
+            + _rows(STEPS[1], [0.08] * 4, _cells(1.5), 100.0)
+            + _rows(STEPS[2], [0.05] * 4, _cells(0.8), 150.0),
+        ),
+        _run_dir(
+            runs,
+            "slow0",
+            "slow",
+            0,
+            _rows(STEPS[0], [0.4] * 4, _cells(3.0)) + _rows(STEPS[1], [0.2] * 4, _cells(2.0)),
+        ),
     ]
     figure, csv = tmp_path / "out" / "tta.png", tmp_path / "out" / "tta.csv"
-    tta.main([*map(str, dirs), "--throughput-steps", "0", "--figure", str(figure),
-              "--csv", str(csv)])
+    tta.main(
+        [*map(str, dirs), "--throughput-steps", "0", "--figure", str(figure), "--csv", str(csv)]
+    )
     out = capsys.readouterr().out
     lines = [line.split() for line in out.splitlines()]
     assert any(w[:3] == ["fast", "0", "500,000"] for w in lines)
@@ -214,7 +290,13 @@ def test_main_prints_tables_and_writes_the_figure_and_csv(
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     table = pd.read_csv(csv)
     assert len(table) == 2 + 3 + 2
-    assert list(table.columns[:6]) == ["config", "seed", "global_step", "wall_time", "hours_here",
-                                       "score"]
+    assert list(table.columns[:6]) == [
+        "config",
+        "seed",
+        "global_step",
+        "wall_time",
+        "hours_here",
+        "score",
+    ]
     assert tta.cell_name("figure8", 1) in table.columns
     assert read_table(dirs[0] / "tables" / "validation.parquet")["trajectory"].nunique() == 4

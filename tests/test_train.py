@@ -76,8 +76,13 @@ def _check_episodes(df: pd.DataFrame, run_id: str, final_step: int) -> None:
     assert (np.diff(df["wall_time"].to_numpy()) >= 0).all()
 
 
-SBX_TD3 = pytest.param("td3", "sbx", marks=pytest.mark.skipif(
-    importlib.util.find_spec("sbx") is None, reason="sbx-rl (JAX) not installed"))
+SBX_TD3 = pytest.param(
+    "td3",
+    "sbx",
+    marks=pytest.mark.skipif(
+        importlib.util.find_spec("sbx") is None, reason="sbx-rl (JAX) not installed"
+    ),
+)
 
 
 def test_train_prints_progress_lines_into_a_log(
@@ -93,8 +98,9 @@ def test_train_prints_progress_lines_into_a_log(
     assert result.exit_code == 0, result.output
     run_id = result.stdout.strip()
     lines = [line for line in result.stderr.splitlines() if line.startswith(run_id[-8:])]
-    assert re.fullmatch(r"\S+ finished: 400/400 steps \(100\.0%\) in 0:\d\d min, [\d,]+ steps/s",
-                        lines.pop())
+    assert re.fullmatch(
+        r"\S+ finished: 400/400 steps \(100\.0%\) in 0:\d\d min, [\d,]+ steps/s", lines.pop()
+    )
     steps = [int(re.match(r"\S+ ([\d,]+)/400 steps", line)[1].replace(",", "")) for line in lines]
     assert len(steps) >= 10 and steps == sorted(steps) and steps[-1] <= 400
     assert all("steps/s" in line for line in lines[1:])
@@ -123,7 +129,9 @@ def test_a_training_log_gets_a_line_every_5_percent_and_a_final_line(tmp_path: P
     assert int(match[3].replace(",", "")) > 0
     percents = [float(re.search(r"\(([\d.]+)%\)", line)[1]) for line in lines]
     assert len(percents) >= 15 and percents == sorted(percents) and percents[-1] < 100
-    assert all(b - a <= 10 for a, b in zip([0.0, *percents], percents))  # none skipped
+    assert all(
+        b - a <= 10 for a, b in zip([0.0, *percents], percents, strict=False)
+    )  # none skipped
     assert len(lines) <= 20  # one per 5 %, not one per step
 
 
@@ -293,7 +301,12 @@ def _expected_episodes(split: int, total: int, n_envs: int) -> int:
 
 
 def _resume_and_check(
-    runs_dir: Path, run_id: str, split: int, total: int, n_envs: int, chunk: int,
+    runs_dir: Path,
+    run_id: str,
+    split: int,
+    total: int,
+    n_envs: int,
+    chunk: int,
     first_session: str = "interrupted",
 ) -> None:
     """Resume to completion; the run ends within one collection ``chunk`` past ``total``
@@ -325,8 +338,9 @@ def _resume_and_check(
 @pytest.mark.parametrize("algo, backend", [("td3", "sb3"), ("ppo", "sb3"), SBX_TD3])
 def test_interrupt_and_resume(tmp_path: Path, algo: str, backend: str) -> None:
     total, n_envs = 2400, 4
-    spec = _spec(tmp_path, algo, backend, total_timesteps=total, n_envs=n_envs,
-                 checkpoint_interval=200)
+    spec = _spec(
+        tmp_path, algo, backend, total_timesteps=total, n_envs=n_envs, checkpoint_interval=200
+    )
     runs_dir = tmp_path / "runs"
     run_dir, out, err = _interrupt(spec, runs_dir)
     run_id = out.strip()
@@ -397,8 +411,9 @@ def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: 
     result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(trained)], env={"CI": "1"})
     assert result.exit_code == 0, result.output
     shipped = tmp_path / "models" / "shipped-td3"
-    result = runner.invoke(app, ["export", result.stdout.strip(), str(shipped), "--runs-dir",
-                                 str(trained)])
+    result = runner.invoke(
+        app, ["export", result.stdout.strip(), str(shipped), "--runs-dir", str(trained)]
+    )
     assert result.exit_code == 0, result.output
     assert runner.invoke(app, ["evaluate", str(shipped), "--in-place"]).exit_code == 0
     stored = shipped / "tables" / "eval_metrics.parquet"
@@ -406,18 +421,46 @@ def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: 
     before = {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()}
 
     runs, out = tmp_path / "runs", tmp_path / "report"
-    tiny = ["--set", "training.total_timesteps=200", "--set", "training.n_envs=2",
-            "--set", "training.checkpoint_interval=0", "--set", "training.eval_duration=0.2",
-            "--set", "env.episode_duration=0.1", "--set", "algo.learning_starts=50",
-            "--set", "algo.batch_size=16", "--set", "algo.buffer_size=2000",
-            "--set", "algo.policy_kwargs.net_arch=[16, 16]"]
-    result = runner.invoke(app, ["quickstart", *tiny, "--runs-dir", str(runs), "--out", str(out),
-                                 "--pretrained", str(shipped)], env={"CI": "1"})
+    tiny = [
+        "--set",
+        "training.total_timesteps=200",
+        "--set",
+        "training.n_envs=2",
+        "--set",
+        "training.checkpoint_interval=0",
+        "--set",
+        "training.eval_duration=0.2",
+        "--set",
+        "env.episode_duration=0.1",
+        "--set",
+        "algo.learning_starts=50",
+        "--set",
+        "algo.batch_size=16",
+        "--set",
+        "algo.buffer_size=2000",
+        "--set",
+        "algo.policy_kwargs.net_arch=[16, 16]",
+    ]
+    result = runner.invoke(
+        app,
+        [
+            "quickstart",
+            *tiny,
+            "--runs-dir",
+            str(runs),
+            "--out",
+            str(out),
+            "--pretrained",
+            str(shipped),
+        ],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     assert {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()} == before
     printed = {
         line.split()[1]: re.search(r"arm 1 / arm 2: ([\d.]+) / ([\d.]+) m", line).groups()
-        for line in result.stdout.splitlines() if line.startswith("shipped-td3 ")
+        for line in result.stdout.splitlines()
+        if line.startswith("shipped-td3 ")
     }
     assert sorted(printed) == ["circle", "figure8", "rectangle"]
     live = read_table(runs / "shipped-td3" / "tables" / "eval_metrics.parquet")
@@ -425,8 +468,11 @@ def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: 
     index = (out / "index.md").read_text(encoding="utf-8")
     assert "9.8765" not in index
     section = index.split("### TD3 [tiny-td3]", 1)[1].split("\n### ", 1)[0]
-    for name, trajectory in (("circle", "circle"), ("rectangle", "rectangle"),
-                             ("figure-eight", "figure8")):
+    for name, trajectory in (
+        ("circle", "circle"),
+        ("rectangle", "rectangle"),
+        ("figure-eight", "figure8"),
+    ):
         for arm, value in enumerate(printed[trajectory]):
             start = f"| {name} | arm {arm + 1} |"
             row = next(r for r in section.splitlines() if r.startswith(start))

@@ -51,22 +51,36 @@ def _data(tune: dict[str, Any] | None = None, **training: Any) -> dict[str, Any]
         "name": "tiny",
         "seeds": [0],
         "env": {"episode_duration": 0.1},
-        "algo": {"name": "td3", "device": "cpu", "batch_size": 16, "learning_starts": 50,
-                 "buffer_size": 5000, "policy_kwargs": {"net_arch": [16, 16]}},
-        "training": {"total_timesteps": 400, "n_envs": 2, "checkpoint_interval": 200,
-                     "heartbeat_interval": 0.5, "validation_episodes": 1, "eval_duration": 0.1,
-                     **training},
+        "algo": {
+            "name": "td3",
+            "device": "cpu",
+            "batch_size": 16,
+            "learning_starts": 50,
+            "buffer_size": 5000,
+            "policy_kwargs": {"net_arch": [16, 16]},
+        },
+        "training": {
+            "total_timesteps": 400,
+            "n_envs": 2,
+            "checkpoint_interval": 200,
+            "heartbeat_interval": 0.5,
+            "validation_episodes": 1,
+            "eval_duration": 0.1,
+            **training,
+        },
     }
     if tune is not None:
         data["tune"] = tune
     return data
 
 
-def _spec(tmp_path: Path, tune: dict[str, Any] | None = None, name: str = "tiny",
-          **training: Any) -> Path:
+def _spec(
+    tmp_path: Path, tune: dict[str, Any] | None = None, name: str = "tiny", **training: Any
+) -> Path:
     path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump(_data(TUNE if tune is None else tune, **training)),
-                    encoding="utf-8")
+    path.write_text(
+        yaml.safe_dump(_data(TUNE if tune is None else tune, **training)), encoding="utf-8"
+    )
     return path
 
 
@@ -100,24 +114,30 @@ def test_tune_section_leaves_the_hash_and_round_trips() -> None:
 @pytest.mark.parametrize(
     ("entry", "expected"),
     [
-        ({"algo.learnig_rate": {"type": "float", "low": 1, "high": 2}},
-         "tune.params.algo.learnig_rate: not a spec field"),
+        (
+            {"algo.learnig_rate": {"type": "float", "low": 1, "high": 2}},
+            "tune.params.algo.learnig_rate: not a spec field",
+        ),
         ({"algo.policy_kwargs": {"type": "categorical", "choices": [1]}}, "is a section"),
-        ({"algo.learning_rate": {"type": "float", "low": 3e-3, "high": 1e-4}},
-         "low 0.003 ≥ high"),
+        ({"algo.learning_rate": {"type": "float", "low": 3e-3, "high": 1e-4}}, "low 0.003 ≥ high"),
         ({"algo.learning_rate": {"type": "flaot", "low": 1e-4, "high": 1e-3}}, "type 'flaot'"),
         ({"algo.learning_rate": {"type": "float", "lw": 1e-4, "high": 1e-3}}, "did you mean 'low'"),
-        ({"algo.batch_size": {"type": "categorical", "choices": [8, 100000]}},
-         "value 100000 makes an invalid spec"),
+        (
+            {"algo.batch_size": {"type": "categorical", "choices": [8, 100000]}},
+            "value 100000 makes an invalid spec",
+        ),
         ({"algo.batch_size": {"type": "float", "low": 8, "high": 32}}, "expected a whole number"),
         ({"seeds": {"type": "int", "low": 0, "high": 3}}, "'seeds' cannot be tuned"),
-        ({"training.validation_episodes": {"type": "int", "low": 0, "high": 2}},
-         "training.validation_episodes is 0"),
+        (
+            {"training.validation_episodes": {"type": "int", "low": 0, "high": 2}},
+            "training.validation_episodes is 0",
+        ),
         ({}, "no params to search"),
     ],
 )
-def test_bad_tune_entries_are_one_line_errors(tmp_path: Path, entry: dict[str, Any],
-                                              expected: str) -> None:
+def test_bad_tune_entries_are_one_line_errors(
+    tmp_path: Path, entry: dict[str, Any], expected: str
+) -> None:
     spec = _spec(tmp_path, {"params": entry})
     runs_dir = tmp_path / "runs"
     result = _tune(str(spec), "--trials", "1", "--runs-dir", str(runs_dir))
@@ -131,8 +151,12 @@ def test_bad_tune_entries_are_one_line_errors(tmp_path: Path, entry: dict[str, A
 def test_tune_needs_a_tune_section_and_a_mode(tmp_path: Path) -> None:
     plain = tmp_path / "plain.yaml"
     plain.write_text(yaml.safe_dump(_data()), encoding="utf-8")
-    for args in ([str(plain), "--trials", "1"], [str(_spec(tmp_path))], [],
-                 ["--status", "x", "--best", "x"]):
+    for args in (
+        [str(plain), "--trials", "1"],
+        [str(_spec(tmp_path))],
+        [],
+        ["--status", "x", "--best", "x"],
+    ):
         result = _tune(*args, "--runs-dir", str(tmp_path / "runs"))
         assert result.exit_code == 2 and len(result.stderr.strip().splitlines()) == 1, args
     result = _tune("--status", "nope", "--runs-dir", str(tmp_path / "runs"))
@@ -160,10 +184,13 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
         run_spec = record.load_spec()
         assert run_spec.algo.learning_rate == trial.params["algo.learning_rate"]
         assert run_spec.algo.batch_size == trial.params["algo.batch_size"]
-        assert json.dumps(run_spec.algo.policy_kwargs.net_arch, separators=(",", ":")) == \
-            trial.params["algo.policy_kwargs.net_arch"]
-        expected = tuned.model_copy(update={"name": record.info.name, "tune": None,
-                                            "algo": run_spec.algo})
+        assert (
+            json.dumps(run_spec.algo.policy_kwargs.net_arch, separators=(",", ":"))
+            == trial.params["algo.policy_kwargs.net_arch"]
+        )
+        expected = tuned.model_copy(
+            update={"name": record.info.name, "tune": None, "algo": run_spec.algo}
+        )
         assert record.info.spec_hash == spec_hash(expected) == spec_hash(run_spec)
 
     status = _tune("--status", "s", "--runs-dir", str(runs_dir))
@@ -181,8 +208,9 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
     best_spec = load_spec(out)
     assert best_spec.tune is None
     assert spec_hash(best_spec) == _run_of(winner, runs_dir).info.spec_hash
-    trained = runner.invoke(app, ["train", str(out), "--runs-dir", str(tmp_path / "again")],
-                            env={"CI": "1"})
+    trained = runner.invoke(
+        app, ["train", str(out), "--runs-dir", str(tmp_path / "again")], env={"CI": "1"}
+    )
     assert trained.exit_code == 0, trained.output
     again = RunStore(tmp_path / "again").get_run(trained.stdout.strip())
     assert again.info.status == "completed"
@@ -193,8 +221,11 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert _states(_study(runs_dir, "s")) == ["COMPLETE"] * 3
     # ... but not with another search space
-    other = _spec(tmp_path, {"params": {"algo.tau": {"type": "float", "low": 0.01,
-                                                     "high": 0.02}}}, name="other")
+    other = _spec(
+        tmp_path,
+        {"params": {"algo.tau": {"type": "float", "low": 0.01, "high": 0.02}}},
+        name="other",
+    )
     result = _tune(str(other), "--trials", "3", "--study", "s", "--runs-dir", str(runs_dir))
     assert result.exit_code == 2 and "tunes another spec" in result.stderr
 
@@ -203,8 +234,9 @@ def test_pruned_trials_stop_their_runs(tmp_path: Path) -> None:
     """A pruner that prunes at the first report (every score is above 1e-9 m)."""
     tune = {**TUNE, "pruner": {"type": "threshold", "upper": 1e-9}}
     runs_dir = tmp_path / "runs"
-    result = _tune(str(_spec(tmp_path, tune)), "--trials", "2", "--study", "p", "--runs-dir",
-                   str(runs_dir))
+    result = _tune(
+        str(_spec(tmp_path, tune)), "--trials", "2", "--study", "p", "--runs-dir", str(runs_dir)
+    )
     assert result.exit_code == 0, result.output
     study = _study(runs_dir, "p")
     assert _states(study) == ["PRUNED", "PRUNED"]
@@ -223,8 +255,17 @@ def test_pruned_trials_stop_their_runs(tmp_path: Path) -> None:
 # ---- workers ------------------------------------------------------------------------------------
 def test_two_workers_pull_from_one_study(tmp_path: Path) -> None:
     runs_dir = tmp_path / "runs"
-    result = _tune(str(_spec(tmp_path)), "--trials", "3", "--study", "w", "--workers", "2",
-                   "--runs-dir", str(runs_dir))
+    result = _tune(
+        str(_spec(tmp_path)),
+        "--trials",
+        "3",
+        "--study",
+        "w",
+        "--workers",
+        "2",
+        "--runs-dir",
+        str(runs_dir),
+    )
     assert result.exit_code == 0, result.output
     study = _study(runs_dir, "w")
     assert _states(study) == ["COMPLETE"] * 3  # exactly the trials asked for
@@ -243,10 +284,24 @@ def test_interrupted_study_resumes_its_run(tmp_path: Path) -> None:
     spec = _spec(tmp_path, total_timesteps=1600, n_envs=4)
     runs_dir = tmp_path / "runs"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "softtrack.cli", "tune", str(spec), "--trials", "1", "--study",
-         "i", "--runs-dir", str(runs_dir)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, "CI": "1"}, start_new_session=True,
+        [
+            sys.executable,
+            "-m",
+            "softtrack.cli",
+            "tune",
+            str(spec),
+            "--trials",
+            "1",
+            "--study",
+            "i",
+            "--runs-dir",
+            str(runs_dir),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
+        start_new_session=True,
     )
     deadline = time.monotonic() + 120
     record = None
@@ -286,8 +341,7 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     spec_path = _spec(tmp_path)
     runs_dir = tmp_path / "runs"
     spec = load_spec(spec_path)
-    ts = create_or_continue(default_storage(runs_dir), "d", spec, [str(spec_path)],
-                            str(spec_path))
+    ts = create_or_continue(default_storage(runs_dir), "d", spec, [str(spec_path)], str(spec_path))
     store = RunStore(runs_dir)
     assert top_up(ts, store, 1) == 1
     trial = take_trial(ts, store)  # the worker that will die
@@ -313,22 +367,41 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_slurm_preempted_worker_is_requeued_and_resumes(tmp_path: Path,
-                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+def test_slurm_preempted_worker_is_requeued_and_resumes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """submitit's local executor: the preemption signal stops the worker (its trial fails as
     interrupted, with a retry); the requeued job takes the retry and resumes the run."""
     pytest.importorskip("submitit")
     monkeypatch.setenv("SOFTTRACK_SUBMITIT_CLUSTER", "local")
     runs_dir = tmp_path / "runs"
     spec = _spec(tmp_path, total_timesteps=3000, n_envs=4)
-    result = _tune(str(spec), "--trials", "1", "--study", "q", "--executor", "slurm", "--detach",
-                   "--time", "10", "--runs-dir", str(runs_dir))
+    result = _tune(
+        str(spec),
+        "--trials",
+        "1",
+        "--study",
+        "q",
+        "--executor",
+        "slurm",
+        "--detach",
+        "--time",
+        "10",
+        "--runs-dir",
+        str(runs_dir),
+    )
     assert result.exit_code == 0, result.output
     deadline = time.monotonic() + 120
     record = None
     while record is None and time.monotonic() < deadline:
-        record = next((r for r in RunStore(runs_dir).list_runs()
-                       if r.info.status == "running" and r.list_checkpoints()), None)
+        record = next(
+            (
+                r
+                for r in RunStore(runs_dir).list_runs()
+                if r.info.status == "running" and r.list_checkpoints()
+            ),
+            None,
+        )
         time.sleep(0.1)
     assert record is not None
     stat = Path(f"/proc/{record.info.pid}/stat").read_text()

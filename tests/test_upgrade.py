@@ -19,30 +19,43 @@ runner = CliRunner()
 
 def _episode(trajectory: str, seed: int, n: int = 50) -> Episode:
     rng = np.random.default_rng(seed)
-    return Episode(trajectory, np.arange(1, n + 1) * 0.002, rng.normal(size=(n, 2, 3)),
-                   rng.normal(size=(n, 3)), 80 * rng.normal(size=(n, 2, 2, 20)),
-                   rng.uniform(-1, 1, size=(n, 24)), False)
+    return Episode(
+        trajectory,
+        np.arange(1, n + 1) * 0.002,
+        rng.normal(size=(n, 2, 3)),
+        rng.normal(size=(n, 3)),
+        80 * rng.normal(size=(n, 2, 2, 20)),
+        rng.uniform(-1, 1, size=(n, 24)),
+        False,
+    )
 
 
 def _old_moments(run_id: str, episode: Episode) -> pd.DataFrame:
     """``eval_moments`` as versions before the docs/environment.md summaries stored it."""
     torques = episode.element_torques
     n = len(torques)
-    return pd.DataFrame({
-        "run_id": run_id, "trajectory": episode.trajectory,
-        "step": np.repeat(np.arange(1, n + 1), 4), "t": np.repeat(episode.t, 4),
-        "arm": np.tile(np.repeat(np.arange(2), 2), n), "direction": np.tile(np.arange(2), 2 * n),
-        "rms_moment": moment_rms(torques).reshape(-1),
-        "max_abs_moment": np.abs(torques).max(axis=-1).reshape(-1),
-        "element_torques": list(torques.reshape(4 * n, 20).astype(np.float32)),
-    })
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "trajectory": episode.trajectory,
+            "step": np.repeat(np.arange(1, n + 1), 4),
+            "t": np.repeat(episode.t, 4),
+            "arm": np.tile(np.repeat(np.arange(2), 2), n),
+            "direction": np.tile(np.arange(2), 2 * n),
+            "rms_moment": moment_rms(torques).reshape(-1),
+            "max_abs_moment": np.abs(torques).max(axis=-1).reshape(-1),
+            "element_torques": list(torques.reshape(4 * n, 20).astype(np.float32)),
+        }
+    )
 
 
 def _old_run(tmp_path: Path) -> tuple[Path, list[Episode]]:
     run = tmp_path / "run"
     episodes = [_episode("circle", 0), _episode("figure8", 1)]
-    write_table(run / "tables" / "eval_moments.parquet",
-                pd.concat([_old_moments("R", e) for e in episodes], ignore_index=True))
+    write_table(
+        run / "tables" / "eval_moments.parquet",
+        pd.concat([_old_moments("R", e) for e in episodes], ignore_index=True),
+    )
     old_trajectories = pd.concat([trajectory_table("R", e) for e in episodes], ignore_index=True)
     for column in old_trajectories.columns:
         if column.startswith(("tip_", "target_")):  # the old format's float64 positions
@@ -60,11 +73,14 @@ def test_upgrade_equals_a_fresh_evaluation_and_is_idempotent(tmp_path: Path) -> 
     written = upgrade_run_tables(run)
     assert written == ["eval_moment_peaks", "eval_moments", "eval_trajectories"]
     tables = run / "tables"
-    for name, make_table in (("eval_moments", moments_table),
-                             ("eval_moment_peaks", moment_peaks_table),
-                             ("eval_trajectories", trajectory_table)):
-        pd.testing.assert_frame_equal(read_table(tables / f"{name}.parquet"),
-                                      _fresh(make_table, episodes), check_exact=True)
+    for name, make_table in (
+        ("eval_moments", moments_table),
+        ("eval_moment_peaks", moment_peaks_table),
+        ("eval_trajectories", trajectory_table),
+    ):
+        pd.testing.assert_frame_equal(
+            read_table(tables / f"{name}.parquet"), _fresh(make_table, episodes), check_exact=True
+        )
     assert not (tables / "eval_element_moments.parquet").exists()
     before = {p.name: p.read_bytes() for p in tables.iterdir()}
     assert upgrade_run_tables(run) == []
@@ -76,8 +92,7 @@ def test_upgrade_can_keep_the_full_torque_history(tmp_path: Path) -> None:
     assert upgrade_run_tables(run, keep_full_moments=True)[0] == "eval_element_moments"
     full = read_table(run / "tables" / "eval_element_moments.parquet")
     expected = np.concatenate([e.element_torques.reshape(-1, 20) for e in episodes])
-    assert np.array_equal(np.stack(full["element_torques"].to_numpy()),
-                          expected.astype(np.float32))
+    assert np.array_equal(np.stack(full["element_torques"].to_numpy()), expected.astype(np.float32))
 
 
 def test_upgrade_of_a_missing_directory_is_one_line(tmp_path: Path) -> None:

@@ -32,7 +32,8 @@ VALIDATED = {"validation_episodes": EPISODES, "eval_duration": 0.1}
 
 def _train(spec: Path, runs_dir: Path, seed: int = 0) -> RunRecord:
     result = runner.invoke(
-        app, ["train", str(spec), "--runs-dir", str(runs_dir), "--seed", str(seed)],
+        app,
+        ["train", str(spec), "--runs-dir", str(runs_dir), "--seed", str(seed)],
         env={"CI": "1"},
     )
     assert result.exit_code == 0, result.output
@@ -67,8 +68,9 @@ def _best_of(scores: dict[int, float]) -> int:
     return best_step
 
 
-def _episode_metrics(model_file: Path, spec: Any, arm: int | None, trajectory: str,
-                     seed: int = 0) -> pd.DataFrame:
+def _episode_metrics(
+    model_file: Path, spec: Any, arm: int | None, trajectory: str, seed: int = 0
+) -> pd.DataFrame:
     model = algo_class("td3").load(str(model_file), device="cpu")
     policy = deterministic_policy(model)
     episode = run_episode(policy, env_config(spec, arm), trajectory, 0.1, seed=seed)
@@ -78,8 +80,11 @@ def _episode_metrics(model_file: Path, spec: Any, arm: int | None, trajectory: s
 def _report_rows(record: RunRecord, tmp_path: Path) -> list[str]:
     """The rows of the report's model-selection table for ``record``'s experiment."""
     out = tmp_path / "report"
-    result = runner.invoke(app, ["report", record.info.name, "--runs-dir", str(record.path.parent),
-                                 "--out", str(out)], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        ["report", record.info.name, "--runs-dir", str(record.path.parent), "--out", str(out)],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     assert (out / "figures" / "validation.png").read_bytes()[:4] == b"\x89PNG"
     md = (out / "index.md").read_text(encoding="utf-8")
@@ -111,8 +116,11 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     np.testing.assert_allclose(again["rmse_3d"], stored["rmse_3d"], rtol=1e-12)
 
     # `softtrack evaluate` tracks with the best model, not the last one
-    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--runs-dir",
-                                 str(tmp_path / "runs")], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        ["evaluate", record.run_id, "-t", "circle", "--runs-dir", str(tmp_path / "runs")],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     evaluated = read_table(record.table_path("eval_metrics"))
     expected = _episode_metrics(policy.best_model_path, run_spec, None, "circle")
@@ -121,16 +129,19 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     # an export's model.zip is the policy (the best model), the last one is kept aside, and
     # it evaluates the same
     out = tmp_path / "exported"
-    result = runner.invoke(app, ["export", record.run_id, str(out), "--runs-dir",
-                                 str(tmp_path / "runs")])
+    result = runner.invoke(
+        app, ["export", record.run_id, str(out), "--runs-dir", str(tmp_path / "runs")]
+    )
     assert result.exit_code == 0, result.output
     manifest = json.loads((out / "policy.json").read_text())
     assert manifest["model"] == "best" and manifest["global_step"] == best_step
     assert manifest["other_models"]["last"]["path"] == "other_models/last/model.zip"
     assert (out / "other_models" / "last" / "model.zip").is_file()
     assert not (out / "checkpoints").exists() and not (out / "best").exists()
-    assert _episode_metrics(out / "model.zip", run_spec, None, "circle")["rmse_3d"].tolist() == \
-        expected["rmse_3d"].tolist()
+    assert (
+        _episode_metrics(out / "model.zip", run_spec, None, "circle")["rmse_3d"].tolist()
+        == expected["rmse_3d"].tolist()
+    )
     result = runner.invoke(app, ["evaluate", str(out), "-t", "circle"], env={"CI": "1"})
     assert result.exit_code == 0, result.output
     exported = read_table(out / "tables" / "eval_metrics.parquet")
@@ -139,8 +150,20 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
     # --model last tracks with the last model and only prints: the tables keep the policy's
     assert model_paths(record, run_spec, "last") == [policy.model_path]
     stored = read_table(record.table_path("eval_metrics"))
-    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--model", "last",
-                                 "--runs-dir", str(tmp_path / "runs")], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            record.run_id,
+            "-t",
+            "circle",
+            "--model",
+            "last",
+            "--runs-dir",
+            str(tmp_path / "runs"),
+        ],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     last = _episode_metrics(policy.model_path, run_spec, None, "circle").sort_values("arm")
     assert " / ".join(f"{v:.4f}" for v in last["rmse_3d"]) in result.stdout
@@ -148,8 +171,10 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
 
     # the report names the kept checkpoint and plots every validation
     rows = _report_rows(record, tmp_path)
-    expected_row = (f"| TD3 | 0 | both arms | 4 | {best_step:,} | {scores[best_step]:.4f} | 800 "
-                    f"| {scores[800]:.4f} | – | best |")
+    expected_row = (
+        f"| TD3 | 0 | both arms | 4 | {best_step:,} | {scores[best_step]:.4f} | 800 "
+        f"| {scores[800]:.4f} | – | best |"
+    )
     assert rows == [expected_row]
 
 
@@ -157,8 +182,9 @@ def test_validation_keeps_the_best_model_and_evaluation_uses_it(tmp_path: Path) 
 def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend: str) -> None:
     plain = _train(_spec(tmp_path, algo, backend, total_timesteps=600), tmp_path / "a")
     validated_spec = tmp_path / "validated.yaml"
-    data = yaml.safe_load(_spec(tmp_path, algo, backend, total_timesteps=600,
-                                **VALIDATED).read_text())
+    data = yaml.safe_load(
+        _spec(tmp_path, algo, backend, total_timesteps=600, **VALIDATED).read_text()
+    )
     validated_spec.write_text(yaml.safe_dump(data))
     validated = _train(validated_spec, tmp_path / "b")
     returns = [read_table(r.table_path("train_episodes"))["return"] for r in (plain, validated)]
@@ -171,8 +197,11 @@ def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend
     best = PolicyDir.of_run(validated.path).best_model_path
     assert model_paths(validated, validated.load_spec(), "best") == [best]
     # a run trained without validation has no best model to evaluate
-    result = runner.invoke(app, ["evaluate", plain.run_id, "--model", "best", "--runs-dir",
-                                 str(tmp_path / "a")], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        ["evaluate", plain.run_id, "--model", "best", "--runs-dir", str(tmp_path / "a")],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 2
     assert "trained without validation" in result.output and "--model last" in result.output
     assert not plain.table_path("eval_metrics").exists()
@@ -181,11 +210,18 @@ def test_validation_leaves_training_unchanged(tmp_path: Path, algo: str, backend
 def test_validation_trajectories_track_each_checkpoint_without_entering_the_score(
     tmp_path: Path,
 ) -> None:
-    plain = _train(_spec(tmp_path, total_timesteps=400, final_policy="best_validated",
-                         **VALIDATED), tmp_path / "a")
-    spec = _spec(tmp_path, total_timesteps=400, final_policy="best_validated",
-                 validation_trajectories=True, eval_trajectories=["circle", "figure8"],
-                 **VALIDATED)
+    plain = _train(
+        _spec(tmp_path, total_timesteps=400, final_policy="best_validated", **VALIDATED),
+        tmp_path / "a",
+    )
+    spec = _spec(
+        tmp_path,
+        total_timesteps=400,
+        final_policy="best_validated",
+        validation_trajectories=True,
+        eval_trajectories=["circle", "figure8"],
+        **VALIDATED,
+    )
     tracked = _train(spec, tmp_path / "b")
     table = _validation(tracked)
     random_rows = table[table["trajectory"] == "random"].reset_index(drop=True)
@@ -220,10 +256,13 @@ def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None
     record = RunStore(runs_dir).get_run(run_dir.name)
     table = read_table(record.table_path("validation"), missing_ok=True)
     if len(table):
-        write_table(record.table_path("validation"),
-                    table[table["global_step"] // 200 != split // 200].reset_index(drop=True))
-    result = runner.invoke(app, ["train", "--resume", run_dir.name, "--runs-dir", str(runs_dir)],
-                           env={"CI": "1"})
+        write_table(
+            record.table_path("validation"),
+            table[table["global_step"] // 200 != split // 200].reset_index(drop=True),
+        )
+    result = runner.invoke(
+        app, ["train", "--resume", run_dir.name, "--runs-dir", str(runs_dir)], env={"CI": "1"}
+    )
     assert result.exit_code == 0, result.output
     expected = {step for step in range(200, total + 1, 200) if step // 200 != split // 200}
     scores = _check_rows(_validation(record), sorted(expected | {split}), [0, 1])
@@ -235,10 +274,16 @@ def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None
 def test_truncate_validation_keeps_other_arms_and_earlier_steps(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     record = RunRecord("r", run_dir, None)  # type: ignore[arg-type]  # (run.json unused)
-    rows = pd.DataFrame({
-        "run_id": "r", "global_step": [100, 200, 300, 100, 200, 300], "episode": 0,
-        "arm": [0, 0, 0, 1, 1, 1], "rmse_3d": 0.1, "terminated": False,
-    })
+    rows = pd.DataFrame(
+        {
+            "run_id": "r",
+            "global_step": [100, 200, 300, 100, 200, 300],
+            "episode": 0,
+            "arm": [0, 0, 0, 1, 1, 1],
+            "rmse_3d": 0.1,
+            "terminated": False,
+        }
+    )
     write_table(record.table_path("validation"), rows)
     arm0 = PolicyDir.of_run(run_dir, 0)
     for step in (100, 300):
@@ -246,7 +291,11 @@ def test_truncate_validation_keeps_other_arms_and_earlier_steps(tmp_path: Path) 
     truncate_validation(record, arm0, 200)
     left = read_table(record.table_path("validation"))
     assert list(zip(left["arm"], left["global_step"], strict=True)) == [
-        (0, 100), (0, 200), (1, 100), (1, 200), (1, 300)
+        (0, 100),
+        (0, 200),
+        (1, 100),
+        (1, 200),
+        (1, 300),
     ]
     assert [p.name for p in arm0.list_best()] == [f"step-{100:012d}"]
     truncate_validation(record, PolicyDir.of_run(run_dir, 1), None)
@@ -273,12 +322,16 @@ def test_independent_arms_validate_in_their_own_scene(tmp_path: Path) -> None:
         assert [p.name for p in policy.list_best()] == [f"step-{_best_of(scores):012d}"]
         rows = table[(table["arm"] == arm) & (table["global_step"] == _best_of(scores))]
         again = _episode_metrics(policy.best_model_path, run_spec, arm, "random", VALIDATION_SEED)
-        np.testing.assert_allclose(again["rmse_3d"], rows[rows["episode"] == 0]["rmse_3d"],
-                                   rtol=1e-12)
+        np.testing.assert_allclose(
+            again["rmse_3d"], rows[rows["episode"] == 0]["rmse_3d"], rtol=1e-12
+        )
         paths.append(policy.best_model_path)
     assert model_paths(record, run_spec) == paths
-    result = runner.invoke(app, ["evaluate", record.run_id, "-t", "circle", "--runs-dir",
-                                 str(tmp_path / "runs")], env={"CI": "1"})
+    result = runner.invoke(
+        app,
+        ["evaluate", record.run_id, "-t", "circle", "--runs-dir", str(tmp_path / "runs")],
+        env={"CI": "1"},
+    )
     assert result.exit_code == 0, result.output
     policies = [row.split(" | ")[2] for row in _report_rows(record, tmp_path)]
     assert policies == ["arm 1 policy", "arm 2 policy"]

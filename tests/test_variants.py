@@ -41,11 +41,21 @@ def test_per_arm_critics_give_their_algorithm_kwargs_and_env() -> None:
     from softtrack.rl.factory import model_class
     from softtrack.rl.variants.per_arm import PerArmTD3
 
-    spec = parse_spec({"algo": {"backend": "sbx", "critic": "per_arm", "per_arm_networks": True,
-                                "actor_observation": "own_arm"}})
+    spec = parse_spec(
+        {
+            "algo": {
+                "backend": "sbx",
+                "critic": "per_arm",
+                "per_arm_networks": True,
+                "actor_observation": "own_arm",
+            }
+        }
+    )
     assert model_class(spec) is PerArmTD3
     assert variants.model_kwargs(spec) == {
-        "n_reward_shares": 2, "per_arm_networks": True, "actor_observation": "own_arm"
+        "n_reward_shares": 2,
+        "per_arm_networks": True,
+        "actor_observation": "own_arm",
     }
     assert variants.vec_env_kwargs(spec) == {"reward_shares": True}
 
@@ -74,8 +84,9 @@ def test_an_old_module_path_unpickles_as_the_moved_class() -> None:
         "import softtrack.rl.mirror as old, softtrack.rl.variants.mirror as new\n"
         "assert old is new and cls is new.MirrorReplayBuffer\n"
     )
-    result = subprocess.run([sys.executable, "-c", code], input=old, capture_output=True,
-                            check=False, cwd=REPO)
+    result = subprocess.run(
+        [sys.executable, "-c", code], input=old, capture_output=True, check=False, cwd=REPO
+    )
     assert result.returncode == 0, result.stderr.decode()
     assert result.stdout.decode().split() == ["softtrack.rl.variants.mirror", "MirrorReplayBuffer"]
 
@@ -99,8 +110,9 @@ SHIPPED = REPO / "models"
         # the old MirrorReplayBuffer path is checked on a pickle above)
     ],
 )
-def test_shipped_models_saved_with_the_old_module_paths_load(run: str, classes: tuple[str, ...]
-                                                              ) -> None:
+def test_shipped_models_saved_with_the_old_module_paths_load(
+    run: str, classes: tuple[str, ...]
+) -> None:
     pytest.importorskip("sbx", reason="sbx-rl (JAX) not installed")
     import zipfile
 
@@ -112,9 +124,14 @@ def test_shipped_models_saved_with_the_old_module_paths_load(run: str, classes: 
     with zipfile.ZipFile(path) as archive:
         data = archive.read("data")
     # saved before the move (old paths) or re-saved by `softtrack upgrade` (new paths)
-    assert any(name in data for name in (b"softtrack.rl.per_arm_td3", b"softtrack.rl.mirror",
-                                         b"softtrack.rl.variants"))
+    assert any(
+        name in data
+        for name in (b"softtrack.rl.per_arm_td3", b"softtrack.rl.mirror", b"softtrack.rl.variants")
+    )
     model = model_class(load_spec(SHIPPED / run / "spec.yaml")).load(str(path), device="cpu")
-    names = {type(model.policy).__name__, type(model.policy.actor).__name__,
-             getattr(model.replay_buffer_class, "__name__", "")}
+    names = {
+        type(model.policy).__name__,
+        type(model.policy.actor).__name__,
+        getattr(model.replay_buffer_class, "__name__", ""),
+    }
     assert set(classes) <= names

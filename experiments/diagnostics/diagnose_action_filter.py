@@ -52,10 +52,13 @@ def main() -> None:
             raise SystemExit(f"--alpha {alpha}: use 0 < α ≤ 1")
         cells = []
         for trajectory in EVAL_TRAJECTORIES:
-            episode = run_episode(filtered(policy, alpha), config, trajectory,
-                                  float(spec.training.eval_duration))
-            rmse = [tracking_metrics(episode.tips[:, arm], episode.target)["rmse_3d"]
-                    for arm in range(episode.tips.shape[1])]
+            episode = run_episode(
+                filtered(policy, alpha), config, trajectory, float(spec.training.eval_duration)
+            )
+            rmse = [
+                tracking_metrics(episode.tips[:, arm], episode.target)["rmse_3d"]
+                for arm in range(episode.tips.shape[1])
+            ]
             cells.append(f"{trajectory} {' / '.join(f'{v:.4f}' for v in rmse)}")
         print(f"α = {alpha:<5g} " + "   ".join(cells), flush=True)
 

@@ -45,27 +45,40 @@ def with_target_speed(policy: Policy, speed: float) -> Policy:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", help="run ids, id prefixes or run directories")
-    parser.add_argument("--speed", type=float, default=0.3,
-                        help="target speed fed to the policy, m/s (default: the training 0.3)")
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=0.3,
+        help="target speed fed to the policy, m/s (default: the training 0.3)",
+    )
     args = parser.parse_args()
-    print(f"3-D RMSE arm 1 / arm 2, m: as evaluated, and with observation {TARGET_SPEED_INDEX} "
-          f"(target speed) fixed at {args.speed:g} m/s")
+    print(
+        f"3-D RMSE arm 1 / arm 2, m: as evaluated, and with observation {TARGET_SPEED_INDEX} "
+        f"(target speed) fixed at {args.speed:g} m/s"
+    )
     for reference in args.runs:
         record = resolve_run(reference)
         spec = record.load_spec()
         if spec.controller != "centralized":
-            raise SystemExit(f"{reference}: a {spec.controller} run; this needs a centralized one "
-                             "(81 observations)")
+            raise SystemExit(
+                f"{reference}: a {spec.controller} run; this needs a centralized one "
+                "(81 observations)"
+            )
         policy = load_policy(record, spec)
         config = env_config(spec)
-        for label, driver in (("as evaluated", policy),
-                              (f"speed obs {args.speed:g}", with_target_speed(policy, args.speed))):
+        for label, driver in (
+            ("as evaluated", policy),
+            (f"speed obs {args.speed:g}", with_target_speed(policy, args.speed)),
+        ):
             cells = []
             for trajectory in EVAL_TRAJECTORIES:
-                episode = run_episode(driver, config, trajectory,
-                                      float(spec.training.eval_duration))
-                rmse = [tracking_metrics(episode.tips[:, arm], episode.target)["rmse_3d"]
-                        for arm in range(episode.tips.shape[1])]
+                episode = run_episode(
+                    driver, config, trajectory, float(spec.training.eval_duration)
+                )
+                rmse = [
+                    tracking_metrics(episode.tips[:, arm], episode.target)["rmse_3d"]
+                    for arm in range(episode.tips.shape[1])
+                ]
                 cells.append(f"{trajectory} {rmse[0]:.3f} / {rmse[1]:.3f}")
             print(f"{reference:<40} {label:<15} " + "   ".join(cells), flush=True)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -38,8 +38,8 @@ class TrackingConfig:
     target: TargetConfig
     reward: RewardConfig
     episode_duration: float = 10.0
-    realism: RealismConfig = RealismConfig()
-    task: TaskConfig = TaskConfig()
+    realism: RealismConfig = field(default_factory=RealismConfig)
+    task: TaskConfig = field(default_factory=TaskConfig)
     arm: int | None = None
 
     @property
@@ -118,9 +118,12 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     target_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _TARGET_FIELDS}
     reward_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _REWARD_FIELDS}
     if kwargs:
-        valid = sorted(_SIM_FIELDS | _TARGET_FIELDS | _REWARD_FIELDS
-                       | {"target", "reward", "episode_duration", "realism", "task",
-                          "standoff"})
+        valid = sorted(
+            _SIM_FIELDS
+            | _TARGET_FIELDS
+            | _REWARD_FIELDS
+            | {"target", "reward", "episode_duration", "realism", "task", "standoff"}
+        )
         raise InvalidParameterError(
             f"unknown environment parameter {min(kwargs)!r}; valid names: {', '.join(valid)}"
         )
@@ -128,13 +131,17 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
         if "base_positions" not in sim_kw:
             bases = SimParams().base_positions
             if arm not in (0, 1):
-                raise InvalidParameterError(f"arm={arm!r} must be 0 (base x = −0.1) or 1 (x = +0.1)")
+                raise InvalidParameterError(
+                    f"arm={arm!r} must be 0 (base x = −0.1) or 1 (x = +0.1)"
+                )
             sim_kw["base_positions"] = (bases[arm],)
     elif n_arms != 2:
         raise InvalidParameterError(f"n_arms={n_arms!r} must be 1 or 2")
     elif arm is not None:
-        raise InvalidParameterError("arm= selects the base of a single-arm scene; the dual-arm "
-                                    "scene has both arms (set base_positions to move them)")
+        raise InvalidParameterError(
+            "arm= selects the base of a single-arm scene; the dual-arm "
+            "scene has both arms (set base_positions to move them)"
+        )
     sim = SimParams.from_overrides(**sim_kw)
     if isinstance(target, TargetConfig):
         target_config = dataclasses.replace(target, **target_kw)
@@ -143,8 +150,15 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     if reward is None:
         reward = RewardConfig() if n_arms == 2 else RewardConfig.single_arm()
     reward_config = dataclasses.replace(reward, **_tuples(reward_kw))
-    config = TrackingConfig(sim, target_config, reward_config, episode_duration, realism,
-                            task_config, arm if n_arms == 1 else None)
+    config = TrackingConfig(
+        sim,
+        target_config,
+        reward_config,
+        episode_duration,
+        realism,
+        task_config,
+        arm if n_arms == 1 else None,
+    )
     config.validate()
     return config
 

@@ -78,9 +78,11 @@ class TrackingCore:
         # Sensing/actuation imperfections (softtrack.env.realism); None when all are off, so a
         # default environment takes exactly the path (and the random draws) it always took.
         self.realism: RealismModel | None = (
-            RealismModel(config.realism, self.n_envs, self.n_arms, config.sim.n_nodes,
-                         self._control_dt)
-            if config.realism.active else None
+            RealismModel(
+                config.realism, self.n_envs, self.n_arms, config.sim.n_nodes, self._control_dt
+            )
+            if config.realism.active
+            else None
         )
         # Model error (env.realism): fixed factors are set once here, ranges at every reset.
         self.model_error = config.realism.model_error_active
@@ -105,15 +107,17 @@ class TrackingCore:
         (without the realism's delay, noise and drops, which :meth:`reset` and :meth:`step`
         apply)."""
         engine, targets = self.engine, self.targets
-        build_observation(engine.position, engine.tip_velocity, targets.position,
-                          targets.velocity, out=self._obs)
+        build_observation(
+            engine.position, engine.tip_velocity, targets.position, targets.velocity, out=self._obs
+        )
         obs = self._obs[env_indices]
         if not np.isfinite(obs).all():
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
         return obs.copy()
 
-    def reset(self, env_indices: Sequence[int] | np.ndarray,
-              rngs: Sequence[np.random.Generator]) -> np.ndarray:
+    def reset(
+        self, env_indices: Sequence[int] | np.ndarray, rngs: Sequence[np.random.Generator]
+    ) -> np.ndarray:
         """Restart the listed environments (straight arms at rest, new target).
 
         Args:
@@ -175,8 +179,9 @@ class TrackingCore:
         if self.config.reward.collision_penalty:
             reward = reward + collision_penalty(engine.position, self.config.reward)
         if self.config.reward.penalises_actions:
-            reward = reward + action_penalty(policy_actions, self._previous_action,
-                                             self.config.reward)
+            reward = reward + action_penalty(
+                policy_actions, self._previous_action, self.config.reward
+            )
         self._previous_action[...] = policy_actions
         terminated = ~finite
         if terminated.any():

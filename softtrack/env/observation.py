@@ -52,9 +52,7 @@ def arm_view_columns(arm: int, n_arms: int, observation_dim: int) -> np.ndarray:
     """
     block, rest = divmod(observation_dim - _TARGET_SIZE, n_arms)
     if rest or block < 1 or not 0 <= arm < n_arms:
-        raise ValueError(
-            f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms"
-        )
+        raise ValueError(f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms")
     target = np.arange(observation_dim - _TARGET_SIZE, observation_dim)
     return np.concatenate([np.arange(block * arm, block * (arm + 1)), target])
 
@@ -120,9 +118,11 @@ def build_observation(
     elif out.shape != (n, size) or out.dtype != np.float32:
         raise ValueError(f"out must be a float32 array of shape {(n, size)}")
     _fill_observation(
-        np.ascontiguousarray(nodes, dtype=np.float64), np.ascontiguousarray(tip_velocity),
+        np.ascontiguousarray(nodes, dtype=np.float64),
+        np.ascontiguousarray(tip_velocity),
         np.ascontiguousarray(target_position, dtype=np.float64),
-        np.ascontiguousarray(target_velocity), out,
+        np.ascontiguousarray(target_velocity),
+        out,
     )
     return out
 
@@ -154,10 +154,17 @@ def _fill_observation(nodes, tip_velocity, target_position, target_velocity, out
             for c in range(3):
                 for k in range(m):
                     out[i, base + c * m + k] = nodes[i, a, c, 2 * k]
-            _speed_direction_into(tip_velocity[i, a, 0], tip_velocity[i, a, 1],
-                                  tip_velocity[i, a, 2], out, i, base + 3 * m)
+            _speed_direction_into(
+                tip_velocity[i, a, 0],
+                tip_velocity[i, a, 1],
+                tip_velocity[i, a, 2],
+                out,
+                i,
+                base + 3 * m,
+            )
         tail = n_arms * per_arm
         for c in range(3):
             out[i, tail + c] = target_position[i, c]
-        _speed_direction_into(target_velocity[i, 0], target_velocity[i, 1],
-                              target_velocity[i, 2], out, i, tail + 3)
+        _speed_direction_into(
+            target_velocity[i, 0], target_velocity[i, 1], target_velocity[i, 2], out, i, tail + 3
+        )

@@ -155,8 +155,11 @@ class RealismConfig:
         out = {}
         for name in MODEL_PARAMETERS:
             value = getattr(self, name)
-            pair = ((float(value[0]), float(value[1])) if isinstance(value, (tuple, list))
-                    else (float(value), float(value)))
+            pair = (
+                (float(value[0]), float(value[1]))
+                if isinstance(value, (tuple, list))
+                else (float(value), float(value))
+            )
             if pair != (1.0, 1.0):
                 out[name] = pair
         return out
@@ -194,10 +197,15 @@ class RealismConfig:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ValueError(f"{name}={value!r} must be a whole number ≥ {low}")
         high = self.action_delay_max
-        if high is not None and (isinstance(high, bool) or not isinstance(high, (int, np.integer))
-                                 or high < self.action_delay):
-            raise ValueError(f"action_delay_max={high!r} must be a whole number ≥ action_delay "
-                             f"({self.action_delay}), or None (a fixed delay)")
+        if high is not None and (
+            isinstance(high, bool)
+            or not isinstance(high, (int, np.integer))
+            or high < self.action_delay
+        ):
+            raise ValueError(
+                f"action_delay_max={high!r} must be a whole number ≥ action_delay "
+                f"({self.action_delay}), or None (a fixed delay)"
+            )
         for name in ("actuator_time_constant", "action_rate_limit", "torque_limit"):
             value = getattr(self, name)
             if value is not None and not (
@@ -209,13 +217,21 @@ class RealismConfig:
             pair = value if isinstance(value, (tuple, list)) else (value,)
             if isinstance(value, (tuple, list)) and len(value) != 2:
                 raise ValueError(f"{name}={value!r} must be a factor or a (low, high) range")
-            if not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                       and math.isfinite(v) and v > 0 for v in pair):
-                raise ValueError(f"{name}={value!r} must be a finite factor > 0 (1 = off) or a "
-                                 "(low, high) range of them")
+            if not all(
+                isinstance(v, (int, float))
+                and not isinstance(v, bool)
+                and math.isfinite(v)
+                and v > 0
+                for v in pair
+            ):
+                raise ValueError(
+                    f"{name}={value!r} must be a finite factor > 0 (1 = off) or a "
+                    "(low, high) range of them"
+                )
             if len(pair) == 2 and pair[0] > pair[1]:
-                raise ValueError(f"{name}={value!r}: low must not exceed high; write "
-                                 f"({pair[1]!r}, {pair[0]!r})")
+                raise ValueError(
+                    f"{name}={value!r}: low must not exceed high; write ({pair[1]!r}, {pair[0]!r})"
+                )
 
 
 def observation_groups(n_arms: int, n_nodes: int = 21) -> dict[str, np.ndarray]:
@@ -261,8 +277,9 @@ class RealismModel:
     actions (n, 12·A) float64 control values; torques (n, A, 2, n_elem) N·m.
     """
 
-    def __init__(self, config: RealismConfig, n_envs: int, n_arms: int, n_nodes: int,
-                 control_dt: float) -> None:
+    def __init__(
+        self, config: RealismConfig, n_envs: int, n_arms: int, n_nodes: int, control_dt: float
+    ) -> None:
         config.validate()
         self.config = c = config
         self.n_envs = n = int(n_envs)
@@ -285,8 +302,9 @@ class RealismModel:
         tau = c.actuator_time_constant
         self.lag_alpha = None if tau is None else -math.expm1(-self.control_dt / tau)
         self._lagged = np.zeros((n, a))
-        self.max_change = (None if c.action_rate_limit is None
-                           else c.action_rate_limit * self.control_dt)
+        self.max_change = (
+            None if c.action_rate_limit is None else c.action_rate_limit * self.control_dt
+        )
         self._applied = np.zeros((n, a))
         self.model_error_ranges = c.model_error_ranges
         self.strength = 1.0
@@ -314,8 +332,12 @@ class RealismModel:
         self._strength = value
 
     # ---- reset ------------------------------------------------------------------------------
-    def reset(self, env_indices: Sequence[int] | np.ndarray,
-              rngs: Sequence[np.random.Generator], observations: np.ndarray) -> np.ndarray:
+    def reset(
+        self,
+        env_indices: Sequence[int] | np.ndarray,
+        rngs: Sequence[np.random.Generator],
+        observations: np.ndarray,
+    ) -> np.ndarray:
         """Restart the listed environments' sensors and actuators.
 
         Args:

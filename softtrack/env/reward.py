@@ -126,8 +126,10 @@ class RewardConfig:
             raise ValueError(f"reward arm_radius={self.arm_radius!r} must be > 0 m")
         for name in ("action_rate_penalty", "action_penalty"):
             if getattr(self, name) < 0:
-                raise ValueError(f"reward {name}={getattr(self, name)!r} must be ≥ 0 (it is "
-                                 "subtracted; 0 disables it)")
+                raise ValueError(
+                    f"reward {name}={getattr(self, name)!r} must be ≥ 0 (it is "
+                    "subtracted; 0 disables it)"
+                )
 
     @property
     def penalises_actions(self) -> bool:
@@ -160,10 +162,13 @@ def tracking_reward(distances: np.ndarray, config: RewardConfig) -> np.ndarray:
         )
     cooperative = config.cooperative_bonus if d.shape[1] >= 2 else 0.0
     return _tracking_reward(
-        np.ascontiguousarray(d), np.asarray(config.arm_weights, dtype=np.float64),
+        np.ascontiguousarray(d),
+        np.asarray(config.arm_weights, dtype=np.float64),
         np.asarray(config.bonus_thresholds, dtype=np.float64),
-        np.asarray(config.bonus_values, dtype=np.float64), float(config.cooperative_threshold),
-        float(cooperative), float(config.nonfinite_reward),
+        np.asarray(config.bonus_values, dtype=np.float64),
+        float(config.cooperative_threshold),
+        float(cooperative),
+        float(config.nonfinite_reward),
     )
 
 
@@ -189,8 +194,7 @@ def _tracking_reward(d, weights, thresholds, values, coop_threshold, coop_bonus,
     return reward
 
 
-def action_penalty(actions: np.ndarray, previous: np.ndarray, config: RewardConfig
-                   ) -> np.ndarray:
+def action_penalty(actions: np.ndarray, previous: np.ndarray, config: RewardConfig) -> np.ndarray:
     """The action penalties of a batch of control steps, to add to the reward (≤ 0).
 
     Args:

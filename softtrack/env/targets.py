@@ -42,9 +42,11 @@ _REDIRECT_TOLERANCE = 1e-9
 
 
 def _is_finite_number(value: object) -> bool:
-    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
-        value, bool
-    ) and math.isfinite(float(value))
+    return (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )
 
 
 def _finite_vector(value: object, length: int) -> np.ndarray | None:
@@ -167,8 +169,9 @@ def _rectangle_state(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, n
     perimeter = 2.0 * (w + h)
     speed = perimeter / config.period
     starts = np.array([0.0, w, w + h, 2.0 * w + h])  # arc length at each corner
-    corners = np.array([[-0.5 * w, -0.5 * h], [0.5 * w, -0.5 * h], [0.5 * w, 0.5 * h],
-                        [-0.5 * w, 0.5 * h]])
+    corners = np.array(
+        [[-0.5 * w, -0.5 * h], [0.5 * w, -0.5 * h], [0.5 * w, 0.5 * h], [-0.5 * w, 0.5 * h]]
+    )
     directions = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
     s = np.mod(t, config.period) * speed  # arc length from the first corner, in [0, perimeter]
     side = np.clip(np.searchsorted(starts, s, side="right") - 1, 0, 3)
@@ -205,11 +208,11 @@ def _closed_form(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.nd
         config.validate()  # raises with the list of valid names
     t = np.asarray(t, dtype=float)
     if config.name == "fixed":
-        pos = np.broadcast_to(np.asarray(config.fixed_position, dtype=float), t.shape + (3,))
-        return pos.copy(), np.zeros(t.shape + (3,))
+        pos = np.broadcast_to(np.asarray(config.fixed_position, dtype=float), (*t.shape, 3))
+        return pos.copy(), np.zeros((*t.shape, 3))
     planar_pos, planar_vel = _planar(config, t)
-    pos = np.empty(t.shape + (3,))
-    vel = np.zeros(t.shape + (3,))
+    pos = np.empty((*t.shape, 3))
+    vel = np.zeros((*t.shape, 3))
     cx, cy, cz = (float(v) for v in config.center)
     pos[..., 0] = cx + planar_pos[..., 0]
     pos[..., 1] = cy

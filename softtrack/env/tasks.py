@@ -44,8 +44,11 @@ class TaskConfig:
         """Raise ``ValueError`` naming the invalid field and the fix."""
         if self.name not in TASKS:
             raise ValueError(f"task {self.name!r} is unknown; use one of {', '.join(TASKS)}")
-        if not (isinstance(self.standoff, (int, float)) and math.isfinite(self.standoff)
-                and self.standoff >= 0):
+        if not (
+            isinstance(self.standoff, (int, float))
+            and math.isfinite(self.standoff)
+            and self.standoff >= 0
+        ):
             raise ValueError(f"standoff={self.standoff!r} must be a finite number ≥ 0 m")
 
     def goal_offsets(self, arms: tuple[int, ...] = (0, 1)) -> np.ndarray:

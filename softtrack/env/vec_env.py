@@ -47,9 +47,15 @@ class TrackingVecEnv(VecEnv):
 
     render_mode: str | None = None  # no rendering; read by VecEnv.__init__ via get_attr
 
-    def __init__(self, n_envs: int, config: TrackingConfig | None = None, *,
-                 full_info: bool = False, reward_shares: bool = False,
-                 **env_kwargs: Any) -> None:
+    def __init__(
+        self,
+        n_envs: int,
+        config: TrackingConfig | None = None,
+        *,
+        full_info: bool = False,
+        reward_shares: bool = False,
+        **env_kwargs: Any,
+    ) -> None:
         self.config = config if config is not None else make_config(**env_kwargs)
         self.core = TrackingCore(n_envs, self.config)
         self.full_info = full_info
@@ -115,13 +121,19 @@ class TrackingVecEnv(VecEnv):
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         setattr(self, attr_name, value)
 
-    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
-                   **method_kwargs: Any) -> list[Any]:
+    def env_method(
+        self,
+        method_name: str,
+        *method_args: Any,
+        indices: VecEnvIndices = None,
+        **method_kwargs: Any,
+    ) -> list[Any]:
         method = getattr(self, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
-    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper],
-                       indices: VecEnvIndices = None) -> list[bool]:
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
         return [False for _ in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:

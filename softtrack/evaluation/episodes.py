@@ -125,8 +125,9 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
     return act
 
 
-def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
-                duration: float = 10.0, seed: int = 0) -> Episode:
+def run_episode(
+    policy: Policy, config: TrackingConfig, trajectory: str, duration: float = 10.0, seed: int = 0
+) -> Episode:
     """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
 
     A controller with a ``start_episode(core)`` method (an MPC planner) is given the
@@ -193,12 +194,23 @@ def run_episode(policy: Policy, config: TrackingConfig, trajectory: str,
             break
     t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
     kept = snapshot_at < done_steps
-    return Episode(trajectory, t, tips[:done_steps], target[:done_steps], torques[:done_steps],
-                   actions[:done_steps], terminated, clearance[:done_steps],
-                   float(eval_config.reward.collision_margin),
-                   None if planning is None else planning[:done_steps],
-                   penetration[:done_steps], contact_force[:done_steps], snapshots[kept],
-                   snapshot_at[kept], core.goal_offsets.copy())
+    return Episode(
+        trajectory,
+        t,
+        tips[:done_steps],
+        target[:done_steps],
+        torques[:done_steps],
+        actions[:done_steps],
+        terminated,
+        clearance[:done_steps],
+        float(eval_config.reward.collision_margin),
+        None if planning is None else planning[:done_steps],
+        penetration[:done_steps],
+        contact_force[:done_steps],
+        snapshots[kept],
+        snapshot_at[kept],
+        core.goal_offsets.copy(),
+    )
 
 
 SNAPSHOTS = 4  # arm shapes kept per episode, evenly spaced, the last at the episode's end

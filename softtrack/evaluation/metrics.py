@@ -53,8 +53,7 @@ SATURATION_THRESHOLD = 0.99  # |a| at or above this counts as saturated
 TORQUE_STATISTICS = ("torque_rate_rms", "peak_moment")
 SAFETY_STATISTICS = ("min_arm_distance", "collision_steps")
 #: Keys of :func:`contact_statistics`, ``eval_metrics`` columns since contact was added.
-CONTACT_STATISTICS = ("max_penetration", "contact_steps", "mean_contact_force",
-                      "max_contact_force")
+CONTACT_STATISTICS = ("max_penetration", "contact_steps", "mean_contact_force", "max_contact_force")
 
 
 def tracking_errors(tip: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -62,7 +61,9 @@ def tracking_errors(tip: np.ndarray, target: np.ndarray) -> np.ndarray:
     tip = np.asarray(tip, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
     if tip.shape != target.shape or tip.ndim != 2 or tip.shape[1] != 3:
-        raise ValueError(f"tip and target must both have shape (N, 3); got {tip.shape}, {target.shape}")
+        raise ValueError(
+            f"tip and target must both have shape (N, 3); got {tip.shape}, {target.shape}"
+        )
     if tip.shape[0] == 0:
         raise ValueError("at least one time step is needed")
     return tip - target
@@ -189,7 +190,7 @@ def arm_clearance(nodes: np.ndarray, radius: float) -> np.ndarray | float:
         return np.full(batch, np.nan)[()]
     if x.ndim == 3:  # one scene (run_episode's call at every step): no batch to reshape
         return np.float64(math.sqrt(_scene_min_distance2(x)) - 2.0 * float(radius))
-    flat = np.ascontiguousarray(x.reshape((-1,) + x.shape[-3:]))
+    flat = np.ascontiguousarray(x.reshape((-1, *x.shape[-3:])))
     return (np.sqrt(_min_node_distance2(flat)).reshape(batch) - 2.0 * float(radius))[()]
 
 

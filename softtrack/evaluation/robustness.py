@@ -40,10 +40,10 @@ import yaml
 
 from softtrack.evaluation.episodes import Policy, run_episode
 from softtrack.evaluation.tables import metrics_table
+from softtrack.sim.params import CONTACT_ON
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.spec.api import parse_spec
 from softtrack.spec.env_config import env_config
-from softtrack.sim.params import CONTACT_ON
 from softtrack.spec.env_models import RealismSpec
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord
@@ -70,8 +70,7 @@ ROBUSTNESS_SEED = 4_000_000
 
 #: Shorthand factors and the spec fields each sets to its level.
 FACTOR_ALIASES: dict[str, tuple[str, ...]] = {
-    "obs_noise": ("env.realism.obs_noise_node_position",
-                  "env.realism.obs_noise_target_position"),
+    "obs_noise": ("env.realism.obs_noise_node_position", "env.realism.obs_noise_target_position"),
     "gravity": ("env.physics.gravity",),
     "contact": ("env.physics.contact_k", "env.physics.contact_nu"),
 }
@@ -87,6 +86,7 @@ def _contact_levels(level: str) -> tuple[str, str]:
     if value is False or value == 0:
         return "0.0", "0.0"
     return level, repr(CONTACT_ON["contact_nu"])
+
 
 #: The columns in front of the metrics columns, in this order.
 SETTING_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "seed")
@@ -107,8 +107,11 @@ def factor_paths(factor: str) -> tuple[str, ...]:
     if factor.startswith("env."):
         return (factor,)
     known = ", ".join([*FACTOR_ALIASES, *RealismSpec.model_fields])
-    raise SpecError(f"--grid {factor}", f"unknown perturbation {factor!r}",
-                    f"use one of {known}, or a spec path such as env.physics.damping")
+    raise SpecError(
+        f"--grid {factor}",
+        f"unknown perturbation {factor!r}",
+        f"use one of {known}, or a spec path such as env.physics.damping",
+    )
 
 
 @dataclass(frozen=True)
@@ -148,8 +151,7 @@ class Setting:
         return out
 
 
-def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = False
-                    ) -> list[Setting]:
+def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = False) -> list[Setting]:
     """The settings of ``--grid`` axes ``[(factor, [level, ...]), ...]``.
 
     Args:
@@ -165,8 +167,11 @@ def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = Fals
         SpecError: an unknown factor, or no axis.
     """
     if not grid:
-        raise SpecError("--grid", "no perturbation given",
-                        "add e.g. --grid obs_noise=0,0.005 --grid action_delay=0,2")
+        raise SpecError(
+            "--grid",
+            "no perturbation given",
+            "add e.g. --grid obs_noise=0,0.005 --grid action_delay=0,2",
+        )
     for factor, _ in grid:
         factor_paths(factor)
     if full:
@@ -178,8 +183,9 @@ def expand_settings(grid: Sequence[tuple[str, Sequence[str]]], full: bool = Fals
     return list(dict.fromkeys([Setting(()), *settings]))
 
 
-def perturbed_spec(spec: ExperimentSpec, setting: Setting, keep_realism: bool = False
-                   ) -> ExperimentSpec:
+def perturbed_spec(
+    spec: ExperimentSpec, setting: Setting, keep_realism: bool = False
+) -> ExperimentSpec:
     """The run's spec with ``setting`` applied (``env.realism`` reset first unless
     ``keep_realism``; a training curriculum, ``training.randomisation_warmup_steps``, is
     dropped: evaluation sees the full perturbations).
@@ -225,16 +231,21 @@ def evaluate_setting(
     """
     config = env_config(perturbed_spec(spec, setting, keep_realism))
     duration = float(spec.training.eval_duration)
-    front = {"perturbation": setting.perturbation, "level": setting.level,
-             "setting": setting.key, "baseline": "run" if keep_realism else "idealised"}
+    front = {
+        "perturbation": setting.perturbation,
+        "level": setting.level,
+        "setting": setting.key,
+        "baseline": "run" if keep_realism else "idealised",
+    }
     cpu = cpu_kind()
     parts = []
     for trajectory in trajectories:
         for k in range(episodes):
             episode = run_episode(policy, config, trajectory, duration, seed=ROBUSTNESS_SEED + k)
             rows = metrics_table(run_id, episode)
-            for i, (name, value) in enumerate({**front, "episode": k,
-                                               "seed": ROBUSTNESS_SEED + k}.items()):
+            for i, (name, value) in enumerate(
+                {**front, "episode": k, "seed": ROBUSTNESS_SEED + k}.items()
+            ):
                 rows.insert(1 + i, name, value)
             rows["cpu"] = cpu
             parts.append(rows)
@@ -254,8 +265,9 @@ def store_rows(record: RunRecord, rows: pd.DataFrame) -> None:
     write_table(path, rows.reset_index(drop=True))
 
 
-def done_settings(record: RunRecord, trajectories: Sequence[str], episodes: int,
-                  keep_realism: bool = False) -> set[str]:
+def done_settings(
+    record: RunRecord, trajectories: Sequence[str], episodes: int, keep_realism: bool = False
+) -> set[str]:
     """Keys of the settings whose rows in ``eval_robustness`` cover every trajectory with at
     least ``episodes`` episodes under this baseline."""
     path = record.table_path(ROBUSTNESS_TABLE)
@@ -272,8 +284,13 @@ def done_settings(record: RunRecord, trajectories: Sequence[str], episodes: int,
     return done
 
 
-def part_path(record: RunRecord, setting: Setting, trajectories: Sequence[str], episodes: int,
-              keep_realism: bool) -> Path:
+def part_path(
+    record: RunRecord,
+    setting: Setting,
+    trajectories: Sequence[str],
+    episodes: int,
+    keep_realism: bool,
+) -> Path:
     """Where a worker process stores one setting's rows until :func:`merge_parts` merges them."""
     ident = "|".join([setting.key, ",".join(trajectories), str(episodes), str(keep_realism)])
     digest = hashlib.sha1(ident.encode()).hexdigest()[:16]

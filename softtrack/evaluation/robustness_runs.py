@@ -58,8 +58,16 @@ class RobustnessJob:
 
     @property
     def command(self) -> list[str]:
-        cmd = [sys.executable, "-m", "softtrack.evaluation.robustness_runs", self.run_dir,
-               "--trajectories", ",".join(self.trajectories), "--episodes", str(self.episodes)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "softtrack.evaluation.robustness_runs",
+            self.run_dir,
+            "--trajectories",
+            ",".join(self.trajectories),
+            "--episodes",
+            str(self.episodes),
+        ]
         for factor, value in self.setting.levels:
             cmd += ["--level", f"{factor}={value}"]
         return cmd + (["--keep-realism"] if self.keep_realism else [])
@@ -139,8 +147,15 @@ def run_robustness(
         for record, setting in todo:
             if record.run_id not in policies:
                 policies[record.run_id] = load_policy(record, specs[record.run_id])
-            rows = evaluate_setting(record.run_id, policies[record.run_id], specs[record.run_id],
-                                    setting, trajectories, episodes, keep_realism=keep_realism)
+            rows = evaluate_setting(
+                record.run_id,
+                policies[record.run_id],
+                specs[record.run_id],
+                setting,
+                trajectories,
+                episodes,
+                keep_realism=keep_realism,
+            )
             store_rows(record, rows)
             frames.append(rows)
             outcome.cells.append((record.run_id, setting.key))
@@ -148,11 +163,14 @@ def run_robustness(
                 on_cell(record, setting, rows)
         outcome.rows = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
         return outcome
-    jobs = [RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
-            for record, setting in todo]
+    jobs = [
+        RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
+        for record, setting in todo
+    ]
     cluster = specs[records[0].run_id].cluster if records else ClusterSpec()
-    parts = [part_path(record, setting, trajectories, episodes, keep_realism)
-             for record, setting in todo]
+    parts = [
+        part_path(record, setting, trajectories, episodes, keep_realism) for record, setting in todo
+    ]
     _run_jobs(jobs, parts, records, options, outcome, on_progress, cluster)
     if outcome.detached:
         return outcome
@@ -163,9 +181,15 @@ def run_robustness(
     return outcome
 
 
-def _run_jobs(jobs: Sequence[RobustnessJob], parts: Sequence[Path], records: Sequence[RunRecord],
-              options: ExecOptions, outcome: RobustnessOutcome,
-              on_progress: Callable[[str], None] | None, cluster: ClusterSpec) -> None:
+def _run_jobs(
+    jobs: Sequence[RobustnessJob],
+    parts: Sequence[Path],
+    records: Sequence[RunRecord],
+    options: ExecOptions,
+    outcome: RobustnessOutcome,
+    on_progress: Callable[[str], None] | None,
+    cluster: ClusterSpec,
+) -> None:
     """Run the workers on ``options.executor`` (until they end unless detached); SLURM
     resources from the options, else ``cluster`` (the first run's spec)."""
     if not jobs:
@@ -185,8 +209,9 @@ def _run_jobs(jobs: Sequence[RobustnessJob], parts: Sequence[Path], records: Seq
 
     store = RunStore(Path(records[0].path).parent)
     slurm = slurm_options(options, cluster, store)
-    submitted = submit_commands([(j.command, str(j.log_path())) for j in jobs], slurm,
-                                name="softtrack-robustness")
+    submitted = submit_commands(
+        [(j.command, str(j.log_path())) for j in jobs], slurm, name="softtrack-robustness"
+    )
     if options.detach:
         outcome.detached = True
         return
@@ -211,8 +236,15 @@ def main(argv: list[str] | None = None) -> int:
     setting = Setting(tuple((f, v) for f, _, v in (item.partition("=") for item in args.level)))
     trajectories = args.trajectories.split(",")
     started = time.monotonic()
-    rows = evaluate_setting(record.run_id, load_policy(record, spec), spec, setting, trajectories,
-                            args.episodes, keep_realism=args.keep_realism)
+    rows = evaluate_setting(
+        record.run_id,
+        load_policy(record, spec),
+        spec,
+        setting,
+        trajectories,
+        args.episodes,
+        keep_realism=args.keep_realism,
+    )
     path = part_path(record, setting, trajectories, args.episodes, args.keep_realism)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_table(path, rows)

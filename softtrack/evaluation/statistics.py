@@ -76,5 +76,6 @@ def mean_difference(a: ArrayLike, b: ArrayLike, confidence: float = 0.95) -> Dif
     dof = (va + vb) ** 2 / (va**2 / (x.size - 1) + vb**2 / (y.size - 1))
     half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
     p_value = float(2.0 * stats.t.sf(abs(difference) / se, dof))
-    return Difference(difference, difference - half, difference + half, p_value, x.size,
-                      y.size, confidence)
+    return Difference(
+        difference, difference - half, difference + half, p_value, x.size, y.size, confidence
+    )

@@ -97,7 +97,9 @@ def snapshot_table(run_id: str, episode: Episode) -> pd.DataFrame:
     return pd.DataFrame(data)
 
 
-def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_START) -> pd.DataFrame:
+def metrics_table(
+    run_id: str, episode: Episode, steady_start: float = STEADY_START
+) -> pd.DataFrame:
     """One row per arm: every docs/environment.md metric over the episode (errors from the
     arm's own point, :meth:`Episode.goals`), and ``*_steady`` over t ≥ 1 s
     (NaN when the episode is shorter than that), and the arm's action statistics
@@ -121,8 +123,9 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
             f"actions have shape {episode.actions.shape}; expected "
             f"{(len(episode.t), _ARM_ACTIONS * n_arms)}"
         )
-    clearance = episode.clearance if episode.clearance is not None else np.full(len(episode.t),
-                                                                                 np.nan)
+    clearance = (
+        episode.clearance if episode.clearance is not None else np.full(len(episode.t), np.nan)
+    )
     safety = safety_statistics(clearance, episode.collision_margin)
     if n_arms >= 2 and episode.penetration is not None and episode.contact_force is not None:
         safety.update(contact_statistics(episode.penetration, episode.contact_force))
@@ -133,8 +136,9 @@ def metrics_table(run_id: str, episode: Episode, steady_start: float = STEADY_ST
         if steady.any():
             steady_metrics = tracking_metrics(episode.tips[steady, arm], goals[steady])
         else:  # an episode shorter than the approach: no steady window
-            steady_metrics = dict.fromkeys(tracking_metrics(episode.tips[:, arm], goals),
-                                           float("nan"))
+            steady_metrics = dict.fromkeys(
+                tracking_metrics(episode.tips[:, arm], goals), float("nan")
+            )
         row.update({f"{k}_steady": v for k, v in steady_metrics.items()})
         columns = slice(_ARM_ACTIONS * arm, _ARM_ACTIONS * (arm + 1))
         row.update(action_statistics(episode.actions[:, columns]))
@@ -155,15 +159,17 @@ def moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
     N·m, float32)."""
     torques = episode.element_torques  # (N, A, 2, n_elem)
     n, n_arms, n_dirs, _ = torques.shape
-    return pd.DataFrame({
-        "run_id": run_id,
-        "trajectory": episode.trajectory,
-        "step": np.repeat(np.arange(1, n + 1, dtype=np.int32), n_arms * n_dirs),
-        "t": np.repeat(episode.t, n_arms * n_dirs),
-        "arm": np.tile(np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs), n),
-        "direction": np.tile(np.arange(n_dirs, dtype=np.int32), n * n_arms),
-        "rms_moment": moment_rms(torques).reshape(-1).astype(np.float32),
-    })
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "trajectory": episode.trajectory,
+            "step": np.repeat(np.arange(1, n + 1, dtype=np.int32), n_arms * n_dirs),
+            "t": np.repeat(episode.t, n_arms * n_dirs),
+            "arm": np.tile(np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs), n),
+            "direction": np.tile(np.arange(n_dirs, dtype=np.int32), n * n_arms),
+            "rms_moment": moment_rms(torques).reshape(-1).astype(np.float32),
+        }
+    )
 
 
 def moment_peaks_table(run_id: str, episode: Episode) -> pd.DataFrame:
@@ -177,14 +183,16 @@ def element_peaks_frame(run_id: str, trajectory: str, peaks: np.ndarray) -> pd.D
     """Rows (run_id, trajectory, arm, direction, element, peak_abs_moment) from peaks of shape
     (A arms, 2 directions, n_elem elements), N·m, stored as float32."""
     n_arms, n_dirs, n_elem = peaks.shape
-    return pd.DataFrame({
-        "run_id": run_id,
-        "trajectory": trajectory,
-        "arm": np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs * n_elem),
-        "direction": np.tile(np.repeat(np.arange(n_dirs, dtype=np.int32), n_elem), n_arms),
-        "element": np.tile(np.arange(n_elem, dtype=np.int32), n_arms * n_dirs),
-        "peak_abs_moment": peaks.reshape(-1).astype(np.float32),
-    })
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "trajectory": trajectory,
+            "arm": np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs * n_elem),
+            "direction": np.tile(np.repeat(np.arange(n_dirs, dtype=np.int32), n_elem), n_arms),
+            "element": np.tile(np.arange(n_elem, dtype=np.int32), n_arms * n_dirs),
+            "peak_abs_moment": peaks.reshape(-1).astype(np.float32),
+        }
+    )
 
 
 def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:

@@ -37,8 +37,12 @@ class Job:
     def command(self) -> list[str]:
         """The worker command line (``sys.executable -m softtrack.executors.worker ...``)."""
         return [
-            sys.executable, "-m", "softtrack.executors.worker",
-            "--runs-dir", str(self.runs_dir), self.run_id,
+            sys.executable,
+            "-m",
+            "softtrack.executors.worker",
+            "--runs-dir",
+            str(self.runs_dir),
+            self.run_id,
         ]
 
     def log_path(self) -> Path:
@@ -110,7 +114,7 @@ def run_job(runs_dir: str | os.PathLike[str], run_id: str, *, threads: int = 1) 
     except RunLockedError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_LOCKED
-    except Exception as exc:  # noqa: BLE001 (recorded as a failed run; siblings go on)
+    except Exception as exc:
         text = "".join(traceback.format_exception(exc))
         print(text, file=sys.stderr)
         line = " ".join(f"{type(exc).__name__}: {exc}".split())

@@ -75,8 +75,11 @@ class Outcome:
     @property
     def missing(self) -> list[tuple[str, str]]:
         """(run id, status) of every run that is not completed."""
-        return [(r, self.statuses.get(r, "?")) for r in self.run_ids
-                if self.statuses.get(r) != "completed"]
+        return [
+            (r, self.statuses.get(r, "?"))
+            for r in self.run_ids
+            if self.statuses.get(r) != "completed"
+        ]
 
     @property
     def exit_code(self) -> int:
@@ -90,11 +93,15 @@ class Outcome:
 def progress_line(label: str, records: Sequence[RunRecord]) -> str:
     """``sweep 01X…: 4 runs: 1 completed, 2 running, 1 queued; 2,340 steps/s``."""
     counts = progress_counts(records, effective_status)
-    parts = [f"{counts[s]} {s}" for s in
-             ("completed", "running", "queued", "interrupted", "failed", "lost") if counts[s]
-             or s in ("completed", "running", "failed")]
-    return (f"{label}: {len(records)} runs: {', '.join(parts)}; "
-            f"{counts['steps_per_second']:,.0f} steps/s")
+    parts = [
+        f"{counts[s]} {s}"
+        for s in ("completed", "running", "queued", "interrupted", "failed", "lost")
+        if counts[s] or s in ("completed", "running", "failed")
+    ]
+    return (
+        f"{label}: {len(records)} runs: {', '.join(parts)}; "
+        f"{counts['steps_per_second']:,.0f} steps/s"
+    )
 
 
 def _records(store: RunStore, run_ids: Sequence[str]) -> list[RunRecord]:
@@ -153,12 +160,22 @@ def execute(
         if opts.detach:
             log = store.root / f"sweep-{sweep_id}.log"
             with open(log, "ab") as fh:
-                cmd = [sys.executable, "-m", "softtrack.executors.local",
-                       "--runs-dir", str(store.root)]
+                cmd = [
+                    sys.executable,
+                    "-m",
+                    "softtrack.executors.local",
+                    "--runs-dir",
+                    str(store.root),
+                ]
                 if opts.workers:
                     cmd += ["--workers", str(opts.workers)]
-                subprocess.Popen([*cmd, *run_ids], stdin=subprocess.DEVNULL, stdout=fh,
-                                 stderr=subprocess.STDOUT, start_new_session=True)
+                subprocess.Popen(
+                    [*cmd, *run_ids],
+                    stdin=subprocess.DEVNULL,
+                    stdout=fh,
+                    stderr=subprocess.STDOUT,
+                    start_new_session=True,
+                )
             outcome.detached, outcome.log = True, str(log)
         else:
             pool = LocalPool(opts.workers)
@@ -214,12 +231,14 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
         return [r for r in records if resumable(r) and r.spec_problem() is None]
     chosen: dict[str, RunRecord] = {}
     for item in selection:
-        group = [r for r in records
-                 if r.info.name == item or str((r.info.notes or {}).get("sweep", "")).upper()
-                 == item.upper()]
+        group = [
+            r
+            for r in records
+            if r.info.name == item
+            or str((r.info.notes or {}).get("sweep", "")).upper() == item.upper()
+        ]
         if group:
-            chosen.update((r.run_id, r) for r in group
-                          if resumable(r) and r.spec_problem() is None)
+            chosen.update((r.run_id, r) for r in group if resumable(r) and r.spec_problem() is None)
             continue
         record = store.get_run(item)  # raises RunNotFoundError with the fix
         problem = record.spec_problem()
@@ -228,8 +247,10 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
         if record.info.status == "completed":
             raise RunStoreError(f"run {record.run_id} is already completed; nothing to resume")
         if lock_held(record) is True:
-            raise RunStoreError(f"run {record.run_id} is still training (pid {record.info.pid} "
-                                f"on {record.info.host}); stop it first")
+            raise RunStoreError(
+                f"run {record.run_id} is still training (pid {record.info.pid} "
+                f"on {record.info.host}); stop it first"
+            )
         chosen[record.run_id] = record
     return sorted(chosen.values(), key=lambda r: r.run_id)
 
@@ -237,8 +258,10 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
 def unresumable_runs(store: RunStore) -> list[str]:
     """One line per run that :func:`select_resumable_runs` leaves out although it would be
     resumable: its run.json or spec.yaml is missing or unreadable (with what to do)."""
-    lines = [f"run {item.path.name} left out: {item.reason}; {item.fix}"
-             for item in store.list_unreadable()]
+    lines = [
+        f"run {item.path.name} left out: {item.reason}; {item.fix}"
+        for item in store.list_unreadable()
+    ]
     for record in store.list_runs():
         problem = record.spec_problem()
         if problem is not None and resumable(record):
@@ -257,7 +280,7 @@ def cluster_of(store: RunStore, run_ids: Sequence[str]) -> ClusterSpec:
     for record in _records(store, run_ids[:1]):
         try:
             return record.load_spec().cluster
-        except Exception:  # noqa: BLE001
+        except Exception:
             break
     return ClusterSpec()
 

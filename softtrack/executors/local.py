@@ -43,7 +43,7 @@ class LocalPool:
         self.stop_signal: int | None = None
 
     def _start(self, job: PoolJob) -> subprocess.Popen[bytes]:
-        log = open(job.log_path(), "ab")  # noqa: SIM115 (the child keeps it)
+        log = open(job.log_path(), "ab")
         try:
             return subprocess.Popen(
                 job.command,
@@ -57,7 +57,9 @@ class LocalPool:
             log.close()
 
     def run(
-        self, jobs: Sequence[PoolJob], on_tick: Callable[[], None] | None = None,
+        self,
+        jobs: Sequence[PoolJob],
+        on_tick: Callable[[], None] | None = None,
         tick_s: float = 2.0,
     ) -> dict[str, int]:
         """Run ``jobs``; returns each started job's worker exit code by its ``key`` (a

@@ -114,7 +114,10 @@ class RunJob(_checkpointable_base()):  # type: ignore[misc]
         threads = int(os.environ.get("SLURM_CPUS_PER_TASK", "1") or 1)
         with open(job.log_path(), "ab") as log:
             self._proc = subprocess.Popen(
-                job.command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                job.command,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
                 env=worker_env(threads),
             )
         while self._proc.poll() is None:  # poll, not wait: checkpoint() may interrupt us
@@ -150,8 +153,13 @@ class CommandJob(_checkpointable_base()):  # type: ignore[misc]
     def __call__(self, command: list[str], log: str) -> int:
         threads = int(os.environ.get("SLURM_CPUS_PER_TASK", "1") or 1)
         with open(log, "ab") as fh:
-            self._proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=fh,
-                                          stderr=subprocess.STDOUT, env=worker_env(threads))
+            self._proc = subprocess.Popen(
+                command,
+                stdin=subprocess.DEVNULL,
+                stdout=fh,
+                stderr=subprocess.STDOUT,
+                env=worker_env(threads),
+            )
         while self._proc.poll() is None:
             time.sleep(0.5)
         return int(self._proc.returncode)
@@ -189,7 +197,8 @@ def _executor(options: SlurmOptions) -> Any:
     cluster = options.cluster or os.environ.get(CLUSTER_ENV) or None
     Path(options.folder).mkdir(parents=True, exist_ok=True)
     executor = submitit.AutoExecutor(
-        folder=str(Path(options.folder) / "%j"), cluster=cluster,
+        folder=str(Path(options.folder) / "%j"),
+        cluster=cluster,
         slurm_max_num_timeout=options.max_requeues,
         local_max_num_timeout=options.max_requeues,
     )
@@ -212,18 +221,20 @@ def submit_jobs(jobs: Sequence[Job], options: SlurmOptions) -> list[Any]:
     executor = _executor(options)
     if not jobs:
         return []
-    return list(
-        executor.map_array(RunJob(), [j.runs_dir for j in jobs], [j.run_id for j in jobs])
-    )
+    return list(executor.map_array(RunJob(), [j.runs_dir for j in jobs], [j.run_id for j in jobs]))
 
 
-def submit_commands(commands: Sequence[tuple[list[str], str]], options: SlurmOptions,
-                    name: str = "softtrack") -> list[Any]:
+def submit_commands(
+    commands: Sequence[tuple[list[str], str]], options: SlurmOptions, name: str = "softtrack"
+) -> list[Any]:
     """Submit one array task per (command line, log file) (:class:`CommandJob`); returns the
     submitit jobs."""
     executor = _executor(options)
     executor.update_parameters(name=name)
     if not commands:
         return []
-    return list(executor.map_array(CommandJob(), [list(c) for c, _ in commands],
-                                   [log for _, log in commands]))
+    return list(
+        executor.map_array(
+            CommandJob(), [list(c) for c, _ in commands], [log for _, log in commands]
+        )
+    )

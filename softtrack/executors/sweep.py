@@ -54,14 +54,18 @@ def parse_grid(items: Sequence[str]) -> list[tuple[str, list[str]]]:
         values = split_values(raw) if sep else []
         if not key or not sep or not all(values):
             raise SpecError(
-                f"--grid {item}", "malformed grid axis",
+                f"--grid {item}",
+                "malformed grid axis",
                 "write it as dotted.path=v1,v2,..., e.g. --grid algo.name=td3,ddpg",
             )
         if key in {k for k, _ in grid}:
             raise SpecError(f"--grid {item}", f"{key!r} is given twice", "list it once")
         if key == "seeds":
-            raise SpecError(f"--grid {item}", "seeds are not a grid axis",
-                            "use --seeds 0,1,2 (every grid point gets every seed)")
+            raise SpecError(
+                f"--grid {item}",
+                "seeds are not a grid axis",
+                "use --seeds 0,1,2 (every grid point gets every seed)",
+            )
         grid.append((key, values))
     return grid
 
@@ -76,8 +80,9 @@ def parse_seeds(text: str | None) -> list[int] | None:
             lo, dash, hi = part.partition("-")
             seeds += list(range(int(lo), int(hi) + 1)) if dash else [int(part)]
     except ValueError:
-        raise SpecError(f"--seeds {text}", "malformed seed list",
-                        "write seeds as 0,1,2 or as a range 0-4") from None
+        raise SpecError(
+            f"--seeds {text}", "malformed seed list", "write seeds as 0,1,2 or as a range 0-4"
+        ) from None
     if not seeds:
         raise SpecError(f"--seeds {text}", "no seed given", "write seeds as 0,1,2 or 0-4")
     return seeds
@@ -117,8 +122,11 @@ def expand_grid(
     from softtrack.rl.factory import check_supported
 
     if not paths:
-        raise SpecError("sweep", "no spec file given",
-                        "e.g. `softtrack sweep experiments/study/td3-64-1e7.yaml`")
+        raise SpecError(
+            "sweep",
+            "no spec file given",
+            "e.g. `softtrack sweep experiments/study/td3-64-1e7.yaml`",
+        )
     keys = [k for k, _ in grid]
     points: list[GridPoint] = []
     names: dict[str, str] = {}
@@ -135,18 +143,23 @@ def expand_grid(
             where = f"{path} {' '.join(sets)}".strip()
             if spec.name in names and names[spec.name] != where:
                 raise SpecError(
-                    path, f"two grid points share the experiment name {spec.name!r}",
-                    "give the spec files different names (name: ...)", field="name",
+                    path,
+                    f"two grid points share the experiment name {spec.name!r}",
+                    "give the spec files different names (name: ...)",
+                    field="name",
                 )
             names[spec.name] = where
-            points.append(GridPoint(str(path), tuple(sets), spec, dict(zip(keys, values, strict=True))))
+            points.append(
+                GridPoint(str(path), tuple(sets), spec, dict(zip(keys, values, strict=True)))
+            )
     return points
 
 
 def progress_counts(records: Sequence[Any], status_of: Any) -> dict[str, Any]:
     """``{"completed": n, "running": n, ..., "steps_per_second": sum over running runs}``."""
-    counts: dict[str, Any] = {s: 0 for s in
-                              ("completed", "running", "queued", "interrupted", "failed", "lost")}
+    counts: dict[str, Any] = {
+        s: 0 for s in ("completed", "running", "queued", "interrupted", "failed", "lost")
+    }
     sps = 0.0
     for record in records:
         status = status_of(record)

@@ -57,16 +57,23 @@ class PlannerConfig:
         """Raise ``ValueError`` naming the first invalid setting and its valid range."""
         if self.method not in ("mppi", "cem"):
             raise ValueError(f"method={self.method!r}: use mppi or cem")
-        for name, low in (("samples", 2), ("horizon", 1), ("iterations", 1),
-                          ("replan_interval", 1)):
+        for name, low in (
+            ("samples", 2),
+            ("horizon", 1),
+            ("iterations", 1),
+            ("replan_interval", 1),
+        ):
             if int(getattr(self, name)) < low:
                 raise ValueError(f"{name}={getattr(self, name)!r} must be ≥ {low}")
         if not 1 <= self.n_knots <= self.horizon or (self.n_knots == 1 and self.horizon > 1):
-            raise ValueError(f"knots={self.knots!r} must be in 2 … horizon ({self.horizon}), "
-                             "or null for one per control step")
+            raise ValueError(
+                f"knots={self.knots!r} must be in 2 … horizon ({self.horizon}), "
+                "or null for one per control step"
+            )
         if self.replan_interval > self.horizon:
-            raise ValueError(f"replan_interval={self.replan_interval} must be ≤ horizon "
-                             f"({self.horizon})")
+            raise ValueError(
+                f"replan_interval={self.replan_interval} must be ≤ horizon ({self.horizon})"
+            )
         for name in ("noise_std", "temperature"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name}={getattr(self, name)!r} must be > 0")

@@ -43,14 +43,19 @@ class MpcController:
         model_scales: extra model-error factors of the planner's model (name → factor).
     """
 
-    def __init__(self, config: PlannerConfig, seed: int = 0,
-                 model: Literal["true", "nominal"] = "true",
-                 model_scales: Mapping[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        config: PlannerConfig,
+        seed: int = 0,
+        model: Literal["true", "nominal"] = "true",
+        model_scales: Mapping[str, float] | None = None,
+    ) -> None:
         config.validate()
         unknown = sorted(set(model_scales or {}) - set(MODEL_PARAMETERS))
         if unknown:
-            raise ValueError(f"unknown model scale {unknown[0]!r}; use "
-                             + ", ".join(MODEL_PARAMETERS))
+            raise ValueError(
+                f"unknown model scale {unknown[0]!r}; use " + ", ".join(MODEL_PARAMETERS)
+            )
         self.config = config
         self.seed = int(seed)
         self.model = model
@@ -63,14 +68,16 @@ class MpcController:
 
     def start_episode(self, core: TrackingCore) -> None:
         """Plan for ``core``'s environment 0 from now on (after its reset)."""
-        factors = (core.parameters(0) if self.model == "true"
-                   else dict.fromkeys(MODEL_PARAMETERS, 1.0))
+        factors = (
+            core.parameters(0) if self.model == "true" else dict.fromkeys(MODEL_PARAMETERS, 1.0)
+        )
         for name, scale in self.model_scales.items():
             factors[name] *= float(scale)
         model_factors = {n: f for n, f in factors.items() if f != 1.0}
         self._core = core
-        self._planner = SamplingPlanner(self.config, core.config.sim,
-                                        np.random.default_rng(self.seed), model_factors)
+        self._planner = SamplingPlanner(
+            self.config, core.config.sim, np.random.default_rng(self.seed), model_factors
+        )
         self._plan = np.zeros((0, core.action_dim))
         self._next = 0
         self._previous = np.zeros(core.action_dim)
@@ -82,8 +89,9 @@ class MpcController:
         if core is None or planner is None:
             raise RuntimeError("MpcController needs start_episode(core) before its first call")
         if self._next >= min(self.config.replan_interval, len(self._plan)):
-            self._plan = planner.plan(core.engine.get_state([0]), self._target_path(core),
-                                      self._previous)
+            self._plan = planner.plan(
+                core.engine.get_state([0]), self._target_path(core), self._previous
+            )
             self._next = 0
         action = self._plan[self._next].copy()
         self._next += 1
@@ -99,6 +107,5 @@ class MpcController:
             centre = trajectory_position(targets.config, targets.time[0] + ahead)
         else:
             low, high = targets.shrunk_box
-            centre = np.clip(targets.position[0] + ahead[:, None] * targets.velocity[0], low,
-                             high)
+            centre = np.clip(targets.position[0] + ahead[:, None] * targets.velocity[0], low, high)
         return centre[:, None, :] + core.goal_offsets[None]

@@ -62,8 +62,13 @@ class SamplingPlanner:
             :meth:`~softtrack.sim.engine.RodBatch.set_parameters`); ``None``: nominal.
     """
 
-    def __init__(self, config: PlannerConfig, sim: SimParams, rng: np.random.Generator,
-                 model_factors: dict[str, float] | None = None) -> None:
+    def __init__(
+        self,
+        config: PlannerConfig,
+        sim: SimParams,
+        rng: np.random.Generator,
+        model_factors: dict[str, float] | None = None,
+    ) -> None:
         config.validate()
         self.config = config
         self.rng = rng
@@ -86,8 +91,9 @@ class SamplingPlanner:
         self.mean[:] = 0.0
         self.std[:] = self.config.noise_std
 
-    def plan(self, state: RodState, target_path: np.ndarray,
-             previous_action: np.ndarray) -> np.ndarray:
+    def plan(
+        self, state: RodState, target_path: np.ndarray, previous_action: np.ndarray
+    ) -> np.ndarray:
         """Plan from ``state`` and return the per-step plan.
 
         Args:
@@ -101,8 +107,11 @@ class SamplingPlanner:
         """
         c = self.config
         k, h = c.samples, c.horizon
-        self.mean = (self._expand @ self.mean)[self._warm_steps] if c.warm_start \
+        self.mean = (
+            (self._expand @ self.mean)[self._warm_steps]
+            if c.warm_start
             else np.zeros_like(self.mean)
+        )
         self.std[:] = c.noise_std
         for _ in range(c.iterations):
             noise = self.rng.standard_normal((k, *self.mean.shape)) * self.std
@@ -115,8 +124,13 @@ class SamplingPlanner:
                 break
         return np.clip(self._expand @ self.mean, -1.0, 1.0)[:h]
 
-    def _rollout_costs(self, state: RodState, controls: np.ndarray, target_path: np.ndarray,
-                       previous_action: np.ndarray) -> np.ndarray:
+    def _rollout_costs(
+        self,
+        state: RodState,
+        controls: np.ndarray,
+        target_path: np.ndarray,
+        previous_action: np.ndarray,
+    ) -> np.ndarray:
         c, model = self.config, self.model
         k = c.samples
         model.set_state(state)
@@ -142,7 +156,7 @@ class SamplingPlanner:
             return
         c = self.config
         if c.method == "cem":
-            n_elite = max(1, int(round(c.elite_fraction * c.samples)))
+            n_elite = max(1, round(c.elite_fraction * c.samples))
             elite = knots[np.argsort(np.where(finite, cost, np.inf))[:n_elite]]
             self.mean = elite.mean(axis=0)
             self.std = np.maximum(elite.std(axis=0), 1e-3 * c.noise_std)

@@ -43,8 +43,12 @@ ACTIONS_HEADER = (
 # (column, scale, decimals) of the statistic cells
 _CELLS = (("action_saturation", 100.0, 1), ("action_change", 1.0, 3), ("action_rms", 1.0, 3))
 # ... and of the smoothness and safety cells ("–" where not stored)
-_SAFETY_CELLS = (("torque_rate_rms", 1.0, 0), ("peak_moment", 1.0, 1),
-                 ("min_arm_distance", 1.0, 3), ("collision_steps", 1.0, 1))
+_SAFETY_CELLS = (
+    ("torque_rate_rms", 1.0, 0),
+    ("peak_moment", 1.0, 1),
+    ("min_arm_distance", 1.0, 3),
+    ("collision_steps", 1.0, 1),
+)
 _NOT_STORED = "–"
 
 
@@ -118,14 +122,14 @@ def actions_caption(summary: pd.DataFrame, groups: Sequence[Group]) -> str:
     if missing:
         text += (
             f" Some runs of {', '.join(missing)} have metrics stored before these statistics "
-            "existed (fewer \"seeds with data\" than seeds, \"no data\" where none has them): "
+            'existed (fewer "seeds with data" than seeds, "no data" where none has them): '
             "run `softtrack evaluate` on them again."
         )
     older = [g.label for g in groups if _missing(summary, g, "torque_rate_rms")]
     if older:
         text += (
             f" Metrics of some runs of {', '.join(older)} were stored before the torque and "
-            "clearance columns existed: their means leave those runs out, and \"–\" marks "
+            'clearance columns existed: their means leave those runs out, and "–" marks '
             "cells where no run has them (`softtrack evaluate` adds them)."
         )
     return text

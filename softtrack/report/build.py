@@ -48,10 +48,10 @@ from softtrack.report.evaluation_sections import (
     trajectories_section,
 )
 from softtrack.report.featured import featured_groups
-from softtrack.report.select import EmptySelectionError, select_report_runs
-from softtrack.report.summaries import metrics_summary
 from softtrack.report.planning import planning_section
 from softtrack.report.robustness import robustness_section
+from softtrack.report.select import EmptySelectionError, select_report_runs
+from softtrack.report.summaries import metrics_summary
 from softtrack.report.training_sections import (
     final_section,
     runs_section,
@@ -180,5 +180,6 @@ def report_selection(
     records = select_report_runs(store, selection)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
-    return build_report(records, out_dir, command_line, all_figures=all_figures,
-                        figures_for=figures_for)
+    return build_report(
+        records, out_dir, command_line, all_figures=all_figures, figures_for=figures_for
+    )

@@ -73,24 +73,32 @@ def contact_summary(groups: Sequence[Group], radius: float = 0.05) -> pd.DataFra
         runs = [r for r in group.runs if _has_contact_columns(r)]
         if not runs:
             continue
-        values: dict[str, list[float]] = {"quadratic_mean": [], "contact_share": [],
-                                          "max_penetration": [], "mean_force": []}
+        values: dict[str, list[float]] = {
+            "quadratic_mean": [],
+            "contact_share": [],
+            "max_penetration": [],
+            "mean_force": [],
+        }
         for run in runs:
             metrics = run.metrics
             assert metrics is not None
             per_traj = metrics.groupby("trajectory")
-            rmse = per_traj["rmse_3d"].apply(lambda s: math.sqrt(float((s ** 2).mean())))
+            rmse = per_traj["rmse_3d"].apply(lambda s: math.sqrt(float((s**2).mean())))
             steps = per_traj["duration"].first() / 0.002
             values["quadratic_mean"].append(float(rmse.mean()))
-            values["contact_share"].append(float((per_traj["contact_steps"].first()
-                                                  / steps).mean()))
+            values["contact_share"].append(
+                float((per_traj["contact_steps"].first() / steps).mean())
+            )
             values["max_penetration"].append(float(per_traj["max_penetration"].first().max()))
             values["mean_force"].append(float(per_traj["mean_contact_force"].first().mean()))
         task = _task(runs[0])
-        row: dict[str, object] = {"group": group.label, "task": task,
-                                  "contact": "on" if _contact_on(runs[0]) else "off",
-                                  "n": len(runs),
-                                  "floor": radius if task == "shared" else float("nan")}
+        row: dict[str, object] = {
+            "group": group.label,
+            "task": task,
+            "contact": "on" if _contact_on(runs[0]) else "off",
+            "n": len(runs),
+            "floor": radius if task == "shared" else float("nan"),
+        }
         for name, seeds in values.items():
             row[f"{name}_mean"] = float(np.mean(seeds))
             row[f"{name}_std"] = float(np.std(seeds, ddof=1)) if len(seeds) > 1 else float("nan")
@@ -106,17 +114,33 @@ def contact_section(doc: Doc, ctx: Context) -> None:
     doc.h(3, "Contact between the arms")
     rows = []
     for _, r in summary.iterrows():
-        rows.append([
-            str(r["group"]), str(r["task"]), str(r["contact"]), str(int(r["n"])),
-            mean_pm_std(r["quadratic_mean_mean"], r["quadratic_mean_std"], 4),
-            "–" if not np.isfinite(r["floor"]) else f"{r['floor']:.3f}",
-            f"{100 * r['contact_share_mean']:.0f} %",
-            f"{1e3 * r['max_penetration_mean']:.1f}",
-            f"{r['mean_force_mean']:.1f}",
-        ])
-    doc.table(["controller", "task", "contact", "seeds", "quadratic mean of the arms' "
-               "3-D RMSE (m)", "floor (m)", "steps in contact", "deepest overlap (mm)",
-               "mean contact force (N)"], rows)
+        rows.append(
+            [
+                str(r["group"]),
+                str(r["task"]),
+                str(r["contact"]),
+                str(int(r["n"])),
+                mean_pm_std(r["quadratic_mean_mean"], r["quadratic_mean_std"], 4),
+                "–" if not np.isfinite(r["floor"]) else f"{r['floor']:.3f}",
+                f"{100 * r['contact_share_mean']:.0f} %",
+                f"{1e3 * r['max_penetration_mean']:.1f}",
+                f"{r['mean_force_mean']:.1f}",
+            ]
+        )
+    doc.table(
+        [
+            "controller",
+            "task",
+            "contact",
+            "seeds",
+            "quadratic mean of the arms' 3-D RMSE (m)",
+            "floor (m)",
+            "steps in contact",
+            "deepest overlap (mm)",
+            "mean contact force (N)",
+        ],
+        rows,
+    )
     doc.p(
         "Per seed, over the evaluated trajectories: the quadratic mean sqrt((RMSE₁² + "
         "RMSE₂²)/2) of the two arms' 3-D RMSE (mean over trajectories), the share of control "
@@ -124,20 +148,31 @@ def contact_section(doc: Doc, ctx: Context) -> None:
         "arms pass through each other and this is how deep), and the mean contact force; "
         "mean ± sample std across seeds. On the shared target two real arms of radius r = "
         "0.05 m cannot both reach the centre: touching tips are ≥ 2r apart, so the quadratic "
-        "mean is ≥ r (the floor). docs/physics.md, \"Contact between the arms\"."
+        'mean is ≥ r (the floor). docs/physics.md, "Contact between the arms".'
     )
     comparison = centralized_vs_independent(ctx.groups)
     if comparison:
-        doc.p("**Centralized against independent, with contact** (per trajectory and arm: the "
-              "difference of the seed means of 3-D RMSE, centralized − independent, m, with "
-              "Welch's 95 % interval; negative: the centralized controller tracks better):")
-        doc.table(["task", "centralized", "independent", "seeds", "trajectory",
-                   "arm 1: difference [95 % CI]", "arm 2: difference [95 % CI]"], comparison)
+        doc.p(
+            "**Centralized against independent, with contact** (per trajectory and arm: the "
+            "difference of the seed means of 3-D RMSE, centralized − independent, m, with "
+            "Welch's 95 % interval; negative: the centralized controller tracks better):"
+        )
+        doc.table(
+            [
+                "task",
+                "centralized",
+                "independent",
+                "seeds",
+                "trajectory",
+                "arm 1: difference [95 % CI]",
+                "arm 2: difference [95 % CI]",
+            ],
+            comparison,
+        )
     touching = set(summary.loc[summary["contact"] == "on", "group"])
     drawn = [g for g in ctx.groups if g.label in touching][:_MAX_FIGURE_GROUPS]
     trajectory = "circle"
-    runs = [(g.label, run) for g in drawn
-            if (run := representative_run(g, trajectory)) is not None]
+    runs = [(g.label, run) for g in drawn if (run := representative_run(g, trajectory)) is not None]
     if not runs:
         return
     path, rel = ctx.figure("contact_timeline.png")
@@ -164,6 +199,7 @@ def centralized_vs_independent(groups: Sequence[Group]) -> list[list[str]]:
     """Table rows comparing each centralized group with contact to each independent group of
     the same task with contact: per trajectory, each arm's difference of seed means with
     Welch's 95 % interval (:func:`softtrack.evaluation.statistics.mean_difference`)."""
+
     def key(group: Group) -> tuple[str, bool] | None:
         runs = [r for r in group.runs if _has_contact_columns(r)]
         return (_task(runs[0]), _contact_on(runs[0])) if runs else None
@@ -174,29 +210,49 @@ def centralized_vs_independent(groups: Sequence[Group]) -> list[list[str]]:
             pair = key(central)
             if pair is None or not pair[1] or pair != key(independent):
                 continue
-            for trajectory in sorted({str(t) for r in central.runs if r.metrics is not None
-                                      for t in r.metrics["trajectory"]}):
+            for trajectory in sorted(
+                {
+                    str(t)
+                    for r in central.runs
+                    if r.metrics is not None
+                    for t in r.metrics["trajectory"]
+                }
+            ):
                 cells = []
                 for arm in (0, 1):
                     a = _cell_values(central, trajectory, arm)
                     b = _cell_values(independent, trajectory, arm)
                     cells.append(mean_difference(a, b).text(4) if a and b else "–")
-                rows.append([pair[0], central.label, independent.label,
-                             f"{len(central.runs)} / {len(independent.runs)}", trajectory,
-                             *cells])
+                rows.append(
+                    [
+                        pair[0],
+                        central.label,
+                        independent.label,
+                        f"{len(central.runs)} / {len(independent.runs)}",
+                        trajectory,
+                        *cells,
+                    ]
+                )
     return rows
 
 
-def contact_timeline_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
-                            path: str | os.PathLike[str], footer: str | None = None) -> Path:
+def contact_timeline_figure(
+    runs: Sequence[tuple[str, RunData]],
+    trajectory: str,
+    path: str | os.PathLike[str],
+    footer: str | None = None,
+) -> Path:
     """Per controller (rows): the arms' surface clearance (mm; < 0: overlap) and the contact
     force between them (N) at every control step of ``trajectory``."""
     fig = fg._new(11, 1.2 + 2.2 * len(runs))
     axes = fig.subplots(len(runs), 2, squeeze=False)
     for (label, run), (ax_gap, ax_force) in zip(runs, axes, strict=True):
         table = run.trajectories
-        rows = (table[(table["trajectory"] == trajectory) & (table["arm"] == 0)]
-                if table is not None and "clearance" in table else None)
+        rows = (
+            table[(table["trajectory"] == trajectory) & (table["arm"] == 0)]
+            if table is not None and "clearance" in table
+            else None
+        )
         if rows is None or rows.empty:
             for ax in (ax_gap, ax_force):
                 ax.text(0.5, 0.5, "not recorded", ha="center", transform=ax.transAxes)
@@ -213,9 +269,13 @@ def contact_timeline_figure(runs: Sequence[tuple[str, RunData]], trajectory: str
             ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-    fg._suptitle(fig, f"Contact between the arms, {fg._traj_title(trajectory)}", 12,
-                 "left: gap between the surfaces (node to node, minus 2r); right: total "
-                 "contact force between the arms, mean over each 2-ms control step")
+    fg._suptitle(
+        fig,
+        f"Contact between the arms, {fg._traj_title(trajectory)}",
+        12,
+        "left: gap between the surfaces (node to node, minus 2r); right: total "
+        "contact force between the arms, mean over each 2-ms control step",
+    )
     return fg._save(fig, path, footer)
 
 
@@ -228,18 +288,28 @@ def _draw_arm(ax: Axes, x: np.ndarray, y: np.ndarray, radius: float, color: str)
     ax.plot(x, y, color=color, lw=1.2)
 
 
-def arms_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
-                path: str | os.PathLike[str], footer: str | None = None,
-                radius: float = 0.05) -> Path:
+def arms_figure(
+    runs: Sequence[tuple[str, RunData]],
+    trajectory: str,
+    path: str | os.PathLike[str],
+    footer: str | None = None,
+    radius: float = 0.05,
+) -> Path:
     """Per controller (rows), at each kept instant (columns): both arms' centrelines and
     tubes of radius ``radius`` seen from the front (x–y) and from above (x–z), with the
     target point(s) and the 3-D surface clearance at that instant."""
     snapshots = [(label, run, run.snapshots) for label, run in runs]
-    n_cols = max((int(s["step"].nunique()) for _, _, s in snapshots if s is not None
-                  and not s.empty), default=0)
+    n_cols = max(
+        (int(s["step"].nunique()) for _, _, s in snapshots if s is not None and not s.empty),
+        default=0,
+    )
     if n_cols == 0:
-        return fg.no_data_figure(path, "Both arms with their radius",
-                                 "no eval_snapshots (evaluate again to record them)", footer)
+        return fg.no_data_figure(
+            path,
+            "Both arms with their radius",
+            "no eval_snapshots (evaluate again to record them)",
+            footer,
+        )
     fig = fg._new(2.6 * n_cols, 0.8 + 4.6 * len(runs))
     grid = fig.subfigures(len(runs), 1, squeeze=False)
     for (label, run, snap), sub in zip(snapshots, grid[:, 0], strict=True):
@@ -259,8 +329,11 @@ def arms_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
                     coords = nodes[["x", "y", "z"]].to_numpy()
                     _draw_arm(ax, coords[:, a], coords[:, b], radius, color)
                     if targets is not None:
-                        hit = targets[(targets["trajectory"] == trajectory)
-                                      & (targets["step"] == step) & (targets["arm"] == arm)]
+                        hit = targets[
+                            (targets["trajectory"] == trajectory)
+                            & (targets["step"] == step)
+                            & (targets["arm"] == arm)
+                        ]
                         if len(hit):
                             goal = hit[["target_x", "target_y", "target_z"]].to_numpy()[0]
                             ax.plot(goal[a], goal[b], "x", color=color, ms=7, mew=2)
@@ -270,14 +343,19 @@ def arms_figure(runs: Sequence[tuple[str, RunData]], trajectory: str,
                 ax.tick_params(labelsize=7)
                 if row == 0:
                     gap = _clearance_at(targets, trajectory, int(step))
-                    ax.set_title(f"t = {float(part['t'].iloc[0]):.1f} s"
-                                 + (f", gap {1e3 * gap:.1f} mm" if np.isfinite(gap) else ""),
-                                 fontsize=9)
-    fg._suptitle(fig, f"Both arms with their radius ({radius:g} m), "
-                      f"{fg._traj_title(trajectory)}", 12,
-                 "top row: front view (x–y), bottom row: from above (x–z); shaded tubes are "
-                 "the rods' surfaces, crosses each arm's target point; 'gap' is the 3-D "
-                 "surface clearance (negative: the arms overlap)")
+                    ax.set_title(
+                        f"t = {float(part['t'].iloc[0]):.1f} s"
+                        + (f", gap {1e3 * gap:.1f} mm" if np.isfinite(gap) else ""),
+                        fontsize=9,
+                    )
+    fg._suptitle(
+        fig,
+        f"Both arms with their radius ({radius:g} m), {fg._traj_title(trajectory)}",
+        12,
+        "top row: front view (x–y), bottom row: from above (x–z); shaded tubes are "
+        "the rods' surfaces, crosses each arm's target point; 'gap' is the 3-D "
+        "surface clearance (negative: the arms overlap)",
+    )
     return fg._save(fig, path, footer)
 
 

@@ -154,10 +154,12 @@ def training_curves(
         floor = 2.0 * max(_episode_spacing(step) for step, *_ in runs)
         window = max(1.0, window_fraction * max_step, floor)
         grid = np.linspace(0.0, max_step, n_points + 1)[1:]
-        stack = np.vstack([
-            _window_means(step, ret / seconds if per_second else ret, grid, window)
-            for step, ret, seconds in runs
-        ])
+        stack = np.vstack(
+            [
+                _window_means(step, ret / seconds if per_second else ret, grid, window)
+                for step, ret, seconds in runs
+            ]
+        )
         seconds = max(s for *_, s in runs)
         with warnings.catch_warnings():  # all-NaN columns: 'mean of empty slice'
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -165,10 +167,15 @@ def training_curves(
             std = np.nanstd(stack, axis=0, ddof=1)
         std = np.where(np.sum(np.isfinite(stack), axis=0) >= 2, std, np.nan)
         label = group.label if arm is None else f"{group.label}, arm {arm + 1} policy"
-        curves.append(Curve(label, group, arm, grid, mean, std, len(stack), window, seconds,
-                            per_second))
-    smoothing = Smoothing(n_points, window_fraction, per_second,
-                          tuple(dict.fromkeys((c.group.label, c.window) for c in curves)))
+        curves.append(
+            Curve(label, group, arm, grid, mean, std, len(stack), window, seconds, per_second)
+        )
+    smoothing = Smoothing(
+        n_points,
+        window_fraction,
+        per_second,
+        tuple(dict.fromkeys((c.group.label, c.window) for c in curves)),
+    )
     return curves, smoothing
 
 

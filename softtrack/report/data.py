@@ -52,10 +52,24 @@ _MOMENT_COLUMNS = (
 _PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
 _VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
-_ROBUSTNESS_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "trajectory",
-                       "arm", "rmse_3d", "terminated", "peak_moment", "action_saturation",
-                       "min_arm_distance", "collision_steps", "max_penetration",
-                       "contact_steps", "mean_contact_force")
+_ROBUSTNESS_COLUMNS = (
+    "perturbation",
+    "level",
+    "setting",
+    "baseline",
+    "episode",
+    "trajectory",
+    "arm",
+    "rmse_3d",
+    "terminated",
+    "peak_moment",
+    "action_saturation",
+    "min_arm_distance",
+    "collision_steps",
+    "max_penetration",
+    "contact_steps",
+    "mean_contact_force",
+)
 _ALGO_ORDER = {"td3": 0, "ddpg": 1, "ppo": 2, "sac": 3, "tqc": 4, "crossq": 5}
 _ALGO_LABELS = {"crossq": "CrossQ"}  # display names that are not the upper-cased algo name
 _CONTROLLER_ORDER = {"centralized": 0, "independent": 1, "mpc": 2}
@@ -171,16 +185,20 @@ def episode_peaks(
     covered: set[str] = set()
     if element_peaks is not None and set(_PEAK_COLUMNS) <= set(element_peaks.columns):
         value = pd.to_numeric(element_peaks["peak_abs_moment"], errors="coerce")
-        keys = [element_peaks["trajectory"].astype(str), element_peaks["arm"],
-                element_peaks["direction"]]
+        keys = [
+            element_peaks["trajectory"].astype(str),
+            element_peaks["arm"],
+            element_peaks["direction"],
+        ]
         parts.append(value.groupby(keys).max())
         covered = set(element_peaks["trajectory"].astype(str))
     if moments is not None and "max_abs_moment" in moments:
         old = moments[~moments["trajectory"].astype(str).isin(covered)]
         if len(old):
             value = pd.to_numeric(old["max_abs_moment"], errors="coerce")
-            parts.append(value.groupby([old["trajectory"].astype(str), old["arm"],
-                                        old["direction"]]).max())
+            parts.append(
+                value.groupby([old["trajectory"].astype(str), old["arm"], old["direction"]]).max()
+            )
     if not parts:
         return None
     peaks = pd.concat(parts).rename("peak_abs_moment").dropna()

@@ -83,7 +83,10 @@ class Doc:
                 out.append(str(block[1]))
             elif block[0] == "table":
                 header, rows = block[1], block[2]
-                cell = lambda s: str(s).replace("|", "\\|").replace("\n", " ")
+
+                def cell(s: object) -> str:
+                    return str(s).replace("|", "\\|").replace("\n", " ")
+
                 out.append(
                     "\n".join(
                         [
@@ -99,6 +102,7 @@ class Doc:
 
     def html(self, title: str) -> str:
         """The document as a standalone HTML page titled ``title``."""
+
         def inline(text: object) -> str:
             escaped = html.escape(str(text))
             escaped = re.sub(r"`([^`]+)`", r"<code>\1</code>", escaped)
@@ -114,8 +118,7 @@ class Doc:
             elif block[0] == "table":
                 head = "".join(f"<th>{inline(h)}</th>" for h in block[1])
                 rows = "".join(
-                    "<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>"
-                    for r in block[2]
+                    "<tr>" + "".join(f"<td>{inline(c)}</td>" for c in r) + "</tr>" for r in block[2]
                 )
                 body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
             elif block[0] == "img":
@@ -193,12 +196,20 @@ def group_provenance(group: Group) -> str:
     )
     if commands:
         text += ("; created by " if planner else "; trained by ") + ", ".join(
-            f"`{c}`" for c in commands)
-    bases = sorted({str(base.get("name")) for r in group.runs
-                    if isinstance(base := r.record.info.notes.get("derived_from"), dict)})
+            f"`{c}`" for c in commands
+        )
+    bases = sorted(
+        {
+            str(base.get("name"))
+            for r in group.runs
+            if isinstance(base := r.record.info.notes.get("derived_from"), dict)
+        }
+    )
     if bases:
-        text += (f"; derived from the runs of `{'`, `'.join(bases)}` (the same training, the "
-                 "spec changed after it: run.json `notes.derived_from`)")
+        text += (
+            f"; derived from the runs of `{'`, `'.join(bases)}` (the same training, the "
+            "spec changed after it: run.json `notes.derived_from`)"
+        )
     return text
 
 

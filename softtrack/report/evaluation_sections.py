@@ -116,17 +116,23 @@ def errors_section(
     for group in ctx.groups:
         found = [summary_row(summary, group.label, t, arm) for t, arm in cells]
         seeds = max((int(r["n"]) for r in found if r is not None), default=0)
-        rows.append([group.label, str(seeds)] + [
-            "no data" if r is None else mean_pm_std(r["rmse_3d_mean"], r["rmse_3d_std"], 4)
-            for r in found
-        ])
+        rows.append(
+            [group.label, str(seeds)]
+            + [
+                "no data" if r is None else mean_pm_std(r["rmse_3d_mean"], r["rmse_3d_std"], 4)
+                for r in found
+            ]
+        )
     for controller in ("centralized", "independent"):
-        rows.append([f"study {controller} TD3", "—"] + [
-            study_text(study_rmse_3d("td3", controller, t, arm), 3) for t, arm in cells
-        ])
+        rows.append(
+            [f"study {controller} TD3", "—"]
+            + [study_text(study_rmse_3d("td3", controller, t, arm), 3) for t, arm in cells]
+        )
     doc.table(header, rows)
-    doc.p("3-D RMSE, mean ± sample std across seeds of one deterministic evaluation episode "
-          "per trajectory.")
+    doc.p(
+        "3-D RMSE, mean ± sample std across seeds of one deterministic evaluation episode "
+        "per trajectory."
+    )
     _differences_tables(doc, ctx, controller_differences(summary, ctx.groups), cells)
     study = {
         f"study {controller} TD3": {(t, a): v[a] for t, v in values.items() for a in (0, 1)}
@@ -157,15 +163,18 @@ def _differences_tables(
 ) -> None:
     """One table per independent group: each centralized group's 3-D RMSE minus its own."""
     for reference, part in differences.groupby("reference", sort=False):
-        doc.p(f"**Centralized minus {reference}** (m; negative: the centralized controller "
-              "tracks better):")
+        doc.p(
+            f"**Centralized minus {reference}** (m; negative: the centralized controller "
+            "tracks better):"
+        )
         header = ["controller", "seeds"] + [_cell_title(t, arm) for t, arm in cells]
         rows = []
         for group, rows_of_group in part.groupby("group", sort=False):
             by_cell = {(r["trajectory"], int(r["arm"])): r for _, r in rows_of_group.iterrows()}
-            rows.append([str(group), str(rows_of_group["n"].max())] + [
-                _difference_text(by_cell[c]) if c in by_cell else "no data" for c in cells
-            ])
+            rows.append(
+                [str(group), str(rows_of_group["n"].max())]
+                + [_difference_text(by_cell[c]) if c in by_cell else "no data" for c in cells]
+            )
         doc.table(header, rows)
         n_reference = int(part["n_reference"].max())
         doc.p(
@@ -199,8 +208,14 @@ def random_targets_section(doc: Doc, ctx: Context) -> None:
                 row.append("no data")
         row.append(str(int(cells["terminated"].max())))  # an episode ends for both arms
         rows.append(row)
-    header = ["controller", "seeds", "episodes per seed", "3-D RMSE arm 1 (m)",
-              "3-D RMSE arm 2 (m)", "diverged episodes"]
+    header = [
+        "controller",
+        "seeds",
+        "episodes per seed",
+        "3-D RMSE arm 1 (m)",
+        "3-D RMSE arm 2 (m)",
+        "diverged episodes",
+    ]
     doc.table(header, rows)
     missing = [g.label for g in ctx.groups if g not in evaluated]
     doc.p(
@@ -250,13 +265,18 @@ def _rmse_line(featured: Featured, row: fg.PathRow, run: RunData | None, traject
     """``TD3 …: seed 0, run … 3-D RMSE arm 1 / arm 2: 0.0544 / 0.0512 m (study: …)``."""
     group = featured.group
     if run is None:
-        return (f"No data for {group.label} on the {trajectory}: no run has a stored "
-                "evaluation trajectory (run `softtrack evaluate` on its runs).")
-    study = [study_text(study_rmse_3d(group.algo, group.controller, trajectory, a), 3)
-             for a in (0, 1)]
+        return (
+            f"No data for {group.label} on the {trajectory}: no run has a stored "
+            "evaluation trajectory (run `softtrack evaluate` on its runs)."
+        )
+    study = [
+        study_text(study_rmse_3d(group.algo, group.controller, trajectory, a), 3) for a in (0, 1)
+    ]
     measured = [num_text(row.rmse.get(a), 4) for a in (0, 1)]
-    return (f"{featured.title}, {row.caption}: 3-D RMSE arm 1 / arm 2: {measured[0]} / "
-            f"{measured[1]} m (study: {study[0]} / {study[1]} m).")
+    return (
+        f"{featured.title}, {row.caption}: 3-D RMSE arm 1 / arm 2: {measured[0]} / "
+        f"{measured[1]} m (study: {study[0]} / {study[1]} m)."
+    )
 
 
 def _shown_text(ctx: Context, featured: Sequence[Featured]) -> str:
@@ -296,8 +316,7 @@ def trajectories_section(
         doc.h(3, TRAJECTORY_TITLES.get(trajectory, trajectory))
         rows = [_path_row(f, trajectory) for f in featured]
         if ctx.all_figures:
-            batches = [([f], [r], f.group.slug + "_") for f, r in zip(featured, rows,
-                                                                       strict=True)]
+            batches = [([f], [r], f.group.slug + "_") for f, r in zip(featured, rows, strict=True)]
         else:
             batches = [(list(featured), rows, "")]
         for members, batch, prefix in batches:
@@ -307,11 +326,14 @@ def trajectories_section(
             fg.trajectory_3d_figure([row for row, _ in batch], trajectory, path, footer=footer)
             doc.img(rel, f"{trajectory}: 3-D target and tip paths, {names}")
             path, rel = ctx.figure(f"errors_{prefix}{trajectory}.png")
-            fg.tracking_errors_figure([row for row, _ in batch], trajectory, path,
-                                      footer=footer)
+            fg.tracking_errors_figure([row for row, _ in batch], trajectory, path, footer=footer)
             doc.img(rel, f"{trajectory}: tracking error against time, {names}")
-            doc.p(" ".join(_rmse_line(f, row, run, trajectory)
-                           for f, (row, run) in zip(members, batch, strict=True)))
+            doc.p(
+                " ".join(
+                    _rmse_line(f, row, run, trajectory)
+                    for f, (row, run) in zip(members, batch, strict=True)
+                )
+            )
 
 
 def moments_section(
@@ -321,8 +343,10 @@ def moments_section(
     every controller against the study."""
     doc.h(2, "Actuation moments (study Fig. 10)")
     if not (ctx.all_figures or len(featured) == len(ctx.groups)):
-        doc.p(f"Moment histories of {', '.join(f.title for f in featured)}; the peaks of "
-              "every controller are in the table below.")
+        doc.p(
+            f"Moment histories of {', '.join(f.title for f in featured)}; the peaks of "
+            "every controller are in the table below."
+        )
     for item in featured:
         group = item.group
         moments: dict[str, pd.DataFrame | None] = {}
@@ -372,7 +396,9 @@ def moments_section(
                         else part
                     )
                     peak = sel.iloc[0] if not sel.empty else None
-                    cells.append("no data" if peak is None else mean_pm_std(peak["mean"], peak["std"], 1))
+                    cells.append(
+                        "no data" if peak is None else mean_pm_std(peak["mean"], peak["std"], 1)
+                    )
                 study = study_peak_moment(group.algo, group.controller, trajectory, direction)
                 rows.append(
                     [

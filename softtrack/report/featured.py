@@ -92,8 +92,10 @@ def featured_groups(
             found = [g for g in groups if name in (g.name, g.label)]
             if not found:
                 known = ", ".join(dict.fromkeys(g.name for g in groups))
-                raise RunStoreError(f"--figures-for {name}: no controller of this report is "
-                                    f"experiment {name!r}; choose from {known}")
+                raise RunStoreError(
+                    f"--figures-for {name}: no controller of this report is "
+                    f"experiment {name!r}; choose from {known}"
+                )
             chosen += [g for g in found if g not in chosen]
         return [Featured(g, "chosen") for g in chosen]
     if len(groups) <= MAX_FEATURED:
@@ -102,10 +104,8 @@ def featured_groups(
     chosen = []
     picks = (
         ("study protocol", _best(summary, [g for g in groups if _study_protocol(g)])),
-        ("best centralized",
-         _best(summary, [g for g in groups if g.controller != "independent"])),
-        ("best independent",
-         _best(summary, [g for g in groups if g.controller == "independent"])),
+        ("best centralized", _best(summary, [g for g in groups if g.controller != "independent"])),
+        ("best independent", _best(summary, [g for g in groups if g.controller == "independent"])),
     )
     for role, group in picks:
         if group is None:

@@ -178,8 +178,10 @@ def training_curves_figure(
     nrows = math.ceil(len(panels) / ncols)
     many = not split and len(curves) > 8  # the legend goes beside the axes
     width = 9 if ncols == 1 else 5.2 * ncols
-    fig = _new(width + (4.5 if many else 0), max(5.2, 0.22 * len(curves) + 1.5) if many
-               else 5.2 if nrows == 1 else 4.0 * nrows + 1.2)
+    fig = _new(
+        width + (4.5 if many else 0),
+        max(5.2, 0.22 * len(curves) + 1.5) if many else 5.2 if nrows == 1 else 4.0 * nrows + 1.2,
+    )
     axes = fig.subplots(nrows, ncols, squeeze=False, sharey=True).ravel()
     palette = _palette(len(groups))
     colors = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
@@ -190,18 +192,31 @@ def training_curves_figure(
             seeds = f"{curve.n_runs} seed{'s' if curve.n_runs != 1 else ''}"
             if curve.per_second:
                 seeds += f", {curve.episode_seconds:g}-s episodes"
-            ax.plot(curve.steps, curve.mean, style, color=color, lw=1.8,
-                    label=f"{curve.label} ({seeds})")
+            ax.plot(
+                curve.steps,
+                curve.mean,
+                style,
+                color=color,
+                lw=1.8,
+                label=f"{curve.label} ({seeds})",
+            )
             band = np.isfinite(curve.std)
             if band.any():
-                ax.fill_between(curve.steps, curve.mean - curve.std, curve.mean + curve.std,
-                                where=band, color=color, alpha=0.2, lw=0)
+                ax.fill_between(
+                    curve.steps,
+                    curve.mean - curve.std,
+                    curve.mean + curve.std,
+                    where=band,
+                    color=color,
+                    alpha=0.2,
+                    lw=0,
+                )
         _steps_axis(ax)
         if many:
             ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
         else:
             ax.legend(loc="best", fontsize=8 if split else 9)
-    for ax in axes[len(panels):]:
+    for ax in axes[len(panels) :]:
         ax.set_axis_off()
     if smoothing.per_second:
         ylabel = "return per second (episode return / episode duration, 1/s)"
@@ -211,8 +226,11 @@ def training_curves_figure(
     for ax in axes[::ncols]:
         ax.set_ylabel(ylabel)
     windows = sorted({c.window for c in curves})
-    span = (f"{windows[0]:,.0f} env steps" if len(windows) == 1
-            else f"{windows[0]:,.0f}–{windows[-1]:,.0f} env steps")
+    span = (
+        f"{windows[0]:,.0f} env steps"
+        if len(windows) == 1
+        else f"{windows[0]:,.0f}–{windows[-1]:,.0f} env steps"
+    )
     _suptitle(
         fig,
         "Training curves: mean ± 1 sample std across seeds",
@@ -260,7 +278,9 @@ def final_returns_figure(
         )
     ax.set_xticks(x, labels, fontsize=9)
     ax.set_ylabel("final-stage episode return (–)")
-    ax.set_title("Final-stage return: mean episode return at the end of training (docs/environment.md)")
+    ax.set_title(
+        "Final-stage return: mean episode return at the end of training (docs/environment.md)"
+    )
     ax.axhline(0, color="0.5", lw=0.8)
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8)
@@ -305,8 +325,16 @@ def _row_figures(fig: Figure, rows: Sequence[PathRow]) -> list[Figure]:
 def _no_row_data(sub: Figure, what: str) -> None:
     ax = sub.add_subplot()
     ax.set_axis_off()
-    ax.text(0.5, 0.5, f"no data: {what}", ha="center", va="center", color="tab:red",
-            fontsize=11, transform=ax.transAxes)
+    ax.text(
+        0.5,
+        0.5,
+        f"no data: {what}",
+        ha="center",
+        va="center",
+        color="tab:red",
+        fontsize=11,
+        transform=ax.transAxes,
+    )
 
 
 def _path_panels(sub: Figure, row: PathRow) -> None:
@@ -317,8 +345,9 @@ def _path_panels(sub: Figure, row: PathRow) -> None:
     ax3 = sub.add_subplot(grid[0, 0], projection="3d")
     ax2 = sub.add_subplot(grid[0, 1])
     target = _arm_frame(traj, int(traj["arm"].min()))
-    ax3.plot(target["target_x"], target["target_z"], target["target_y"], "k--", lw=1.3,
-             label="target")
+    ax3.plot(
+        target["target_x"], target["target_z"], target["target_y"], "k--", lw=1.3, label="target"
+    )
     ax2.plot(target["target_x"], target["target_z"], "k--", lw=1.3, label="target")
     for arm in sorted(int(a) for a in traj["arm"].unique()):
         df = _arm_frame(traj, arm)
@@ -327,8 +356,14 @@ def _path_panels(sub: Figure, row: PathRow) -> None:
         if arm in row.rmse and np.isfinite(row.rmse[arm]):
             label += f" (3-D RMSE {row.rmse[arm]:.3f} m)"
         ax3.plot(df["tip_x"], df["tip_z"], df["tip_y"], color=color, lw=1.0)
-        ax3.scatter(df["tip_x"].iloc[:1], df["tip_z"].iloc[:1], df["tip_y"].iloc[:1],
-                    color=color, marker="o", s=20)
+        ax3.scatter(
+            df["tip_x"].iloc[:1],
+            df["tip_z"].iloc[:1],
+            df["tip_y"].iloc[:1],
+            color=color,
+            marker="o",
+            s=20,
+        )
         ax2.plot(df["tip_x"], df["tip_z"], color=color, lw=1.0, label=label)
         ax2.plot(df["tip_x"].iloc[:1], df["tip_z"].iloc[:1], "o", color=color, ms=4)
     for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
@@ -358,9 +393,15 @@ def trajectory_3d_figure(
 ) -> Path:
     """Per row (one controller's run): the 3-D path of the target and both tips (y up) and the
     view from above (x–z plane); dots mark the start."""
-    return _per_row_figure(rows, path, f"{_traj_title(trajectory)}: target and tip paths",
-                           "dashed: target; dots: start of each tip", (11, 4.3), _path_panels,
-                           footer)
+    return _per_row_figure(
+        rows,
+        path,
+        f"{_traj_title(trajectory)}: target and tip paths",
+        "dashed: target; dots: start of each tip",
+        (11, 4.3),
+        _path_panels,
+        footer,
+    )
 
 
 def _per_row_figure(
@@ -412,10 +453,10 @@ def _error_panels(sub: Figure, row: PathRow) -> None:
         ax.legend(loc="upper right", fontsize=7, ncol=3)
         ax = axes[-1]
         rmse = float(np.sqrt(np.mean(d**2))) if d.size else np.nan
-        ax.plot(t, d, color=ARM_COLORS[arm % 2], lw=1.0,
-                label=f"arm {arm + 1}: 3-D RMSE {rmse:.3f} m")
-        ax.axhline(float(np.mean(d)) if d.size else 0.0, color=ARM_COLORS[arm % 2], ls=":",
-                   lw=1)
+        ax.plot(
+            t, d, color=ARM_COLORS[arm % 2], lw=1.0, label=f"arm {arm + 1}: 3-D RMSE {rmse:.3f} m"
+        )
+        ax.axhline(float(np.mean(d)) if d.size else 0.0, color=ARM_COLORS[arm % 2], ls=":", lw=1)
         top = max(top, float(np.max(d)) if d.size else 0.0)
     ax = axes[-1]
     ax.set_ylim(0, 1.35 * top if top > 0 else 1.0)
@@ -439,9 +480,15 @@ def tracking_errors_figure(
 ) -> Path:
     """Per row (one controller's run): each arm's per-axis error tip − target, and both arms'
     spatial error ‖tip − target‖, against time."""
-    return _per_row_figure(rows, path, f"{_traj_title(trajectory)}: tracking error against time",
-                           f"grey dotted line: t = {STEADY_START:g} s, start of the steady "
-                           "metrics", (13, 3.1), _error_panels, footer)
+    return _per_row_figure(
+        rows,
+        path,
+        f"{_traj_title(trajectory)}: tracking error against time",
+        f"grey dotted line: t = {STEADY_START:g} s, start of the steady metrics",
+        (13, 3.1),
+        _error_panels,
+        footer,
+    )
 
 
 def moments_figure(
@@ -479,8 +526,15 @@ def moments_figure(
             ax.set_ylabel("RMS moment (N·m)", fontsize=9)
             part = None if df is None else df[df["arm"] == arm]
             if part is None or part.empty:
-                ax.text(0.5, 0.5, "no data", ha="center", va="center", color="tab:red",
-                        transform=ax.transAxes)
+                ax.text(
+                    0.5,
+                    0.5,
+                    "no data",
+                    ha="center",
+                    va="center",
+                    color="tab:red",
+                    transform=ax.transAxes,
+                )
                 continue
             top = 0.0
             for direction, style in ((0, "-"), (1, "--")):  # binormal darker, behind
@@ -490,14 +544,21 @@ def moments_figure(
                 top = max(top, float(sub["rms_moment"].max()))
                 label = DIRECTIONS[direction]
                 if peak_rows is not None:
-                    found = peak_rows[(peak_rows["arm"] == arm)
-                                      & (peak_rows["direction"] == direction)]
+                    found = peak_rows[
+                        (peak_rows["arm"] == arm) & (peak_rows["direction"] == direction)
+                    ]
                     if len(found):
                         label += f" (peak element {float(found['peak_abs_moment'].max()):.1f} N·m)"
-                ax.plot(sub["t"], sub["rms_moment"], style,
-                        color=ARM_COLORS[arm] if direction == 0 else "0.25", lw=1.0,
-                        alpha=1.0 if direction == 0 else 0.75, zorder=3 - direction,
-                        label=label)
+                ax.plot(
+                    sub["t"],
+                    sub["rms_moment"],
+                    style,
+                    color=ARM_COLORS[arm] if direction == 0 else "0.25",
+                    lw=1.0,
+                    alpha=1.0 if direction == 0 else 0.75,
+                    zorder=3 - direction,
+                    label=label,
+                )
             ax.set_ylim(0, 1.35 * top if top > 0 else 1.0)  # room for the legend
             ax.legend(loc="upper right", fontsize=8, ncol=2)
     for ax in axes[-1]:
@@ -570,8 +631,7 @@ def validation_figure(
             run's, 0/1 an independent run's arm.
     """
     if not scores:
-        return no_data_figure(path, "Validation", "no selected run has validation episodes",
-                              footer)
+        return no_data_figure(path, "Validation", "no selected run has validation episodes", footer)
     fig = _new(9, 5.2)
     ax = fig.add_subplot()
     colors: dict[str, str] = {}
@@ -583,15 +643,26 @@ def validation_figure(
         if (group, policy) not in labelled:
             labelled.add((group, policy))
             label = group if policy < 0 else f"{group}, arm {policy + 1} policy"
-        ax.plot(finite["global_step"], finite["score"], "--" if policy == 1 else "-",
-                color=color, lw=1.3, alpha=0.8, marker=".", label=label)
+        ax.plot(
+            finite["global_step"],
+            finite["score"],
+            "--" if policy == 1 else "-",
+            color=color,
+            lw=1.3,
+            alpha=0.8,
+            marker=".",
+            label=label,
+        )
         if len(finite):
             best = finite.loc[finite["score"].idxmin()]
             ax.plot(best["global_step"], best["score"], "o", mfc="none", mec=color, ms=10)
     ax.set_xlabel("environment steps (of the policy)")
     ax.set_ylabel("validation 3-D RMSE (m)")
-    ax.set_title("Validation: mean 3-D RMSE on held-out random-target episodes per checkpoint\n"
-                 "(one line per seed; circled: the checkpoint kept as best)", fontsize=11)
+    ax.set_title(
+        "Validation: mean 3-D RMSE on held-out random-target episodes per checkpoint\n"
+        "(one line per seed; circled: the checkpoint kept as best)",
+        fontsize=11,
+    )
     ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=9)
@@ -626,12 +697,22 @@ def robustness_figure(
                 continue
             color = colors[j % len(colors)]
             ax.plot(part["level"], part["rmse_3d_mean"], "-o", ms=4, color=color, label=group)
-            ax.fill_between(part["level"], part["rmse_3d_min"], part["rmse_3d_max"],
-                            color=color, alpha=0.15, lw=0)
+            ax.fill_between(
+                part["level"],
+                part["rmse_3d_min"],
+                part["rmse_3d_max"],
+                color=color,
+                alpha=0.15,
+                lw=0,
+            )
         ax.set_xlabel(factor)
         ax.set_ylabel("3-D RMSE (m)")
         ax.grid(alpha=0.3)
     fig.axes[0].legend(loc="upper left", fontsize=8)
-    _suptitle(fig, "Tracking error under perturbations", 12,
-              "mean over trajectories and arms; line: seed mean; band: min–max of seeds")
+    _suptitle(
+        fig,
+        "Tracking error under perturbations",
+        12,
+        "mean over trajectories and arms; line: seed mean; band: min–max of seeds",
+    )
     return _save(fig, path, footer)

@@ -61,31 +61,44 @@ def robustness_summary(groups: list[Group]) -> pd.DataFrame:
                 value = float(pd.to_numeric(part["rmse_3d"], errors="coerce").mean())
                 nominal = _nominal(table, sorted(set(part["trajectory"])))
                 episodes = part.drop_duplicates(["trajectory", "episode"])
-                per_setting.setdefault(str(setting), []).append({
-                    "value": value,
-                    "ratio": value / nominal if nominal > 0 else float("nan"),
-                    "diverged": float(episodes["terminated"].astype(bool).sum()),
-                    "peak": float(pd.to_numeric(part.get("peak_moment"), errors="coerce").max())
-                    if "peak_moment" in part else float("nan"),
-                    "collisions": float(pd.to_numeric(episodes.get("collision_steps"),
-                                                      errors="coerce").mean())
-                    if "collision_steps" in part else float("nan"),
-                })
-                meta[str(setting)] = (str(part["perturbation"].iloc[0]),
-                                      float(part["level"].iloc[0]))
+                per_setting.setdefault(str(setting), []).append(
+                    {
+                        "value": value,
+                        "ratio": value / nominal if nominal > 0 else float("nan"),
+                        "diverged": float(episodes["terminated"].astype(bool).sum()),
+                        "peak": float(pd.to_numeric(part.get("peak_moment"), errors="coerce").max())
+                        if "peak_moment" in part
+                        else float("nan"),
+                        "collisions": float(
+                            pd.to_numeric(episodes.get("collision_steps"), errors="coerce").mean()
+                        )
+                        if "collision_steps" in part
+                        else float("nan"),
+                    }
+                )
+                meta[str(setting)] = (
+                    str(part["perturbation"].iloc[0]),
+                    float(part["level"].iloc[0]),
+                )
         for setting, seeds in per_setting.items():
             values = np.array([s["value"] for s in seeds])
-            rows.append({
-                "group": group.label, "perturbation": meta[setting][0],
-                "level": meta[setting][1], "setting": setting, "n": len(seeds),
-                "rmse_3d_mean": float(values.mean()),
-                "rmse_3d_std": float(values.std(ddof=1)) if len(values) > 1 else float("nan"),
-                "rmse_3d_min": float(values.min()), "rmse_3d_max": float(values.max()),
-                "ratio_mean": _finite(np.nanmean, [s["ratio"] for s in seeds]),
-                "diverged": int(sum(s["diverged"] for s in seeds)),
-                "peak_moment": _finite(np.nanmax, [s["peak"] for s in seeds]),
-                "collision_steps": _finite(np.nanmean, [s["collisions"] for s in seeds]),
-            })
+            rows.append(
+                {
+                    "group": group.label,
+                    "perturbation": meta[setting][0],
+                    "level": meta[setting][1],
+                    "setting": setting,
+                    "n": len(seeds),
+                    "rmse_3d_mean": float(values.mean()),
+                    "rmse_3d_std": float(values.std(ddof=1)) if len(values) > 1 else float("nan"),
+                    "rmse_3d_min": float(values.min()),
+                    "rmse_3d_max": float(values.max()),
+                    "ratio_mean": _finite(np.nanmean, [s["ratio"] for s in seeds]),
+                    "diverged": int(sum(s["diverged"] for s in seeds)),
+                    "peak_moment": _finite(np.nanmax, [s["peak"] for s in seeds]),
+                    "collision_steps": _finite(np.nanmean, [s["collisions"] for s in seeds]),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -106,9 +119,11 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
         return
     doc.h(3, "Robustness to perturbations")
     labels = list(dict.fromkeys(summary["group"]))
-    order = summary.drop_duplicates("setting").assign(
-        first=lambda df: df["setting"] != "nominal").sort_values(
-        ["first", "perturbation", "level", "setting"], kind="stable")
+    order = (
+        summary.drop_duplicates("setting")
+        .assign(first=lambda df: df["setting"] != "nominal")
+        .sort_values(["first", "perturbation", "level", "setting"], kind="stable")
+    )
     rows = []
     for _, setting in order.iterrows():
         row = [str(setting["perturbation"]), f"`{setting['setting']}`"]
@@ -117,8 +132,9 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
             row.append(_cell(hit.iloc[0]) if len(hit) else "–")
         rows.append(row)
     doc.table(["perturbation", "setting", *[f"{label} 3-D RMSE (m)" for label in labels]], rows)
-    seeds = ", ".join(f"{label}: {int(summary[summary['group'] == label]['n'].max())}"
-                      for label in labels)
+    seeds = ", ".join(
+        f"{label}: {int(summary[summary['group'] == label]['n'].max())}" for label in labels
+    )
     doc.p(
         "Each controller's deterministic policy under one perturbation setting (`softtrack "
         "robustness RUN... --grid FACTOR=LEVELS`, docs/robustness.md) on the evaluated "
@@ -131,6 +147,7 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
     one_factor = summary[np.isfinite(summary["level"].astype(float))]
     if one_factor.groupby("perturbation")["level"].nunique().max() >= 2:
         path, rel = ctx.figure("robustness.png")
-        fg.robustness_figure(one_factor, path, ctx.footer(
-            [g for g in ctx.groups if g.label in labels]))
+        fg.robustness_figure(
+            one_factor, path, ctx.footer([g for g in ctx.groups if g.label in labels])
+        )
         doc.img(rel, "3-D RMSE against perturbation level")

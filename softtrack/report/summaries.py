@@ -85,7 +85,9 @@ def summary_row(summary: pd.DataFrame, group: str, trajectory: str, arm: int) ->
     if summary.empty:
         return None
     sel = summary[
-        (summary["group"] == group) & (summary["trajectory"] == trajectory) & (summary["arm"] == arm)
+        (summary["group"] == group)
+        & (summary["trajectory"] == trajectory)
+        & (summary["arm"] == arm)
     ]
     return None if sel.empty else sel.iloc[0]
 
@@ -101,8 +103,17 @@ def controller_differences(summary: pd.DataFrame, groups: Sequence[Group]) -> pd
     two-sided t-test of the seeds' values), n and n_reference (seeds). se and p_value are NaN
     unless both groups have at least 2 seeds with a value.
     """
-    columns = ["reference", "group", "trajectory", "arm", "difference", "se", "p_value", "n",
-               "n_reference"]
+    columns = [
+        "reference",
+        "group",
+        "trajectory",
+        "arm",
+        "difference",
+        "se",
+        "p_value",
+        "n",
+        "n_reference",
+    ]
     if summary.empty:
         return pd.DataFrame(columns=columns)
     rows = []
@@ -121,16 +132,30 @@ def controller_differences(summary: pd.DataFrame, groups: Sequence[Group]) -> pd
                     var, var_ref = row["rmse_3d_std"] ** 2 / n, ref["rmse_3d_std"] ** 2 / n_ref
                     se = float(np.sqrt(var + var_ref))
                     if se > 0:
-                        p_value = float(stats.ttest_ind_from_stats(
-                            row["rmse_3d_mean"], row["rmse_3d_std"], n,
-                            ref["rmse_3d_mean"], ref["rmse_3d_std"], n_ref, equal_var=False,
-                        ).pvalue)
-                rows.append({
-                    "reference": reference.label, "group": group.label,
-                    "trajectory": ref["trajectory"], "arm": int(ref["arm"]),
-                    "difference": float(row["rmse_3d_mean"] - ref["rmse_3d_mean"]),
-                    "se": se, "p_value": p_value, "n": n, "n_reference": n_ref,
-                })
+                        p_value = float(
+                            stats.ttest_ind_from_stats(
+                                row["rmse_3d_mean"],
+                                row["rmse_3d_std"],
+                                n,
+                                ref["rmse_3d_mean"],
+                                ref["rmse_3d_std"],
+                                n_ref,
+                                equal_var=False,
+                            ).pvalue
+                        )
+                rows.append(
+                    {
+                        "reference": reference.label,
+                        "group": group.label,
+                        "trajectory": ref["trajectory"],
+                        "arm": int(ref["arm"]),
+                        "difference": float(row["rmse_3d_mean"] - ref["rmse_3d_mean"]),
+                        "se": se,
+                        "p_value": p_value,
+                        "n": n,
+                        "n_reference": n_ref,
+                    }
+                )
     return pd.DataFrame(rows, columns=columns)
 
 
@@ -151,15 +176,17 @@ def random_target_summary(groups: Sequence[Group]) -> pd.DataFrame:
             if not parts:
                 continue
             values = np.array([p["rmse_3d"].mean() for p in parts], dtype=float)
-            rows.append({
-                "group": group.label,
-                "arm": arm,
-                "rmse_3d_mean": float(values.mean()),
-                "rmse_3d_std": float(values.std(ddof=1)) if len(values) >= 2 else np.nan,
-                "n": len(values),
-                "episodes": min(len(p) for p in parts),
-                "terminated": int(sum(p["terminated"].astype(bool).sum() for p in parts)),
-            })
+            rows.append(
+                {
+                    "group": group.label,
+                    "arm": arm,
+                    "rmse_3d_mean": float(values.mean()),
+                    "rmse_3d_std": float(values.std(ddof=1)) if len(values) >= 2 else np.nan,
+                    "n": len(values),
+                    "episodes": min(len(p) for p in parts),
+                    "terminated": int(sum(p["terminated"].astype(bool).sum() for p in parts)),
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -208,15 +235,22 @@ def validation_summary(
         training = run.record.raw_spec().get("training")
         uses_best = isinstance(training, dict) and training.get("final_policy") == "best_validated"
         confirmed = _confirmation(run, policy) if uses_best else {}
-        rows.append({
-            "group": group.label, "seed": run.seed, "run_id": run.run_id,
-            "policy": int(policy), "checkpoints": len(part),
-            "best_step": int(best["global_step"]), "best_score": float(best["score"]),
-            "last_step": int(last["global_step"]), "last_score": float(last["score"]),
-            "confirmed_best": confirmed.get("scores", {}).get("best", np.nan),
-            "confirmed_last": confirmed.get("scores", {}).get("last", np.nan),
-            "kept": confirmed.get("model", "best") if uses_best else "last",
-        })
+        rows.append(
+            {
+                "group": group.label,
+                "seed": run.seed,
+                "run_id": run.run_id,
+                "policy": int(policy),
+                "checkpoints": len(part),
+                "best_step": int(best["global_step"]),
+                "best_score": float(best["score"]),
+                "last_step": int(last["global_step"]),
+                "last_score": float(last["score"]),
+                "confirmed_best": confirmed.get("scores", {}).get("best", np.nan),
+                "confirmed_last": confirmed.get("scores", {}).get("last", np.nan),
+                "kept": confirmed.get("model", "best") if uses_best else "last",
+            }
+        )
     return pd.DataFrame(rows)
 
 

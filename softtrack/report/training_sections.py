@@ -50,7 +50,8 @@ def runs_section(doc: Doc, ctx: Context, runs: Sequence[RunData]) -> None:
                     info.controller,
                     str(info.seed),
                     info.status,
-                    "— (planner)" if info.controller == "mpc"
+                    "— (planner)"
+                    if info.controller == "mpc"
                     else f"{r.last_step:,} / {info.total_timesteps:,}",
                     *_training_speed(r),
                     info.cpu or "—",
@@ -100,8 +101,11 @@ def training_section(doc: Doc, ctx: Context) -> None:
     fg.training_curves_figure(curves, smoothing, path, ctx.footer())
     doc.img(rel, "Training curves: episode return against environment steps")
     if curves:
-        unit = ("return per second of episode (the runs' training episodes differ in "
-                "length)" if smoothing.per_second else "Episode return")
+        unit = (
+            "return per second of episode (the runs' training episodes differ in length)"
+            if smoothing.per_second
+            else "Episode return"
+        )
         doc.p(
             f"{unit[0].upper()}{unit[1:]} against environment steps, mean ± 1 sample std across "
             f"seeds; smoothing: {smoothing.describe()}. The study's curves are not published as numbers."
@@ -170,24 +174,35 @@ def validation_section(doc: Doc, ctx: Context) -> None:
     doc.h(2, "Model selection (validation during training)")
     rows = []
     for row in summary.itertuples():
-        rows.append([
-            row.group,
-            str(row.seed),
-            "both arms" if row.policy < 0 else f"arm {row.policy + 1} policy",
-            str(row.checkpoints),
-            f"{row.best_step:,}",
-            f"{row.best_score:.4f}",
-            f"{row.last_step:,}",
-            f"{row.last_score:.4f}",
-            "–" if np.isnan(row.confirmed_best)
-            else f"{row.confirmed_best:.4f} / {row.confirmed_last:.4f}",
-            row.kept,
-        ])
+        rows.append(
+            [
+                row.group,
+                str(row.seed),
+                "both arms" if row.policy < 0 else f"arm {row.policy + 1} policy",
+                str(row.checkpoints),
+                f"{row.best_step:,}",
+                f"{row.best_score:.4f}",
+                f"{row.last_step:,}",
+                f"{row.last_score:.4f}",
+                "–"
+                if np.isnan(row.confirmed_best)
+                else f"{row.confirmed_best:.4f} / {row.confirmed_last:.4f}",
+                row.kept,
+            ]
+        )
     doc.table(
-        ["controller", "seed", "policy", "validated checkpoints", "best checkpoint (env steps)",
-         "its validation 3-D RMSE (m)", "last checkpoint (env steps)",
-         "its validation 3-D RMSE (m)", "confirmation 3-D RMSE best / last (m)",
-         "run's policy"],
+        [
+            "controller",
+            "seed",
+            "policy",
+            "validated checkpoints",
+            "best checkpoint (env steps)",
+            "its validation 3-D RMSE (m)",
+            "last checkpoint (env steps)",
+            "its validation 3-D RMSE (m)",
+            "confirmation 3-D RMSE best / last (m)",
+            "run's policy",
+        ],
         rows,
     )
     doc.p(
@@ -198,12 +213,13 @@ def validation_section(doc: Doc, ctx: Context) -> None:
         "each arm's policy in its own single-arm scene). \"run's policy\": the model every "
         "evaluation in this report uses, `best` where `training.final_policy: best_validated` "
         "makes it the best checkpoint, `last` where the final model is used. "
-        "\"confirmation\": with `training.confirm_episodes`, after training the best and the "
+        '"confirmation": with `training.confirm_episodes`, after training the best and the '
         "last model each ran that many more held-out episodes (episode k from seed "
-        f"{CONFIRM_SEED:,} + k), and the lower score decided the run's policy; \"–\": no "
+        f'{CONFIRM_SEED:,} + k), and the lower score decided the run\'s policy; "–": no '
         "confirmation."
     )
     path, rel = ctx.figure("validation.png")
-    fg.validation_figure({(g.label, r.seed, k): part for g, r, k, part in scores},
-                         path, ctx.footer())
+    fg.validation_figure(
+        {(g.label, r.seed, k): part for g, r, k, part in scores}, path, ctx.footer()
+    )
     doc.img(rel, "Validation 3-D RMSE against environment steps")

@@ -51,9 +51,9 @@ __all__ = [
     "RandomisationWarmup",
     "TrainingClock",
     "final_progress_line",
-    "unfinished_episodes",
     "progress_line",
     "save_checkpoint",
+    "unfinished_episodes",
 ]
 
 PROGRESS_LINE_INTERVAL_S = 120.0
@@ -354,8 +354,10 @@ def final_progress_line(
     """The last progress line of a training session, e.g. ``5JP1EEN4 finished: 100,000/100,000
     steps (100.0%) in 5:49 min, 286 steps/s`` (``stopped`` before the budget is reached)."""
     state = "finished" if step >= total else "stopped"
-    line = (f"{name} {state}: {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%) "
-            f"in {_elapsed(seconds)}")
+    line = (
+        f"{name} {state}: {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%) "
+        f"in {_elapsed(seconds)}"
+    )
     if steps_per_second:
         line += f", {steps_per_second:,.0f} steps/s"
     return line
@@ -461,8 +463,13 @@ class ProgressMonitor(BaseCallback):
             due = milestone > self._last_milestone or now - self._last_line >= self.line_interval
             if due and step < self.total_timesteps:  # the budget's end: the final line
                 self._last_line, self._last_milestone = now, milestone
-                line = progress_line(self.name, step, self.total_timesteps,
-                                     self.steps_per_second(), self.episodes.last_return)
+                line = progress_line(
+                    self.name,
+                    step,
+                    self.total_timesteps,
+                    self.steps_per_second(),
+                    self.episodes.last_return,
+                )
                 print(line, file=sys.stderr, flush=True)
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
@@ -483,9 +490,13 @@ class ProgressMonitor(BaseCallback):
         if self.print_lines and not self._final_printed:
             self._final_printed = True
             step = min(int(self.num_timesteps), self.total_timesteps)
-            line = final_progress_line(self.name, step, self.total_timesteps,
-                                       time.monotonic() - self._start_time,
-                                       self.steps_per_second())
+            line = final_progress_line(
+                self.name,
+                step,
+                self.total_timesteps,
+                time.monotonic() - self._start_time,
+                self.steps_per_second(),
+            )
             print(line, file=sys.stderr, flush=True)
         if self._bar is not None:
             self._bar.n = min(self.num_timesteps, self.total_timesteps)

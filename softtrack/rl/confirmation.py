@@ -118,8 +118,14 @@ def confirm_policy(
     for candidate, (path, step) in candidates.items():
         started = time.monotonic()
         rows = held_out_rows(
-            record.run_id, load_policy_file(spec, path), config, duration, CONFIRM_SEED,
-            episodes, policy.arm, stop_requested,
+            record.run_id,
+            load_policy_file(spec, path),
+            config,
+            duration,
+            CONFIRM_SEED,
+            episodes,
+            policy.arm,
+            stop_requested,
         )
         if rows is None:
             return None
@@ -127,17 +133,25 @@ def confirm_policy(
         rows.insert(2, "global_step", step)
         parts.append(rows)
         scores[candidate] = validation_score(rows)
-        log(f"{name} confirmation of the {candidate} model ({step:,} steps): 3-D RMSE "
+        log(
+            f"{name} confirmation of the {candidate} model ({step:,} steps): 3-D RMSE "
             f"{scores[candidate]:.4f} m over {episodes} episodes in "
-            f"{time.monotonic() - started:.0f} s")
+            f"{time.monotonic() - started:.0f} s"
+        )
     scores.setdefault("last", scores["best"])
     chosen: Candidate = "last" if scores["last"] < scores["best"] else "best"
     outcome = Confirmation(chosen, scores, {"best": best.step, "last": last_step}, episodes)
     _replace_policy_rows(record, policy, pd.concat(parts, ignore_index=True))
     atomic_write_json(
         policy.confirmed_path,
-        {"model": chosen, "global_step": outcome.steps[chosen], "scores": scores,
-         "steps": outcome.steps, "episodes": episodes, "saved": utc_now()},
+        {
+            "model": chosen,
+            "global_step": outcome.steps[chosen],
+            "scores": scores,
+            "steps": outcome.steps,
+            "episodes": episodes,
+            "saved": utc_now(),
+        },
     )
     log(f"{name} keeps the {chosen} model")
     return outcome

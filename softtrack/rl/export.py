@@ -28,8 +28,9 @@ from softtrack.store.runs import RunRecord, RunStore
 __all__ = ["export_plan", "export_policy_run", "relayout_exported_run"]
 
 
-def export_plan(record: RunRecord, spec: ExperimentSpec
-                ) -> tuple[list[ModelCopy], dict[Path, dict[str, Any]]]:
+def export_plan(
+    record: RunRecord, spec: ExperimentSpec
+) -> tuple[list[ModelCopy], dict[Path, dict[str, Any]]]:
     """The model files to export and each policy directory's ``policy.json``.
 
     Returns:

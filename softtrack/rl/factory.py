@@ -121,8 +121,12 @@ def make_action_noise(spec: ExperimentSpec, action_dim: int, n_envs: int) -> Any
     )
 
     algo = spec.algo
-    if (not algo.is_off_policy or algo.explores_by_entropy or algo.noise_type is None
-            or algo.noise_std == 0):
+    if (
+        not algo.is_off_policy
+        or algo.explores_by_entropy
+        or algo.noise_type is None
+        or algo.noise_std == 0
+    ):
         return None
     mean = np.zeros(action_dim)
     sigma = algo.noise_std * np.ones(action_dim)
@@ -149,8 +153,9 @@ def algo_class(name: str, backend: str = "sb3") -> Any:
         import sb3_contrib as library
     else:
         import stable_baselines3 as library
-    return getattr(library, {"td3": "TD3", "ddpg": "DDPG", "sac": "SAC", "tqc": "TQC",
-                             "ppo": "PPO"}[name])
+    return getattr(
+        library, {"td3": "TD3", "ddpg": "DDPG", "sac": "SAC", "tqc": "TQC", "ppo": "PPO"}[name]
+    )
 
 
 def model_class(spec: ExperimentSpec) -> Any:

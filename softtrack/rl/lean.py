@@ -23,9 +23,18 @@ from softtrack.spec import ExperimentSpec
 __all__ = ["save_inference_model", "strip_training_state"]
 
 # Model attributes that only training reads; set to None in an inference copy.
-_TRAINING_ONLY = ("actor", "qf", "vf", "replay_buffer", "action_noise", "_last_obs",
-                  "_last_original_obs", "ep_info_buffer", "ep_success_buffer",
-                  "ent_coef_state")
+_TRAINING_ONLY = (
+    "actor",
+    "qf",
+    "vf",
+    "replay_buffer",
+    "action_noise",
+    "_last_obs",
+    "_last_original_obs",
+    "ep_info_buffer",
+    "ep_success_buffer",
+    "ent_coef_state",
+)
 
 
 def strip_training_state(model: Any) -> None:

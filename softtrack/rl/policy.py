@@ -23,8 +23,18 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
-__all__ = ["MODEL_CHOICES", "ModelChoice", "candidate_path", "deterministic_policy", "load_policy",
-           "load_policy_file", "model_paths", "mpc_controller", "policy_choice", "require_model"]
+__all__ = [
+    "MODEL_CHOICES",
+    "ModelChoice",
+    "candidate_path",
+    "deterministic_policy",
+    "load_policy",
+    "load_policy_file",
+    "model_paths",
+    "mpc_controller",
+    "policy_choice",
+    "require_model",
+]
 
 ModelChoice = Literal["policy", "last", "best"]
 """Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
@@ -46,12 +56,15 @@ def model_paths(
     policies = PolicyDir.all_of_run(record.path, spec.controller == "independent")
     if model != "policy":
         return [candidate_path(policy, model) for policy in policies]
-    return [policy.policy_path or candidate_path(policy, policy_choice(policy, spec))
-            for policy in policies]
+    return [
+        policy.policy_path or candidate_path(policy, policy_choice(policy, spec))
+        for policy in policies
+    ]
 
 
-def require_model(record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
-                  ) -> list[Path]:
+def require_model(
+    record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
+) -> list[Path]:
     """:func:`model_paths`, checked to exist.
 
     Raises:
@@ -59,8 +72,10 @@ def require_model(record: RunRecord, spec: ExperimentSpec, model: ModelChoice = 
             trained without validation), with the command that fixes it.
     """
     if model != "policy" and spec.controller == "mpc":
-        raise RunStoreError(f"run {record.run_id} is an MPC controller: it has no last or "
-                            "best model; evaluate it without --model")
+        raise RunStoreError(
+            f"run {record.run_id} is an MPC controller: it has no last or "
+            "best model; evaluate it without --model"
+        )
     if model == "best" and spec.training.validation_episodes < 1:
         raise RunStoreError(
             f"run {record.run_id} was trained without validation "
@@ -126,7 +141,7 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
     try:
         device = "cpu" if spec.algo.backend == "sb3" else "auto"
         model: Any = model_class(spec).load(str(path), device=device)
-    except Exception as exc:  # noqa: BLE001 - any failure to load means an unusable model file
+    except Exception as exc:
         raise RunStoreError(f"{path}: unreadable model ({type(exc).__name__}: {exc})") from None
     normalizer = None
     stats = path.parent / "vecnormalize.pkl"
@@ -142,14 +157,13 @@ def mpc_controller(spec: ExperimentSpec, seed: int) -> Policy:
     from softtrack.mpc.config import PlannerConfig
     from softtrack.mpc.controller import MpcController
 
-    config = PlannerConfig(**spec.mpc.planner_kwargs(),
-                           arm_weights=tuple(spec.env.reward.arm_weights))
+    config = PlannerConfig(
+        **spec.mpc.planner_kwargs(), arm_weights=tuple(spec.env.reward.arm_weights)
+    )
     return MpcController(config, seed, spec.mpc.model, spec.mpc.model_scales)
 
 
-def load_policy(
-    record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy"
-) -> Policy:
+def load_policy(record: RunRecord, spec: ExperimentSpec, model: ModelChoice = "policy") -> Policy:
     """The run's deterministic dual-arm policy: observation (81,) → action (24,), from the
     model(s) ``model`` picks (:func:`model_paths`).
 

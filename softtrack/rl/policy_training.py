@@ -8,8 +8,9 @@ was requested (signal), a checkpoint. The run's status is left to :mod:`softtrac
 Resuming restores the step count, replay buffer and normalisation statistics, and drops the
 policy's rows of ``train_episodes`` written after that checkpoint (for an arm: only that arm's
 rows), so the policy's episodes have no gaps or duplicates; the episodes the checkpoint cut
-short become rows marked ``truncated`` (partial return), so every env step lies in a row. Without a loadable checkpoint the
-policy starts over: its rows and checkpoints are deleted first.
+short become rows marked ``truncated`` (partial return), so every env step lies in a row.
+Without a loadable checkpoint the policy starts over: its rows and checkpoints are deleted
+first.
 """
 
 from __future__ import annotations
@@ -160,8 +161,9 @@ def _warn_fallback(failed: tuple[Path, str], fallback: Path | None) -> None:
     """Say on stderr (the run's ``train.log`` under an executor) that a checkpoint is corrupt."""
     path, reason = failed
     then = f"falling back to {fallback.name}" if fallback else "no older checkpoint: starting over"
-    print(f"warning: {path}: corrupt checkpoint ({reason[:300]}); {then}", file=sys.stderr,
-          flush=True)
+    print(
+        f"warning: {path}: corrupt checkpoint ({reason[:300]}); {then}", file=sys.stderr, flush=True
+    )
 
 
 class PolicyTrainer:
@@ -227,7 +229,7 @@ class PolicyTrainer:
                     raise ValueError("model and state.json disagree on the step count")
                 self.model, self.env = model, env
                 return dict(state)
-            except Exception as exc:  # noqa: BLE001 (a corrupt checkpoint: fall back)
+            except Exception as exc:
                 if env is not None:
                     env.close()
                 failed.append((checkpoint, " ".join(f"{type(exc).__name__}: {exc}".split())))
@@ -269,8 +271,11 @@ class PolicyTrainer:
         training = spec.training
         episodes = EpisodeLogger(record, clock, next_episode, columns=job.columns)
         if state is not None and state.get("unfinished_episodes"):
-            episodes.add_truncated(state["unfinished_episodes"], int(self.model.num_timesteps),
-                                   float(state.get("wall_time", clock_offset)))
+            episodes.add_truncated(
+                state["unfinished_episodes"],
+                int(self.model.num_timesteps),
+                float(state.get("wall_time", clock_offset)),
+            )
             episodes.flush()
         self.episodes = episodes
         validator = self._validator(state, clock)
@@ -298,9 +303,14 @@ class PolicyTrainer:
 
         callbacks: list[Any] = [episodes, checkpointer, self.monitor]
         if training.randomisation_warmup_steps > 0:
-            callbacks.insert(0, RandomisationWarmup(training.randomisation_warmup_steps,
-                                                    self.model.get_env(),
-                                                    int(self.model.num_timesteps)))
+            callbacks.insert(
+                0,
+                RandomisationWarmup(
+                    training.randomisation_warmup_steps,
+                    self.model.get_env(),
+                    int(self.model.num_timesteps),
+                ),
+            )
         remaining = job.total_timesteps - int(self.model.num_timesteps)
         if remaining > 0 and not self.stop_requested():
             self.model.learn(
@@ -339,8 +349,14 @@ class PolicyTrainer:
         truncate_validation(self.record, job.policy, None if state is None else step)
         if training.validation_episodes < 1:
             return None
-        validator = Validator(self.record, self.spec, job.policy, self.stop_requested,
-                              clock=clock, on_score=self.on_validation)
+        validator = Validator(
+            self.record,
+            self.spec,
+            job.policy,
+            self.stop_requested,
+            clock=clock,
+            on_score=self.on_validation,
+        )
         interval = training.checkpoint_interval
         if state is not None and interval > 0 and step >= interval:
             done = {s // interval for s in validated_steps(self.record, job.policy)}

@@ -215,8 +215,9 @@ def _train_locked(
 
     notes = store.get_run(record.run_id).info.notes
     if "pruned" in notes:  # resumed on purpose: it is no longer a pruned run
-        store.update_run(record.run_id,
-                         notes={key: v for key, v in notes.items() if key != "pruned"})
+        store.update_run(
+            record.run_id, notes={key: v for key, v in notes.items() if key != "pruned"}
+        )
     store.mark_running(record.run_id)
     try:
         with stop_on_signals(flag):
@@ -232,8 +233,9 @@ def _train_locked(
                     continue
                 if flag():  # stopped between two arms: nothing to checkpoint
                     break
-                trainer = PolicyTrainer(store, record, spec, job, flag, show_progress,
-                                        on_validation=validated(k))
+                trainer = PolicyTrainer(
+                    store, record, spec, job, flag, show_progress, on_validation=validated(k)
+                )
                 result = trainer.run(
                     resume=resume, clock_offset=clock_offset, run_fields=progress.live(k)
                 )
@@ -264,13 +266,12 @@ def _train_locked(
     except KeyboardInterrupt:  # a second Ctrl-C: stop now, without a checkpoint
         _finish_abruptly(store, record, trainer, progress, k, "interrupted", None)
         raise
-    except Exception as exc:  # noqa: BLE001 (recorded in run.json as a failed run)
+    except Exception as exc:
         problem = storage_problem(
             exc, f"then continue with `softtrack train --resume {record.run_id}`", record.path
         )
         if problem is not None:  # a full or read-only disk: resumable once fixed
-            fields = _finish_abruptly(store, record, trainer, progress, k, "interrupted",
-                                      problem)
+            fields = _finish_abruptly(store, record, trainer, progress, k, "interrupted", problem)
             step = int(fields.get("global_step", record.info.global_step))
             return TrainOutcome(record.run_id, "interrupted", step, None, 1, problem)
         text = "".join(traceback.format_exception(exc))

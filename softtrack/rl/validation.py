@@ -219,11 +219,13 @@ class Validator:
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
         if self.episodes < 1:
-            raise ValueError(f"training.validation_episodes is {self.episodes}; a Validator needs "
-                             "at least 1")
+            raise ValueError(
+                f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
+            )
         self.duration = float(spec.training.eval_duration)
-        self.trajectories = (list(spec.training.eval_trajectories)
-                             if spec.training.validation_trajectories else [])
+        self.trajectories = (
+            list(spec.training.eval_trajectories) if spec.training.validation_trajectories else []
+        )
         self.config = env_config(spec, policy.arm)
         self.stop_requested = stop_requested
         self.log = log or (lambda line: print(line, file=sys.stderr, flush=True))
@@ -240,13 +242,28 @@ class Validator:
         act = deterministic_policy(model, normalizer)
         with self.clock.paused() if self.clock is not None else contextlib.nullcontext():
             rows = held_out_rows(
-                self.record.run_id, act, self.config, self.duration, VALIDATION_SEED,
-                self.episodes, self.policy.arm, self.stop_requested,
+                self.record.run_id,
+                act,
+                self.config,
+                self.duration,
+                VALIDATION_SEED,
+                self.episodes,
+                self.policy.arm,
+                self.stop_requested,
             )
-            tracked = trajectory_rows(
-                self.record.run_id, act, self.config, self.duration, self.trajectories,
-                self.policy.arm, self.stop_requested,
-            ) if self.trajectories and rows is not None else None
+            tracked = (
+                trajectory_rows(
+                    self.record.run_id,
+                    act,
+                    self.config,
+                    self.duration,
+                    self.trajectories,
+                    self.policy.arm,
+                    self.stop_requested,
+                )
+                if self.trajectories and rows is not None
+                else None
+            )
         if rows is None or (self.trajectories and tracked is None):
             return None
         if tracked is not None:
@@ -264,9 +281,11 @@ class Validator:
         tracking = ""
         if tracked is not None:
             cells = tracked.groupby("trajectory", sort=False)["rmse_3d"]
-            tracking = "; " + ", ".join(
-                f"{t} {'/'.join(f'{v:.3f}' for v in part)}" for t, part in cells
-            ) + " m"
+            tracking = (
+                "; "
+                + ", ".join(f"{t} {'/'.join(f'{v:.3f}' for v in part)}" for t, part in cells)
+                + " m"
+            )
         self.log(
             f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
             f"episodes in {time.monotonic() - started:.0f} s{' (new best)' if improved else ''}; "
@@ -286,8 +305,12 @@ class Validator:
                 normalizer.save(str(tmp / "vecnormalize.pkl"))
             atomic_write_json(
                 tmp / "state.json",
-                {"global_step": step, "score": score, "episodes": self.episodes,
-                 "saved": utc_now()},
+                {
+                    "global_step": step,
+                    "score": score,
+                    "episodes": self.episodes,
+                    "saved": utc_now(),
+                },
                 fsync=False,
             )
         for older in self.policy.list_best()[:-1]:

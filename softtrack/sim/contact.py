@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 __all__ = ["rod_rod_contact"]
@@ -167,10 +166,37 @@ def _build_neighbours(pos_a, reach_a, pos_b, reach_b, margin, pairs, n_elem):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def rod_rod_contact(pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, f_contact_a,
-                    geometry_a, anchor_a, pos_b, vel_b, lengths_b, inv_lengths_b, f_elem_b,
-                    damp_f_b, f_contact_b, geometry_b, anchor_b, weight, gravity, volume, stiffness,
-                    damping, pairs, n_pairs, rebuild, n_elem, n_pad, force_on_b):
+def rod_rod_contact(
+    pos_a,
+    vel_a,
+    lengths_a,
+    inv_lengths_a,
+    f_elem_a,
+    damp_f_a,
+    f_contact_a,
+    geometry_a,
+    anchor_a,
+    pos_b,
+    vel_b,
+    lengths_b,
+    inv_lengths_b,
+    f_elem_b,
+    damp_f_b,
+    f_contact_b,
+    geometry_b,
+    anchor_b,
+    weight,
+    gravity,
+    volume,
+    stiffness,
+    damping,
+    pairs,
+    n_pairs,
+    rebuild,
+    n_elem,
+    n_pad,
+    force_on_b,
+):
     """The contact forces between rods A and B at this step, into ``f_contact_a/b``.
 
     Args (per rod, A shown; arrays padded to ≥ n_pad elements / n_pad+1 nodes):
@@ -205,8 +231,9 @@ def rod_rod_contact(pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, 
     _reach(volume, inv_lengths_b, lengths_b, radius_b, reach_b, n_elem, n_pad)
     stale = rebuild
     if not stale:
-        moved = (_drift_since(pos_a, anchor_a, reach_a, n_pad)
-                 + _drift_since(pos_b, anchor_b, reach_b, n_pad))
+        moved = _drift_since(pos_a, anchor_a, reach_a, n_pad) + _drift_since(
+            pos_b, anchor_b, reach_b, n_pad
+        )
         stale = moved > _LIST_MARGIN - _BROAD_PHASE_MARGIN
     listed = n_pairs
     if stale:
@@ -263,21 +290,22 @@ def rod_rod_contact(pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, 
         # normal-force term from the element-mean node forces of both rods
         push = 0.0
         for c in range(3):
-            mean_a = 0.5 * (_node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i)
-                            + _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c,
-                                          i + 1))
-            mean_b = 0.5 * (_node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j)
-                            + _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c,
-                                          j + 1))
+            mean_a = 0.5 * (
+                _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i)
+                + _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i + 1)
+            )
+            mean_b = 0.5 * (
+                _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j)
+                + _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j + 1)
+            )
             push += (mean_b - mean_a) * (nx if c == 0 else (ny if c == 1 else nz))
         magnitude = abs(min(push, 0.0))
         if overlap > 0.0:
-            approach = (0.5 * ((vel_a[0, i] + vel_a[0, i + 1]) - (vel_b[0, j] + vel_b[0, j + 1]))
-                        * nx
-                        + 0.5 * ((vel_a[1, i] + vel_a[1, i + 1]) - (vel_b[1, j] + vel_b[1, j + 1]))
-                        * ny
-                        + 0.5 * ((vel_a[2, i] + vel_a[2, i + 1]) - (vel_b[2, j] + vel_b[2, j + 1]))
-                        * nz)
+            approach = (
+                0.5 * ((vel_a[0, i] + vel_a[0, i + 1]) - (vel_b[0, j] + vel_b[0, j + 1])) * nx
+                + 0.5 * ((vel_a[1, i] + vel_a[1, i + 1]) - (vel_b[1, j] + vel_b[1, j + 1])) * ny
+                + 0.5 * ((vel_a[2, i] + vel_a[2, i + 1]) - (vel_b[2, j] + vel_b[2, j + 1])) * nz
+            )
             magnitude += 0.5 * (damping * approach + stiffness * overlap)
             deepest = max(deepest, overlap)
         share_a0 = 2.0 / 3.0 if i == 0 else (4.0 / 3.0 if i == last else 1.0)

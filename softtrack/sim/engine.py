@@ -133,13 +133,19 @@ class RodBatch:
     def get_state(self, env_indices: Sequence[int] | np.ndarray | None = None) -> RodState:
         """A copy of the listed environments' state (default: all)."""
         idx = slice(None) if env_indices is None else np.asarray(env_indices, dtype=np.intp)
-        return RodState(self.position[idx].copy(), self.velocity[idx].copy(),
-                        self.directors[idx].copy(), self.omega[idx].copy(),
-                        self.torques[idx].copy(), self.time[idx].copy(),
-                        self._finite[idx].copy())
+        return RodState(
+            self.position[idx].copy(),
+            self.velocity[idx].copy(),
+            self.directors[idx].copy(),
+            self.omega[idx].copy(),
+            self.torques[idx].copy(),
+            self.time[idx].copy(),
+            self._finite[idx].copy(),
+        )
 
-    def set_state(self, state: RodState,
-                  env_indices: Sequence[int] | np.ndarray | None = None) -> None:
+    def set_state(
+        self, state: RodState, env_indices: Sequence[int] | np.ndarray | None = None
+    ) -> None:
         """Put ``state`` into the listed environments (default: all), bit for bit; a state of
         one environment is copied into every listed one (branching a plan from one state).
 
@@ -191,8 +197,11 @@ class RodBatch:
             InvalidParameterError: an unknown name, a factor that is not a finite number > 0,
                 or (``validate``) scaled parameters that are invalid or unstable at ``dt``.
         """
-        idx = (np.arange(self.n_envs) if env_indices is None
-               else np.atleast_1d(np.asarray(env_indices, dtype=np.intp)))
+        idx = (
+            np.arange(self.n_envs)
+            if env_indices is None
+            else np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        )
         unknown = sorted(set(factors) - set(MODEL_PARAMETERS))
         if unknown:
             raise InvalidParameterError(
@@ -245,8 +254,11 @@ class RodBatch:
                 given (clip them before if needed).
         """
         e, a = self.torques.shape[:2]
-        np.matmul(np.reshape(actions, (e * a * 2, -1)), self._spline_scaled.T,
-                  out=self.torques.reshape(e * a * 2, -1))
+        np.matmul(
+            np.reshape(actions, (e * a * 2, -1)),
+            self._spline_scaled.T,
+            out=self.torques.reshape(e * a * 2, -1),
+        )
         if self._scaled_torques:
             self.torques *= self._torque_factor[:, None, None, None]
 
@@ -264,12 +276,31 @@ class RodBatch:
             return
         c = self.constants
         _advance_kernel(
-            self.position, self.velocity, self.directors, self.omega, self.torques, steps,
-            float(p.dt), self._damping, float(p.gravity), c.rest_lengths,
-            c.rest_voronoi_lengths, self._inv_mass, self._mass, self._inertia,
-            self._inv_inertia, self._shear, self._bend, c.base_position, c.base_directors,
-            self._finite, self._volume, float(p.contact_k), float(p.contact_nu),
-            self._penetration, self._contact_force,
+            self.position,
+            self.velocity,
+            self.directors,
+            self.omega,
+            self.torques,
+            steps,
+            float(p.dt),
+            self._damping,
+            float(p.gravity),
+            c.rest_lengths,
+            c.rest_voronoi_lengths,
+            self._inv_mass,
+            self._mass,
+            self._inertia,
+            self._inv_inertia,
+            self._shear,
+            self._bend,
+            c.base_position,
+            c.base_directors,
+            self._finite,
+            self._volume,
+            float(p.contact_k),
+            float(p.contact_nu),
+            self._penetration,
+            self._contact_force,
         )
         self.time += steps * p.dt
 
@@ -292,4 +323,3 @@ class RodBatch:
         """(E,) bool: True where every state value of the environment was finite after the
         last :meth:`advance` (or since a reset)."""
         return self._finite.copy()
-

@@ -55,10 +55,14 @@ _FLAGS = {"contract", "arcp", "nsz"}  # no 'nnan'/'ninf': NaN detection must kee
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
 def _rotation_coefficients_series(theta_sq):
     """(sin θ/θ, (1 − cos θ)/θ²) by Taylor series, for θ² < _ROTATION_SERIES_MAX."""
-    a = 1.0 - theta_sq * (1.0 / 6.0 - theta_sq * (1.0 / 120.0 - theta_sq * (
-        1.0 / 5040.0 - theta_sq * (1.0 / 362880.0))))
-    b = 0.5 - theta_sq * (1.0 / 24.0 - theta_sq * (1.0 / 720.0 - theta_sq * (
-        1.0 / 40320.0 - theta_sq * (1.0 / 3628800.0))))
+    a = 1.0 - theta_sq * (
+        1.0 / 6.0
+        - theta_sq * (1.0 / 120.0 - theta_sq * (1.0 / 5040.0 - theta_sq * (1.0 / 362880.0)))
+    )
+    b = 0.5 - theta_sq * (
+        1.0 / 24.0
+        - theta_sq * (1.0 / 720.0 - theta_sq * (1.0 / 40320.0 - theta_sq * (1.0 / 3628800.0)))
+    )
     return a, b
 
 
@@ -102,8 +106,7 @@ def _rotate_frames(directors, omega, scale, n_elem, coefficients):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _drift(position, velocity, directors, omega, drift_dt, base_position, base_directors,
-           n_pad):
+def _drift(position, velocity, directors, omega, drift_dt, base_position, base_directors, n_pad):
     """Kinematic step x += h·v, Q ← exp(−h[ω]ₓ)Q with h = drift_dt, then re-apply the clamp.
 
     Runs over the ``n_pad`` padded nodes/elements; padded entries have v = ω = 0 and stay put.
@@ -113,8 +116,11 @@ def _drift(position, velocity, directors, omega, drift_dt, base_position, base_d
             position[i, k] += drift_dt * velocity[i, k]
     largest = 0.0
     for k in range(n_pad):
-        theta_sq = drift_dt * drift_dt * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k]
-                                        + omega[2, k] * omega[2, k])
+        theta_sq = (
+            drift_dt
+            * drift_dt
+            * (omega[0, k] * omega[0, k] + omega[1, k] * omega[1, k] + omega[2, k] * omega[2, k])
+        )
         largest = max(largest, theta_sq)
     if largest < _ROTATION_SERIES_MAX:
         _rotate_frames(directors, omega, drift_dt, n_pad, _rotation_coefficients_series)
@@ -140,9 +146,38 @@ def _log_map_factor_halving(sin_sq, cos_theta):
     r2 = 1.0 + math.sqrt(1.0 + t2_sq)
     x = t2_sq / (r2 * r2)  # tan²(θ/8)
     # atan(√x)/√x = Σ (−x)ⁿ/(2n+1), n ≤ 11
-    atan_ratio = 1.0 - x * (1.0 / 3.0 - x * (1.0 / 5.0 - x * (1.0 / 7.0 - x * (1.0 / 9.0 - x * (
-        1.0 / 11.0 - x * (1.0 / 13.0 - x * (1.0 / 15.0 - x * (1.0 / 17.0 - x * (1.0 / 19.0 - x * (
-            1.0 / 21.0 - x * (1.0 / 23.0)))))))))))
+    atan_ratio = 1.0 - x * (
+        1.0 / 3.0
+        - x
+        * (
+            1.0 / 5.0
+            - x
+            * (
+                1.0 / 7.0
+                - x
+                * (
+                    1.0 / 9.0
+                    - x
+                    * (
+                        1.0 / 11.0
+                        - x
+                        * (
+                            1.0 / 13.0
+                            - x
+                            * (
+                                1.0 / 15.0
+                                - x
+                                * (
+                                    1.0 / 17.0
+                                    - x * (1.0 / 19.0 - x * (1.0 / 21.0 - x * (1.0 / 23.0)))
+                                )
+                            )
+                        )
+                    )
+                )
+            )
+        )
+    )
     return 4.0 * atan_ratio * (1.0 + t_sq) / (r1 * r2)
 
 
@@ -154,8 +189,7 @@ def _log_map_factor_trig(sin_sq, cos_theta):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad,
-                log_map_factor):
+def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad, log_map_factor):
     """κ_j = log(Q_{j+1} Q_jᵀ)^∨ / D̂_j at the Voronoi points, local frame, 1/m.
 
     Also stores cos θ_j of the angle between neighbouring frames in ``cosines``, so the caller
@@ -200,9 +234,31 @@ def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, dil_rate, damp_f,
-                   kappa, cosines, couple, kxc, rest_len, inv_rest_len, rest_vor, inv_rest_vor,
-                   vor_mask, shear_k, bend_k, damp_coef, n_pad):
+def _element_stage(
+    pos,
+    vel,
+    dirs,
+    lengths,
+    inv_lengths,
+    qt,
+    n_local,
+    f_elem,
+    dil_rate,
+    damp_f,
+    kappa,
+    cosines,
+    couple,
+    kxc,
+    rest_len,
+    inv_rest_len,
+    rest_vor,
+    inv_rest_vor,
+    vor_mask,
+    shear_k,
+    bend_k,
+    damp_coef,
+    n_pad,
+):
     """Geometry, strains and stresses of one rod's elements and Voronoi points (outputs in place).
 
     Per rod (3, n_pad+1) nodes and (3, n_pad) elements: lengths, 1/lengths (m, 1/m); qt = Q·t;
@@ -247,8 +303,7 @@ def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, di
         dvx = vel[0, k + 1] - vel[0, k]
         dvy = vel[1, k + 1] - vel[1, k]
         dvz = vel[2, k + 1] - vel[2, k]
-        dil_rate[k] = ((dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k]
-                       * inv_rest_len[k])
+        dil_rate[k] = (dx * dvx + dy * dvy + dz * dvz) * inv_lengths[k] * inv_rest_len[k]
     for k in range(n_pad):
         c = damp_coef[k] * lengths[k]
         damp_f[0, k] = c * (vel[0, k] + vel[0, k + 1])
@@ -281,8 +336,24 @@ def _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem, di
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len, inv_rest_len, inert,
-                   inv_inert, dil_rate, qt, n_local, tq, env_damping, dt, n_pad):
+def _kick_elements(
+    om,
+    couple,
+    kxc,
+    lengths,
+    inv_lengths,
+    rest_len,
+    inv_rest_len,
+    inert,
+    inv_inert,
+    dil_rate,
+    qt,
+    n_local,
+    tq,
+    env_damping,
+    dt,
+    n_pad,
+):
     """ω += dt·J⁻¹·τ·e for every element (element 0 clamped), τ the internal, damping and
     actuation couples (local frame)."""
     for k in range(1, n_pad + 1):
@@ -306,12 +377,23 @@ def _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len, inv_rest_len
         n2 = n_local[2, k]
         dl = rest_len[k]
         damp = env_damping * lengths[k]
-        t0 = (ti0 + (q1 * n2 - q2 * n1) * dl + (jw1 * w2 - jw2 * w1)
-              + jw0 * unsteady + tq[0, k] - damp * w0)
-        t1 = (ti1 + (q2 * n0 - q0 * n2) * dl + (jw2 * w0 - jw0 * w2)
-              + jw1 * unsteady + tq[1, k] - damp * w1)
-        t2 = (ti2 + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0)
-              + jw2 * unsteady - damp * w2)
+        t0 = (
+            ti0
+            + (q1 * n2 - q2 * n1) * dl
+            + (jw1 * w2 - jw2 * w1)
+            + jw0 * unsteady
+            + tq[0, k]
+            - damp * w0
+        )
+        t1 = (
+            ti1
+            + (q2 * n0 - q0 * n2) * dl
+            + (jw2 * w0 - jw0 * w2)
+            + jw1 * unsteady
+            + tq[1, k]
+            - damp * w1
+        )
+        t2 = ti2 + (q0 * n1 - q1 * n0) * dl + (jw0 * w1 - jw1 * w0) + jw2 * unsteady - damp * w2
         om[0, k] = w0 + dt * (inv_inert[0, k] * t0 * e)
         om[1, k] = w1 + dt * (inv_inert[1, k] * t1 * e)
         om[2, k] = w2 + dt * (inv_inert[2, k] * t2 * e)
@@ -325,11 +407,25 @@ def _rod_work(width):
     angular velocities, torques, lengths, 1/lengths, dilatation rates, f_elem, n_local, qt,
     damp_f, couple, kxc; for contact the contact node forces, the element radii and reaches,
     and the positions and reaches the neighbour list was built at."""
-    return (np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, 3, width)),
-            np.zeros((3, width)), np.zeros((2, width)), np.ones(width), np.ones(width),
-            np.zeros(width), np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
-            np.zeros((3, width)), np.zeros((3, width)), np.zeros((3, width)),
-            np.zeros((3, width)), np.zeros((2, width)), np.zeros((4, width)))
+    return (
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, 3, width)),
+        np.zeros((3, width)),
+        np.zeros((2, width)),
+        np.ones(width),
+        np.ones(width),
+        np.zeros(width),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+        np.zeros((2, width)),
+        np.zeros((4, width)),
+    )
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -337,9 +433,18 @@ def _material_work(width):
     """The work arrays shared by the rods of an environment, inert in the padding:
     curvatures and cosines (per step), damping coefficients, 1/masses, masses, volumes,
     inertias, 1/inertias, shear and bend stiffnesses (:func:`_load_material` fills them)."""
-    return (np.zeros((3, width)), np.ones(width), np.zeros(width), np.ones(width),
-            np.zeros(width), np.zeros(width), np.ones((3, width)), np.ones((3, width)),
-            np.zeros((3, width)), np.zeros((3, width)))
+    return (
+        np.zeros((3, width)),
+        np.ones(width),
+        np.zeros(width),
+        np.ones(width),
+        np.zeros(width),
+        np.zeros(width),
+        np.ones((3, width)),
+        np.ones((3, width)),
+        np.zeros((3, width)),
+        np.zeros((3, width)),
+    )
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -363,8 +468,25 @@ def _rest_geometry(rest_lengths, rest_voronoi, width):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend, volume,
-                   damp_coef, inv_m, weight_m, inert, inv_inert, shear_k, bend_k, vol):
+def _load_material(
+    env,
+    damping,
+    inv_mass,
+    mass,
+    inertia,
+    inv_inertia,
+    shear,
+    bend,
+    volume,
+    damp_coef,
+    inv_m,
+    weight_m,
+    inert,
+    inv_inert,
+    shear_k,
+    bend_k,
+    vol,
+):
     """Copy environment ``env``'s material (model error) into the padded work arrays."""
     n_elem = volume.shape[1]
     for k in range(n_elem):
@@ -383,8 +505,25 @@ def _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, be
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _load_rod(position, velocity, directors, omega, torques, base_position, base_directors,
-              env, arm, pos, vel, dirs, om, tq, base_pos, base_dirs, n_pad):
+def _load_rod(
+    position,
+    velocity,
+    directors,
+    omega,
+    torques,
+    base_position,
+    base_directors,
+    env,
+    arm,
+    pos,
+    vel,
+    dirs,
+    om,
+    tq,
+    base_pos,
+    base_dirs,
+    n_pad,
+):
     """Copy one rod's state, torques and clamp into its padded work arrays; padded nodes
     continue the last element's line beyond the tip, at rest, with its frame."""
     n_elem = omega.shape[3]
@@ -451,54 +590,167 @@ def _build_advance(n_pad):
     width = n_pad + 8  # room for the node/element just past the padded range (index n_pad)
 
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
-    def advance_padded(position, velocity, directors, omega, torques, n_steps, dt, damping,
-                       gravity, rest_lengths, rest_voronoi, inv_mass, mass, inertia,
-                       inv_inertia, shear, bend, base_position, base_directors, finite, volume):
+    def advance_padded(
+        position,
+        velocity,
+        directors,
+        omega,
+        torques,
+        n_steps,
+        dt,
+        damping,
+        gravity,
+        rest_lengths,
+        rest_voronoi,
+        inv_mass,
+        mass,
+        inertia,
+        inv_inertia,
+        shear,
+        bend,
+        base_position,
+        base_directors,
+        finite,
+        volume,
+    ):
         n_env = position.shape[0]
         n_arm = position.shape[1]
         rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
-            rest_lengths, rest_voronoi, width)
-        (pos, vel, dirs, om, tq, lengths, inv_lengths, dil_rate, f_elem, n_local, qt, damp_f,
-         couple, kxc, _, _, _) = _rod_work(width)
-        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k,
-         bend_k) = _material_work(width)
+            rest_lengths, rest_voronoi, width
+        )
+        (
+            pos,
+            vel,
+            dirs,
+            om,
+            tq,
+            lengths,
+            inv_lengths,
+            dil_rate,
+            f_elem,
+            n_local,
+            qt,
+            damp_f,
+            couple,
+            kxc,
+            _,
+            _,
+            _,
+        ) = _rod_work(width)
+        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k) = (
+            _material_work(width)
+        )
         base_pos = np.empty(3)
         base_dirs = np.empty((3, 3))
         half_dt = 0.5 * dt
         for env in range(n_env):
-            _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend,
-                           volume, damp_coef, inv_m, weight_m, inert, inv_inert, shear_k,
-                           bend_k, vol)
+            _load_material(
+                env,
+                damping,
+                inv_mass,
+                mass,
+                inertia,
+                inv_inertia,
+                shear,
+                bend,
+                volume,
+                damp_coef,
+                inv_m,
+                weight_m,
+                inert,
+                inv_inert,
+                shear_k,
+                bend_k,
+                vol,
+            )
             env_damping = damping[env]
             checksum = 0.0
             for arm in range(n_arm):
-                _load_rod(position, velocity, directors, omega, torques, base_position,
-                          base_directors, env, arm, pos, vel, dirs, om, tq, base_pos,
-                          base_dirs, n_pad)
+                _load_rod(
+                    position,
+                    velocity,
+                    directors,
+                    omega,
+                    torques,
+                    base_position,
+                    base_directors,
+                    env,
+                    arm,
+                    pos,
+                    vel,
+                    dirs,
+                    om,
+                    tq,
+                    base_pos,
+                    base_dirs,
+                    n_pad,
+                )
                 # The closing half drift of one step and the opening half drift of the next
                 # are one drift of dt (same velocities, same rotation axis), so they are fused.
                 _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_pad)
                 for step in range(n_steps):
-                    _element_stage(pos, vel, dirs, lengths, inv_lengths, qt, n_local, f_elem,
-                                   dil_rate, damp_f, kappa, cosines, couple, kxc, rest_len,
-                                   inv_rest_len, rest_vor, inv_rest_vor, vor_mask, shear_k,
-                                   bend_k, damp_coef, n_pad)
+                    _element_stage(
+                        pos,
+                        vel,
+                        dirs,
+                        lengths,
+                        inv_lengths,
+                        qt,
+                        n_local,
+                        f_elem,
+                        dil_rate,
+                        damp_f,
+                        kappa,
+                        cosines,
+                        couple,
+                        kxc,
+                        rest_len,
+                        inv_rest_len,
+                        rest_vor,
+                        inv_rest_vor,
+                        vor_mask,
+                        shear_k,
+                        bend_k,
+                        damp_coef,
+                        n_pad,
+                    )
                     # v += dt·F/m, F = internal + damping + gravity in one pass (written out
                     # here: as an inlined helper this loop ran 25 % slower)
                     for i in range(3):
                         g = -gravity if i == 1 else 0.0
                         for k in range(1, n_pad + 1):
-                            f = (f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1]
-                                 + g * weight_m[k])
+                            f = (
+                                f_elem[i, k]
+                                - f_elem[i, k - 1]
+                                + damp_f[i, k]
+                                + damp_f[i, k - 1]
+                                + g * weight_m[k]
+                            )
                             vel[i, k] += dt * (f * inv_m[k])
                         vel[i, 0] = 0.0
-                    _kick_elements(om, couple, kxc, lengths, inv_lengths, rest_len,
-                                   inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq,
-                                   env_damping, dt, n_pad)
+                    _kick_elements(
+                        om,
+                        couple,
+                        kxc,
+                        lengths,
+                        inv_lengths,
+                        rest_len,
+                        inv_rest_len,
+                        inert,
+                        inv_inert,
+                        dil_rate,
+                        qt,
+                        n_local,
+                        tq,
+                        env_damping,
+                        dt,
+                        n_pad,
+                    )
                     drift_dt = half_dt if step == n_steps - 1 else dt
                     _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_pad)
-                checksum += _store_rod(pos, vel, dirs, om, env, arm, position, velocity,
-                                       directors, omega)
+                checksum += _store_rod(
+                    pos, vel, dirs, om, env, arm, position, velocity, directors, omega
+                )
             finite[env] = math.isfinite(checksum)
 
     return advance_padded
@@ -513,25 +765,83 @@ def _build_advance_contact(n_pad):
     width = n_pad + 8
 
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
-    def advance_contact(position, velocity, directors, omega, torques, n_steps, dt, damping,
-                        gravity, rest_lengths, rest_voronoi, inv_mass, mass, inertia,
-                        inv_inertia, shear, bend, base_position, base_directors, finite,
-                        volume, contact_k, contact_nu, penetration, contact_force):
+    def advance_contact(
+        position,
+        velocity,
+        directors,
+        omega,
+        torques,
+        n_steps,
+        dt,
+        damping,
+        gravity,
+        rest_lengths,
+        rest_voronoi,
+        inv_mass,
+        mass,
+        inertia,
+        inv_inertia,
+        shear,
+        bend,
+        base_position,
+        base_directors,
+        finite,
+        volume,
+        contact_k,
+        contact_nu,
+        penetration,
+        contact_force,
+    ):
         n_env = position.shape[0]
         n_elem = rest_lengths.shape[0]
         rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
-            rest_lengths, rest_voronoi, width)
+            rest_lengths, rest_voronoi, width
+        )
         # Each rod's angular kick runs right after its forces (contact exerts no couple and
         # reads no angular velocity), so the arrays only that kick reads (dilatation rates,
         # n_local, qt, couples) are shared by the two rods: the two rods' work arrays then
         # fit the L1 cache together.
-        (pos_a, vel_a, dirs_a, om_a, tq_a, lengths_a, inv_lengths_a, dil_rate, f_elem_a,
-         n_local, qt, damp_f_a, couple, kxc, f_contact_a, geometry_a,
-         anchor_a) = _rod_work(width)
-        (pos_b, vel_b, dirs_b, om_b, tq_b, lengths_b, inv_lengths_b, _, f_elem_b, _, _,
-         damp_f_b, _, _, f_contact_b, geometry_b, anchor_b) = _rod_work(width)
-        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k,
-         bend_k) = _material_work(width)
+        (
+            pos_a,
+            vel_a,
+            dirs_a,
+            om_a,
+            tq_a,
+            lengths_a,
+            inv_lengths_a,
+            dil_rate,
+            f_elem_a,
+            n_local,
+            qt,
+            damp_f_a,
+            couple,
+            kxc,
+            f_contact_a,
+            geometry_a,
+            anchor_a,
+        ) = _rod_work(width)
+        (
+            pos_b,
+            vel_b,
+            dirs_b,
+            om_b,
+            tq_b,
+            lengths_b,
+            inv_lengths_b,
+            _,
+            f_elem_b,
+            _,
+            _,
+            damp_f_b,
+            _,
+            _,
+            f_contact_b,
+            geometry_b,
+            anchor_b,
+        ) = _rod_work(width)
+        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k) = (
+            _material_work(width)
+        )
         base_pos_a = np.empty(3)
         base_dirs_a = np.empty((3, 3))
         base_pos_b = np.empty(3)
@@ -540,46 +850,193 @@ def _build_advance_contact(n_pad):
         force_on_b = np.zeros(3)
         half_dt = 0.5 * dt
         for env in range(n_env):
-            _load_material(env, damping, inv_mass, mass, inertia, inv_inertia, shear, bend,
-                           volume, damp_coef, inv_m, weight_m, inert, inv_inert, shear_k,
-                           bend_k, vol)
+            _load_material(
+                env,
+                damping,
+                inv_mass,
+                mass,
+                inertia,
+                inv_inertia,
+                shear,
+                bend,
+                volume,
+                damp_coef,
+                inv_m,
+                weight_m,
+                inert,
+                inv_inert,
+                shear_k,
+                bend_k,
+                vol,
+            )
             env_damping = damping[env]
-            _load_rod(position, velocity, directors, omega, torques, base_position,
-                      base_directors, env, 0, pos_a, vel_a, dirs_a, om_a, tq_a, base_pos_a,
-                      base_dirs_a, n_pad)
-            _load_rod(position, velocity, directors, omega, torques, base_position,
-                      base_directors, env, 1, pos_b, vel_b, dirs_b, om_b, tq_b, base_pos_b,
-                      base_dirs_b, n_pad)
+            _load_rod(
+                position,
+                velocity,
+                directors,
+                omega,
+                torques,
+                base_position,
+                base_directors,
+                env,
+                0,
+                pos_a,
+                vel_a,
+                dirs_a,
+                om_a,
+                tq_a,
+                base_pos_a,
+                base_dirs_a,
+                n_pad,
+            )
+            _load_rod(
+                position,
+                velocity,
+                directors,
+                omega,
+                torques,
+                base_position,
+                base_directors,
+                env,
+                1,
+                pos_b,
+                vel_b,
+                dirs_b,
+                om_b,
+                tq_b,
+                base_pos_b,
+                base_dirs_b,
+                n_pad,
+            )
             deepest = 0.0
             force_total = 0.0
             n_pairs = 0
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
             _drift(pos_b, vel_b, dirs_b, om_b, half_dt, base_pos_b, base_dirs_b, n_pad)
             for step in range(n_steps):
-                _element_stage(pos_a, vel_a, dirs_a, lengths_a, inv_lengths_a, qt, n_local,
-                               f_elem_a, dil_rate, damp_f_a, kappa, cosines, couple, kxc,
-                               rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
-                               shear_k, bend_k, damp_coef, n_pad)
-                _kick_elements(om_a, couple, kxc, lengths_a, inv_lengths_a, rest_len,
-                               inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq_a,
-                               env_damping, dt, n_pad)
-                _element_stage(pos_b, vel_b, dirs_b, lengths_b, inv_lengths_b, qt, n_local,
-                               f_elem_b, dil_rate, damp_f_b, kappa, cosines, couple, kxc,
-                               rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask,
-                               shear_k, bend_k, damp_coef, n_pad)
-                _kick_elements(om_b, couple, kxc, lengths_b, inv_lengths_b, rest_len,
-                               inv_rest_len, inert, inv_inert, dil_rate, qt, n_local, tq_b,
-                               env_damping, dt, n_pad)
+                _element_stage(
+                    pos_a,
+                    vel_a,
+                    dirs_a,
+                    lengths_a,
+                    inv_lengths_a,
+                    qt,
+                    n_local,
+                    f_elem_a,
+                    dil_rate,
+                    damp_f_a,
+                    kappa,
+                    cosines,
+                    couple,
+                    kxc,
+                    rest_len,
+                    inv_rest_len,
+                    rest_vor,
+                    inv_rest_vor,
+                    vor_mask,
+                    shear_k,
+                    bend_k,
+                    damp_coef,
+                    n_pad,
+                )
+                _kick_elements(
+                    om_a,
+                    couple,
+                    kxc,
+                    lengths_a,
+                    inv_lengths_a,
+                    rest_len,
+                    inv_rest_len,
+                    inert,
+                    inv_inert,
+                    dil_rate,
+                    qt,
+                    n_local,
+                    tq_a,
+                    env_damping,
+                    dt,
+                    n_pad,
+                )
+                _element_stage(
+                    pos_b,
+                    vel_b,
+                    dirs_b,
+                    lengths_b,
+                    inv_lengths_b,
+                    qt,
+                    n_local,
+                    f_elem_b,
+                    dil_rate,
+                    damp_f_b,
+                    kappa,
+                    cosines,
+                    couple,
+                    kxc,
+                    rest_len,
+                    inv_rest_len,
+                    rest_vor,
+                    inv_rest_vor,
+                    vor_mask,
+                    shear_k,
+                    bend_k,
+                    damp_coef,
+                    n_pad,
+                )
+                _kick_elements(
+                    om_b,
+                    couple,
+                    kxc,
+                    lengths_b,
+                    inv_lengths_b,
+                    rest_len,
+                    inv_rest_len,
+                    inert,
+                    inv_inert,
+                    dil_rate,
+                    qt,
+                    n_local,
+                    tq_b,
+                    env_damping,
+                    dt,
+                    n_pad,
+                )
                 depth, n_pairs = rod_rod_contact(
-                    pos_a, vel_a, lengths_a, inv_lengths_a, f_elem_a, damp_f_a, f_contact_a,
-                    geometry_a, anchor_a, pos_b, vel_b, lengths_b, inv_lengths_b, f_elem_b,
-                    damp_f_b, f_contact_b, geometry_b, anchor_b, weight_m, gravity, vol,
-                    contact_k, contact_nu, pairs, n_pairs, step == 0, n_elem, n_pad,
-                    force_on_b)
+                    pos_a,
+                    vel_a,
+                    lengths_a,
+                    inv_lengths_a,
+                    f_elem_a,
+                    damp_f_a,
+                    f_contact_a,
+                    geometry_a,
+                    anchor_a,
+                    pos_b,
+                    vel_b,
+                    lengths_b,
+                    inv_lengths_b,
+                    f_elem_b,
+                    damp_f_b,
+                    f_contact_b,
+                    geometry_b,
+                    anchor_b,
+                    weight_m,
+                    gravity,
+                    vol,
+                    contact_k,
+                    contact_nu,
+                    pairs,
+                    n_pairs,
+                    step == 0,
+                    n_elem,
+                    n_pad,
+                    force_on_b,
+                )
                 deepest = max(deepest, depth)
-                force_total += math.sqrt(force_on_b[0] * force_on_b[0]
-                                         + force_on_b[1] * force_on_b[1]
-                                         + force_on_b[2] * force_on_b[2])
+                force_total += math.sqrt(
+                    force_on_b[0] * force_on_b[0]
+                    + force_on_b[1] * force_on_b[1]
+                    + force_on_b[2] * force_on_b[2]
+                )
                 drift_dt = half_dt if step == n_steps - 1 else dt
                 # v += dt·F/m, F = internal + damping + gravity + contact (written out: as an
                 # inlined helper this loop ran 25 % slower); with no contact force the sum is
@@ -587,11 +1044,23 @@ def _build_advance_contact(n_pad):
                 for i in range(3):
                     g = -gravity if i == 1 else 0.0
                     for k in range(1, n_pad + 1):
-                        f = (f_elem_a[i, k] - f_elem_a[i, k - 1] + damp_f_a[i, k]
-                             + damp_f_a[i, k - 1] + g * weight_m[k] + f_contact_a[i, k])
+                        f = (
+                            f_elem_a[i, k]
+                            - f_elem_a[i, k - 1]
+                            + damp_f_a[i, k]
+                            + damp_f_a[i, k - 1]
+                            + g * weight_m[k]
+                            + f_contact_a[i, k]
+                        )
                         vel_a[i, k] += dt * (f * inv_m[k])
-                        f = (f_elem_b[i, k] - f_elem_b[i, k - 1] + damp_f_b[i, k]
-                             + damp_f_b[i, k - 1] + g * weight_m[k] + f_contact_b[i, k])
+                        f = (
+                            f_elem_b[i, k]
+                            - f_elem_b[i, k - 1]
+                            + damp_f_b[i, k]
+                            + damp_f_b[i, k - 1]
+                            + g * weight_m[k]
+                            + f_contact_b[i, k]
+                        )
                         vel_b[i, k] += dt * (f * inv_m[k])
                     vel_a[i, 0] = 0.0
                     vel_b[i, 0] = 0.0
@@ -599,10 +1068,12 @@ def _build_advance_contact(n_pad):
                 _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
             penetration[env] = deepest
             contact_force[env] = force_total / max(n_steps, 1)
-            checksum = _store_rod(pos_a, vel_a, dirs_a, om_a, env, 0, position, velocity,
-                                  directors, omega)
-            checksum += _store_rod(pos_b, vel_b, dirs_b, om_b, env, 1, position, velocity,
-                                   directors, omega)
+            checksum = _store_rod(
+                pos_a, vel_a, dirs_a, om_a, env, 0, position, velocity, directors, omega
+            )
+            checksum += _store_rod(
+                pos_b, vel_b, dirs_b, om_b, env, 1, position, velocity, directors, omega
+            )
             finite[env] = math.isfinite(checksum)
 
     return advance_contact
@@ -611,10 +1082,33 @@ def _build_advance_contact(n_pad):
 _KERNELS: dict[tuple[int, bool], Callable[..., None]] = {}  # (n_pad, contact) → compiled kernel
 
 
-def advance(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
-            rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-            base_position, base_directors, finite, volume, contact_k, contact_nu, penetration,
-            contact_force):
+def advance(
+    position,
+    velocity,
+    directors,
+    omega,
+    torques,
+    n_steps,
+    dt,
+    damping,
+    gravity,
+    rest_lengths,
+    rest_voronoi,
+    inv_mass,
+    mass,
+    inertia,
+    inv_inertia,
+    shear,
+    bend,
+    base_position,
+    base_directors,
+    finite,
+    volume,
+    contact_k,
+    contact_nu,
+    penetration,
+    contact_force,
+):
     """Integrate every rod of the batch by ``n_steps`` steps of ``dt`` seconds, in place.
 
     Args:
@@ -643,11 +1137,54 @@ def advance(position, velocity, directors, omega, torques, n_steps, dt, damping,
         builder = _build_advance_contact if contact else _build_advance
         kernel = _KERNELS[key] = builder(n_pad)
     if contact:
-        kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
-               rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-               base_position, base_directors, finite, volume, contact_k, contact_nu,
-               penetration, contact_force)
+        kernel(
+            position,
+            velocity,
+            directors,
+            omega,
+            torques,
+            n_steps,
+            dt,
+            damping,
+            gravity,
+            rest_lengths,
+            rest_voronoi,
+            inv_mass,
+            mass,
+            inertia,
+            inv_inertia,
+            shear,
+            bend,
+            base_position,
+            base_directors,
+            finite,
+            volume,
+            contact_k,
+            contact_nu,
+            penetration,
+            contact_force,
+        )
     else:
-        kernel(position, velocity, directors, omega, torques, n_steps, dt, damping, gravity,
-               rest_lengths, rest_voronoi, inv_mass, mass, inertia, inv_inertia, shear, bend,
-               base_position, base_directors, finite, volume)
+        kernel(
+            position,
+            velocity,
+            directors,
+            omega,
+            torques,
+            n_steps,
+            dt,
+            damping,
+            gravity,
+            rest_lengths,
+            rest_voronoi,
+            inv_mass,
+            mass,
+            inertia,
+            inv_inertia,
+            shear,
+            bend,
+            base_position,
+            base_directors,
+            finite,
+            volume,
+        )

@@ -54,8 +54,13 @@ MODEL_PARAMETERS: dict[str, str] = {
 # The end of each factor's range that gives the smallest stable time step: the stiffest,
 # lightest, thinnest and most damped rod (docs/environment.md, "Model error"); the torque scale
 # does not enter the limit.
-_WORST_END = {"youngs_modulus_scale": 1, "density_scale": 0, "radius_scale": 0,
-              "damping_scale": 1, "torque_scale_factor": 0}
+_WORST_END = {
+    "youngs_modulus_scale": 1,
+    "density_scale": 0,
+    "radius_scale": 0,
+    "damping_scale": 1,
+    "torque_scale_factor": 0,
+}
 
 
 class InvalidParameterError(ValueError):
@@ -179,8 +184,14 @@ class SimParams:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise InvalidParameterError(f"{name}={value!r} must be a finite number > 0")
-        for name in ("damping", "gravity", "torque_scale", "shear_correction", "contact_k",
-                     "contact_nu"):
+        for name in (
+            "damping",
+            "gravity",
+            "torque_scale",
+            "shear_correction",
+            "contact_k",
+            "contact_nu",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise InvalidParameterError(f"{name}={value!r} must be a finite number")
@@ -193,14 +204,21 @@ class SimParams:
                 f"poisson_ratio={self.poisson_ratio!r} must lie in (-1, 0.5]"
             )
         if self.n_arms < 1 or any(len(p) != 3 for p in self.base_positions):
-            raise InvalidParameterError("base_positions must be a list of (x, y, z) points, one per arm")
+            raise InvalidParameterError(
+                "base_positions must be a list of (x, y, z) points, one per arm"
+            )
         if not np.all(np.isfinite(np.asarray(self.base_positions, dtype=float))):
             raise InvalidParameterError(
                 f"base_positions={self.base_positions!r} must contain finite coordinates"
             )
         d = np.asarray(self.direction, dtype=float)
         n = np.asarray(self.normal, dtype=float)
-        if d.shape != (3,) or n.shape != (3,) or not np.all(np.isfinite(d)) or not np.all(np.isfinite(n)):
+        if (
+            d.shape != (3,)
+            or n.shape != (3,)
+            or not np.all(np.isfinite(d))
+            or not np.all(np.isfinite(n))
+        ):
             raise InvalidParameterError("direction and normal must be finite 3-vectors")
         if abs(np.linalg.norm(d) - 1) > 1e-9 or abs(np.linalg.norm(n) - 1) > 1e-9:
             raise InvalidParameterError("direction and normal must be unit vectors")
@@ -214,7 +232,6 @@ class SimParams:
                 f"discretisation (n_elem={self.n_elem}, damping={self.damping:g}); "
                 f"use dt ≤ {limit:.3g}"
             )
-
 
     def _validate_contact(self) -> None:
         """The contact fields: signs, two arms, and a contact_k stable at dt."""
@@ -295,9 +312,13 @@ class RodConstants:
         mass[1:] += 0.5 * p.density * volume
         inertia = np.stack([p.density * dl * i1, p.density * dl * i1, p.density * dl * i3])
         shear = np.tile(
-            np.array([p.shear_correction * p.shear_modulus * area,
-                      p.shear_correction * p.shear_modulus * area,
-                      p.youngs_modulus * area])[:, None],
+            np.array(
+                [
+                    p.shear_correction * p.shear_modulus * area,
+                    p.shear_correction * p.shear_modulus * area,
+                    p.youngs_modulus * area,
+                ]
+            )[:, None],
             (1, n),
         )
         element_bend = np.tile(
@@ -379,8 +400,11 @@ def model_error_stability(
         ``None`` when ``params.dt`` is stable at the worst case, else (field, problem, fix):
         the factor whose worst end alone lowers the limit most, what is wrong, and how to fix it.
     """
-    worst = {name: float(ranges[name][_WORST_END[name]]) for name in ranges
-             if name != "torque_scale_factor"}
+    worst = {
+        name: float(ranges[name][_WORST_END[name]])
+        for name in ranges
+        if name != "torque_scale_factor"
+    }
     worst = {name: value for name, value in worst.items() if value != 1.0}
     if not worst:
         return None

@@ -82,8 +82,9 @@ def rod_modes(params: SimParams) -> list[tuple[np.ndarray, np.ndarray]]:
     s = params.shear_correction * g_mod * params.area
     m = rho * params.area * dl
     j = rho * i1 * dl
-    bending = np.array([[4.0 * s / (m * dl), 2.0 * s / m],
-                        [2.0 * s / j, (s * dl + 4.0 * e_mod * i1 / dl) / j]])
+    bending = np.array(
+        [[4.0 * s / (m * dl), 2.0 * s / m], [2.0 * s / j, (s * dl + 4.0 * e_mod * i1 / dl) / j]]
+    )
     return [
         (np.array([[4.0 * e_mod / (rho * dl**2)]]), np.zeros((1, 1))),
         (bending, np.diag([0.0, params.damping / (rho * i1)])),
@@ -94,7 +95,9 @@ def rod_modes(params: SimParams) -> list[tuple[np.ndarray, np.ndarray]]:
 _CONTACT_NODE_SHARE = 7.0 / 3.0  # 2 arms × (4/3 + 1) × ½, module docstring
 
 
-def contact_mode(params: SimParams, stiffness: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def contact_mode(
+    params: SimParams, stiffness: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(A, D) of the contact mode (module docstring), 1/s² and 1/s.
 
     Args:

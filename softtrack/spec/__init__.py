@@ -10,14 +10,16 @@ An experiment is a YAML file with six top-level keys::
     controller: centralized   # or independent (one single-arm policy per arm)
 
 plus an optional ``tune:`` section, the search space of ``softtrack tune``
-(:mod:`softtrack.spec.tune_models`, left out of the spec hash), and an optional ``base: <path>``: the spec file this one extends (relative to this file's
-directory), so a variant states only what differs; the chain is deep-merged before validation
+(:mod:`softtrack.spec.tune_models`, left out of the spec hash), and an optional
+``base: <path>``: the spec file this one extends (relative to this file's directory), so a
+variant states only what differs; the chain is deep-merged before validation
 (:mod:`softtrack.spec.bases`; ``name`` is not inherited) and :func:`spec_chain` lists it.
 
-Every field has a default (the study's setting, ``docs/physics.md``, ``docs/environment.md``), a description and its unit in
-brackets; :func:`spec_json_schema` and ``softtrack spec --schema`` expose them. Unknown keys are
-rejected everywhere. YAML is read with a *safe* loader (plus YAML-1.2 style floats, so ``1e7``
-and ``3e-4`` are numbers, and duplicate keys are an error); nothing is ever ``eval``-ed.
+Every field has a default (the study's setting, ``docs/physics.md``,
+``docs/environment.md``), a description and its unit in brackets; :func:`spec_json_schema`
+and ``softtrack spec --schema`` expose them. Unknown keys are rejected everywhere. YAML is read
+with a *safe* loader (plus YAML-1.2 style floats, so ``1e7`` and ``3e-4`` are numbers, and
+duplicate keys are an error); nothing is ever ``eval``-ed.
 
 Errors a user can make raise :class:`SpecError`, whose ``str`` is one line::
 

@@ -61,8 +61,7 @@ class PolicyKwargsSpec(SpecModel):
     # crossq (sbx only)
     batch_norm: bool = unit_field(
         True,
-        "batch renormalisation layers in the critics (crossq; its critics have no target "
-        "networks)",
+        "batch renormalisation layers in the critics (crossq; its critics have no target networks)",
         "-",
     )
     batch_norm_actor: bool = unit_field(
@@ -77,8 +76,7 @@ class PolicyKwargsSpec(SpecModel):
     )
     renorm_warmup_steps: Int = unit_field(
         100_000,
-        "training passes of a batch renormalisation layer before its corrections apply "
-        "(crossq)",
+        "training passes of a batch renormalisation layer before its corrections apply (crossq)",
         "gradient steps",
         ge=0,
     )
@@ -96,8 +94,7 @@ class AlgoSpec(SpecModel):
 
     name: Literal["td3", "ddpg", "ppo", "sac", "tqc", "crossq"] = unit_field(
         "td3",
-        "algorithm; tqc with backend sb3 is sb3-contrib's TQC, crossq is in sbx only "
-        "(backend sbx)",
+        "algorithm; tqc with backend sb3 is sb3-contrib's TQC, crossq is in sbx only (backend sbx)",
         "-",
     )
     backend: Literal["sb3", "sbx"] = unit_field(
@@ -325,7 +322,7 @@ class AlgoSpec(SpecModel):
         """
         common = ["policy", "learning_rate", "batch_size", "gamma"]
         if self.is_off_policy:
-            keys = common + ["buffer_size", "learning_starts", "train_freq", "gradient_steps"]
+            keys = [*common, "buffer_size", "learning_starts", "train_freq", "gradient_steps"]
             if self.name != "crossq":  # CrossQ has no target networks
                 keys.append("tau")
             if self.name == "td3":
@@ -339,7 +336,8 @@ class AlgoSpec(SpecModel):
                 if self.ent_coef is not None:
                     keys.append("ent_coef")
         else:  # ppo
-            keys = common + [
+            keys = [
+                *common,
                 "n_steps",
                 "n_epochs",
                 "gae_lambda",

@@ -155,8 +155,10 @@ def _emit(
         if isinstance(child, BaseModel):
             out.append(f"{pad}{name}:")
             _emit(child, value, indent + 2, comments, out)
-        elif isinstance(child, dict) and child and all(
-            isinstance(v, BaseModel) for v in child.values()
+        elif (
+            isinstance(child, dict)
+            and child
+            and all(isinstance(v, BaseModel) for v in child.values())
         ):  # e.g. tune.params: one line per entry, without the settings left at their defaults
             out.append(f"{pad}{name}:")
             for key, entry in child.items():

@@ -117,10 +117,10 @@ def _paths(data: Any, prefix: FieldPath = ()) -> set[FieldPath]:
     out = {prefix}
     if isinstance(data, dict):
         for key, value in data.items():
-            out |= _paths(value, prefix + (key,))
+            out |= _paths(value, (*prefix, key))
     elif isinstance(data, list):
         for index, value in enumerate(data):
-            out |= _paths(value, prefix + (index,))
+            out |= _paths(value, (*prefix, index))
     return out
 
 

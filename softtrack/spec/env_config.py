@@ -32,8 +32,7 @@ def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
     env = spec.env
     sim = env.sim_kwargs()
     target = env.target_kwargs()
-    common = {"target": target.pop("name"), "episode_duration": env.episode_duration,
-              **target}
+    common = {"target": target.pop("name"), "episode_duration": env.episode_duration, **target}
     if env.task.name != "shared":  # only then, so the kwargs of a default spec stay as they were
         common.update(task=env.task.name, standoff=env.task.standoff)
     if env.realism.active:  # only then, so the kwargs of a default spec stay as they were

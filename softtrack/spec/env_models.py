@@ -190,7 +190,7 @@ class TargetSpec(SpecModel):
                 "largest speed drawn, so make speed_min <= speed (or leave it null)",
                 "speed_min",
             )
-        for axis, lo, hi in zip("xyz", self.box_low, self.box_high):
+        for axis, lo, hi in zip("xyz", self.box_low, self.box_high, strict=False):
             if hi - lo <= 2 * self.sphere_radius:
                 raise custom_error(
                     f"box is too small along {axis} ({lo:g} to {hi:g} m) for a sphere of radius "
@@ -301,8 +301,10 @@ class RealismSpec(SpecModel):
         lt=1,
     )
     obs_stuck_steps: Int = unit_field(
-        1, "how long a stuck value repeats its last reading (the step it sticks included)",
-        "control steps", ge=1,
+        1,
+        "how long a stuck value repeats its last reading (the step it sticks included)",
+        "control steps",
+        ge=1,
     )
     obs_delay: Int = unit_field(
         0,
@@ -338,7 +340,9 @@ class RealismSpec(SpecModel):
         gt=0,
     )
     torque_limit: Float | None = unit_field(
-        None, "each element torque is clipped to +-this after the spline; null = off", "N·m",
+        None,
+        "each element torque is clipped to +-this after the spline; null = off",
+        "N·m",
         gt=0,
     )
     # model error: a fixed factor, or a [low, high] range drawn uniformly per episode and env
@@ -406,10 +410,15 @@ class RealismSpec(SpecModel):
     def random_perturbations(self) -> bool:
         """True when something is drawn at random: a [low, high] model-error range, an action
         delay range, observation noise, stuck or dropped values."""
-        return (any(low != high for low, high in self.model_error_ranges().values())
-                or (self.action_delay_max or 0) > self.action_delay
-                or any(getattr(self, name) > 0 for name in type(self).model_fields
-                       if name.startswith("obs_noise_") or name.endswith("_probability")))
+        return (
+            any(low != high for low, high in self.model_error_ranges().values())
+            or (self.action_delay_max or 0) > self.action_delay
+            or any(
+                getattr(self, name) > 0
+                for name in type(self).model_fields
+                if name.startswith("obs_noise_") or name.endswith("_probability")
+            )
+        )
 
 
 class TaskSpec(SpecModel):
@@ -422,7 +431,9 @@ class TaskSpec(SpecModel):
         "-",
     )
     standoff: Float = unit_field(
-        0.1, "viewpoints: distance of each arm's point from the target centre along x", "m",
+        0.1,
+        "viewpoints: distance of each arm's point from the target centre along x",
+        "m",
         ge=0,
     )
 

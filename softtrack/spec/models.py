@@ -385,8 +385,12 @@ class ExperimentSpec(SpecModel):
         if t.randomisation_warmup_steps > 0:
             _check_randomisation_warmup(self)
         if t.final_policy == "best_validated":
-            check_validated_checkpoints(t, "final_policy 'best_validated'",
-                                        "training.final_policy", or_else=" or final_policy: last")
+            check_validated_checkpoints(
+                t,
+                "final_policy 'best_validated'",
+                "training.final_policy",
+                or_else=" or final_policy: last",
+            )
         elif t.confirm_episodes > 0:
             raise custom_error(
                 f"confirm_episodes {t.confirm_episodes} confirms the best-validated model, but "
@@ -394,9 +398,12 @@ class ExperimentSpec(SpecModel):
                 "training.confirm_episodes",
             )
         if t.validation_trajectories:
-            check_validated_checkpoints(t, "validation_trajectories",
-                                        "training.validation_trajectories",
-                                        or_else=" or validation_trajectories: false")
+            check_validated_checkpoints(
+                t,
+                "validation_trajectories",
+                "training.validation_trajectories",
+                or_else=" or validation_trajectories: false",
+            )
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

@@ -150,11 +150,11 @@ def _collect_lines(node: yaml.Node, path: tuple[Any, ...], out: dict[tuple[Any, 
     if isinstance(node, yaml.MappingNode):
         for key_node, value_node in node.value:
             if isinstance(key_node, yaml.ScalarNode):
-                out[path + (key_node.value,)] = key_node.start_mark.line + 1
-                _collect_lines(value_node, path + (key_node.value,), out)
+                out[(*path, key_node.value)] = key_node.start_mark.line + 1
+                _collect_lines(value_node, (*path, key_node.value), out)
     elif isinstance(node, yaml.SequenceNode):
         for index, item in enumerate(node.value):
-            _collect_lines(item, path + (index,), out)
+            _collect_lines(item, (*path, index), out)
 
 
 # ------------------------------------------------------------------------------------------
@@ -387,5 +387,3 @@ def _convert(
         if overrides:
             source += " (with " + ", ".join(f"--set {raw}" for raw in overrides.values()) + ")"
     return SpecError(source, problem, fix, field=_format_loc(loc), line=line)
-
-

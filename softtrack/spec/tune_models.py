@@ -90,16 +90,19 @@ def _check_path(path: str) -> str:
     for depth, part in enumerate(parts):
         if model is None:
             where = ".".join(parts[:depth])
-            raise custom_error(f"{where!r} has no sub-fields; tune {where} itself with "
-                               "categorical choices")
+            raise custom_error(
+                f"{where!r} has no sub-fields; tune {where} itself with categorical choices"
+            )
         if part not in model.model_fields:
-            raise custom_error(f"not a spec field: unknown field {part!r}; "
-                               + _suggest(part, model.model_fields))
+            raise custom_error(
+                f"not a spec field: unknown field {part!r}; " + _suggest(part, model.model_fields)
+            )
         model = _sub_model(model, part)
     if model is not None:
         example = next(iter(model.model_fields))
-        raise custom_error(f"{path!r} is a section, not a field; tune one of its fields, e.g. "
-                           f"{path}.{example}")
+        raise custom_error(
+            f"{path!r} is a section, not a field; tune one of its fields, e.g. {path}.{example}"
+        )
     return path
 
 
@@ -129,16 +132,21 @@ class TuneParamSpec(SpecModel):
         kind = data.get("type")
         if kind not in _PARAM_KEYS:
             shown = "no type" if kind is None else f"type {kind!r}"
-            raise custom_error(f"{shown}; write type: float, int or categorical, e.g. "
-                               "{type: float, low: 1.0e-4, high: 1.0e-3, log: true}")
+            raise custom_error(
+                f"{shown}; write type: float, int or categorical, e.g. "
+                "{type: float, low: 1.0e-4, high: 1.0e-3, log: true}"
+            )
         allowed = _PARAM_KEYS[kind]
         for key, value in data.items():
             if key not in allowed and value is not None and not (key == "log" and not value):
                 # (another type's keys left unset, as a dumped spec writes them, are fine)
                 from softtrack.spec.parsing import _suggest
 
-                hint = _suggest(str(key), allowed) if key not in sum(_PARAM_KEYS.values(), ()) \
+                hint = (
+                    _suggest(str(key), allowed)
+                    if key not in sum(_PARAM_KEYS.values(), ())
                     else f"a {kind} param takes {', '.join(allowed[1:])}"
+                )
                 raise custom_error(f"unknown key {key!r} for type {kind}; {hint}")
         return data
 
@@ -152,21 +160,26 @@ class TuneParamSpec(SpecModel):
                 raise custom_error(f"duplicate choices in {self.choices}; list each once")
             return self
         if self.low is None or self.high is None:
-            raise custom_error(f"a {self.type} range needs low and high; write e.g. "
-                               "{type: " + self.type + ", low: 4, high: 32}")
+            raise custom_error(
+                f"a {self.type} range needs low and high; write e.g. "
+                "{type: " + self.type + ", low: 4, high: 32}"
+            )
         if self.type == "int":
             for name in ("low", "high", "step"):
                 value = getattr(self, name)
                 if value is not None and value != int(value):
-                    raise custom_error(f"{name} {value:g} of an int range is not a whole number; "
-                                       "write whole numbers or use type: float")
+                    raise custom_error(
+                        f"{name} {value:g} of an int range is not a whole number; "
+                        "write whole numbers or use type: float"
+                    )
                 if value is not None:
                     setattr(self, name, int(value))
         if not self.low < self.high:
             raise custom_error(f"low {self.low:g} ≥ high {self.high:g}; make low < high")
         if self.log and self.low <= 0:
-            raise custom_error(f"log scale needs low > 0, got {self.low:g}; raise low or "
-                               "set log: false")
+            raise custom_error(
+                f"log scale needs low > 0, got {self.low:g}; raise low or set log: false"
+            )
         if self.step is not None:
             if self.log:
                 raise custom_error("step and log cannot be combined; remove one of them")
@@ -184,8 +197,9 @@ class TuneParamSpec(SpecModel):
             return [int(self.low), int(self.high)]
         inside = self.low + (self.high - self.low) / math.pi
         if self.log:
-            inside = math.exp(math.log(self.low) + (math.log(self.high) - math.log(self.low))
-                              / math.pi)
+            inside = math.exp(
+                math.log(self.low) + (math.log(self.high) - math.log(self.low)) / math.pi
+            )
         return [self.low, self.high, inside]
 
 
@@ -203,7 +217,9 @@ class PrunerSpec(SpecModel):
         5, "median: trials that finish before any is pruned", "trials", ge=0
     )
     n_warmup_steps: Int = unit_field(
-        0, "no pruning before this many env steps of a run (median, threshold)", "env steps",
+        0,
+        "no pruning before this many env steps of a run (median, threshold)",
+        "env steps",
         ge=0,
     )
     upper: Float | None = unit_field(
@@ -213,8 +229,7 @@ class PrunerSpec(SpecModel):
     @model_validator(mode="after")
     def _check_threshold(self) -> PrunerSpec:
         if self.type == "threshold" and self.upper is None:
-            raise custom_error("a threshold pruner needs upper (m); write e.g. upper: 0.1",
-                               "upper")
+            raise custom_error("a threshold pruner needs upper (m); write e.g. upper: 0.1", "upper")
         return self
 
 
@@ -250,8 +265,9 @@ class TuneSpec(SpecModel):
 
             for key in data:
                 if key not in cls.model_fields:
-                    raise custom_error(f"unknown field {key!r}; "
-                                       + _suggest(str(key), cls.model_fields))
+                    raise custom_error(
+                        f"unknown field {key!r}; " + _suggest(str(key), cls.model_fields)
+                    )
             if not data.get("params"):
                 raise custom_error(
                     "no params to search; add at least one field path with its distribution, "
@@ -281,8 +297,9 @@ def trial_data(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
 def _requirements(spec: ExperimentSpec, where: str) -> None:
     from softtrack.spec.models import check_validated_checkpoints
 
-    check_validated_checkpoints(spec.training, "metric 'validation'", "tune.metric", where,
-                                interval_field="tune.metric")
+    check_validated_checkpoints(
+        spec.training, "metric 'validation'", "tune.metric", where, interval_field="tune.metric"
+    )
 
 
 def check_tune(spec: ExperimentSpec) -> None:
@@ -301,21 +318,31 @@ def check_tune(spec: ExperimentSpec) -> None:
     # each value alone (with the other fields at the spec's own values), then the combinations
     points = [{path: v} for path, values in candidates.items() for v in values]
     if len(candidates) > 1 and math.prod(len(v) for v in candidates.values()) <= MAX_COMBINATIONS:
-        points += [dict(zip(candidates, combo, strict=True))
-                   for combo in itertools.product(*candidates.values())]
+        points += [
+            dict(zip(candidates, combo, strict=True))
+            for combo in itertools.product(*candidates.values())
+        ]
     for point in points:
         try:
             trial = ExperimentSpec.model_validate(trial_data(base, point))
         except ValidationError as exc:
             inner = _convert(exc, "", {}, {})
-            shown = ", ".join(f"{p} {json.dumps(v)}" for p, v in point.items()) \
-                if len(point) > 1 else f"{json.dumps(next(iter(point.values())))}"
-            subject = (f"the combination {shown}" if len(point) > 1
-                       else f"{next(iter(point))}: value {shown}")
+            shown = (
+                ", ".join(f"{p} {json.dumps(v)}" for p, v in point.items())
+                if len(point) > 1
+                else f"{json.dumps(next(iter(point.values())))}"
+            )
+            subject = (
+                f"the combination {shown}"
+                if len(point) > 1
+                else f"{next(iter(point))}: value {shown}"
+            )
             raise custom_error(
                 f"{subject} makes an invalid spec ({inner.field}: {inner.problem}); narrow "
-                "the range or drop the choice", "tune.params",
+                "the range or drop the choice",
+                "tune.params",
             ) from None
         where = " when the trial sets " + ", ".join(
-            f"{p} {json.dumps(v)}" for p, v in point.items())
+            f"{p} {json.dumps(v)}" for p, v in point.items()
+        )
         _requirements(trial, where)

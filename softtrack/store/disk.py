@@ -113,5 +113,7 @@ def storage_problem(
         what = "disk quota exceeded" if code == errno.EDQUOT else "no space left on the device"
         return f"{what} writing in {directory} ({free}{needed}): free some space{after}"
     what = "is on a read-only file system" if code == errno.EROFS else "is not writable"
-    return (f"{directory} {what} ({os.strerror(code)}): softtrack needs to write there; "
-            f"use a writable runs directory (--runs-dir DIR or SOFTTRACK_RUNS_DIR){after}")
+    return (
+        f"{directory} {what} ({os.strerror(code)}): softtrack needs to write there; "
+        f"use a writable runs directory (--runs-dir DIR or SOFTTRACK_RUNS_DIR){after}"
+    )

@@ -89,8 +89,7 @@ def export_run(
     with atomic_dir(dest) as tmp:
         for root, dirs, files in os.walk(source):
             skip = MODEL_FILES if Path(root) in policy_dirs else frozenset()
-            dirs[:] = [d for d in dirs
-                       if d not in EXCLUDED_NAMES | skip and not is_temp_file(d)]
+            dirs[:] = [d for d in dirs if d not in EXCLUDED_NAMES | skip and not is_temp_file(d)]
             target = tmp / Path(root).relative_to(source)
             target.mkdir(parents=True, exist_ok=True)
             for name in files:

@@ -102,7 +102,11 @@ class PolicyDir:
         manifest = self.read_manifest()
         if manifest is None:
             return None
-        return self.path / "model.zip" if manifest.get("model") == model else self.other_model_path(model)
+        return (
+            self.path / "model.zip"
+            if manifest.get("model") == model
+            else self.other_model_path(model)
+        )
 
     @property
     def vecnormalize_path(self) -> Path:
@@ -200,5 +204,7 @@ def _step_dirs(parent: Path) -> list[Path]:
     if not parent.is_dir():
         return []
     return sorted(
-        p for p in parent.iterdir() if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
+        p
+        for p in parent.iterdir()
+        if p.is_dir() and p.name.startswith("step-") and not is_temp_file(p)
     )

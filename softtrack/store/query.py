@@ -89,20 +89,44 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ("algo", pa.string(), "algorithm (spec algo.name)"),
     ("controller", pa.string(), "centralized or independent"),
     ("seed", pa.int64(), "random seed of the run"),
-    ("status", pa.string(), ("run.json status: queued, running, completed, failed, interrupted "
-                             "(`softtrack runs` also shows a running run whose process is gone "
-                             "as lost)")),
+    (
+        "status",
+        pa.string(),
+        (
+            "run.json status: queued, running, completed, failed, interrupted "
+            "(`softtrack runs` also shows a running run whose process is gone "
+            "as lost)"
+        ),
+    ),
     ("total_timesteps", pa.int64(), "training budget, env steps (independent: both arms)"),
     ("arm_total_timesteps", pa.int64(), "independent runs: budget per arm, env steps"),
     ("global_step", pa.int64(), "env steps done (independent: over both arms)"),
-    ("steps_per_second", pa.float64(), ("training throughput, env steps/s: global_step / "
-                                        "train_seconds, as in the report's runs table")),
-    ("train_seconds", pa.float64(), ("training wall time, s: the run's training clock at its "
-                                     "last logged episode (train_episodes.wall_time), as in the "
-                                     "report; NULL before the first episode")),
-    ("final_stage_fraction", pa.float64(), ("spec training.final_stage_fraction (default 0.1): "
-                                            "the final-stage return averages the episodes after "
-                                            "(1 - it) x the budget")),
+    (
+        "steps_per_second",
+        pa.float64(),
+        (
+            "training throughput, env steps/s: global_step / "
+            "train_seconds, as in the report's runs table"
+        ),
+    ),
+    (
+        "train_seconds",
+        pa.float64(),
+        (
+            "training wall time, s: the run's training clock at its "
+            "last logged episode (train_episodes.wall_time), as in the "
+            "report; NULL before the first episode"
+        ),
+    ),
+    (
+        "final_stage_fraction",
+        pa.float64(),
+        (
+            "spec training.final_stage_fraction (default 0.1): "
+            "the final-stage return averages the episodes after "
+            "(1 - it) x the budget"
+        ),
+    ),
     ("spec_hash", pa.string(), "spec hash without the seed: the runs of an experiment share it"),
     ("git_commit", pa.string(), "commit of the code when the run was created"),
     ("git_dirty", pa.bool_(), "the checkout had uncommitted changes"),
@@ -296,7 +320,8 @@ def _table_files(record: RunRecord) -> dict[str, list[Path]]:
     for name, path in list_tables(record.tables_dir).items():
         if path.is_dir():
             parts = sorted(
-                p for p in path.rglob("*.parquet")
+                p
+                for p in path.rglob("*.parquet")
                 if p.is_file()
                 and not any(part.startswith((".", "_")) for part in p.relative_to(path).parts)
             )
@@ -397,10 +422,15 @@ class ResultsDatabase:
         con.unregister("__softtrack_runs_arrow")
         con.execute(_EXPERIMENTS_SQL)
         n = len(self.records)
-        self._add_view("runs", "one row per run: run.json fields, dir, train_seconds, "
-                       "final_stage_fraction", n)
-        self._add_view("experiments", "one row per experiment name (runs.name): runs, "
-                       "completed, seeds, algo, controller, specs", n)
+        self._add_view(
+            "runs", "one row per run: run.json fields, dir, train_seconds, final_stage_fraction", n
+        )
+        self._add_view(
+            "experiments",
+            "one row per experiment name (runs.name): runs, "
+            "completed, seeds, algo, controller, specs",
+            n,
+        )
 
     def _create_table_views(self) -> None:
         by_table: dict[str, list[_TableFile]] = {}
@@ -434,7 +464,10 @@ class ResultsDatabase:
                 self.connection.execute(f"CREATE VIEW {_ident(view)} AS {_view_sql(files)}")
             except duckdb.Error as exc:
                 self._views[view] = ViewInfo(
-                    view, description, (), runs,
+                    view,
+                    description,
+                    (),
+                    runs,
                     f"tables/{name}.parquet of {runs} runs cannot be read as one table "
                     f"({_first_line(exc)})",
                 )
@@ -447,8 +480,12 @@ class ResultsDatabase:
         files = sorted(self._files)
         if files:
             con.execute("SET allowed_paths = ?", [files])
-        for setting in ("enable_external_access", "autoinstall_known_extensions",
-                        "autoload_known_extensions", "allow_community_extensions"):
+        for setting in (
+            "enable_external_access",
+            "autoinstall_known_extensions",
+            "autoload_known_extensions",
+            "allow_community_extensions",
+        ):
             con.execute(f"SET {setting} = false")
         con.execute("SET lock_configuration = true")
 
@@ -496,16 +533,19 @@ class ResultsDatabase:
             name = missing.group(1).strip('"')
             view = self._views.get(name)
             if view is not None and view.error is not None:
-                return (f"query: view {name} is unavailable: {view.error}; move the file away "
-                        "or rewrite it (e.g. `softtrack evaluate RUN` for eval_* tables)")
-            return (f"query: no view {name} in {self.root} (no run has tables/{name}.parquet); "
-                    f"available views: {available} ({listing})")
+                return (
+                    f"query: view {name} is unavailable: {view.error}; move the file away "
+                    "or rewrite it (e.g. `softtrack evaluate RUN` for eval_* tables)"
+                )
+            return (
+                f"query: no view {name} in {self.root} (no run has tables/{name}.parquet); "
+                f"available views: {available} ({listing})"
+            )
         context = [ln for ln in lines[1:] if not ln.startswith("LINE ") and set(ln) != {"^"}]
         where = next((ln for ln in lines[1:] if ln.startswith("LINE ")), None)
         detail = first + "".join(f"; {ln}" for ln in context)
         if isinstance(exc, duckdb.PermissionException) or "configuration has been locked" in first:
-            return (f"query: refused, a query reads only the store's views ({first}); "
-                    f"{listing}")
+            return f"query: refused, a query reads only the store's views ({first}); {listing}"
         if isinstance(exc, duckdb.ParserException):
             at = f" ({where})" if where else ""
             return f"query: {detail}{at}; fix the SQL (DuckDB's dialect: duckdb.org/docs/sql)"
@@ -513,8 +553,10 @@ class ResultsDatabase:
             return f"query: {detail}; {listing}"
         unreadable = isinstance(exc, (duckdb.IOException, duckdb.InvalidInputException))
         if unreadable and ".parquet" in first:
-            return (f"query: {detail}; a table file is unreadable: move it away or rewrite it "
-                    "(e.g. `softtrack evaluate RUN` for eval_* tables)")
+            return (
+                f"query: {detail}; a table file is unreadable: move it away or rewrite it "
+                "(e.g. `softtrack evaluate RUN` for eval_* tables)"
+            )
         return f"query: {detail}"
 
     def close(self) -> None:
@@ -613,11 +655,15 @@ def _text_value(value: Any) -> str:
     if isinstance(value, (float, np.floating)):
         if not math.isfinite(value):
             return str(float(value))
-        return np.format_float_positional(float(value), precision=6, unique=True,
-                                          fractional=False, trim="-")
+        return np.format_float_positional(
+            float(value), precision=6, unique=True, fractional=False, trim="-"
+        )
     if isinstance(value, (pd.Timestamp, datetime)):
-        spec = "seconds" if value.microsecond == 0 else (
-            "milliseconds" if value.microsecond % 1000 == 0 else "microseconds")
+        spec = (
+            "seconds"
+            if value.microsecond == 0
+            else ("milliseconds" if value.microsecond % 1000 == 0 else "microseconds")
+        )
         return value.isoformat(sep=" ", timespec=spec)
     return str(value)
 
@@ -640,13 +686,16 @@ def _float_cells(values: Sequence[Any]) -> list[str]:
 def _text_table(df: pd.DataFrame) -> str:
     columns = [str(c) for c in df.columns]
     cells = [
-        _float_cells(df.iloc[:, i].tolist()) if pd.api.types.is_float_dtype(df.dtypes.iloc[i])
+        _float_cells(df.iloc[:, i].tolist())
+        if pd.api.types.is_float_dtype(df.dtypes.iloc[i])
         else [_text_value(v) for v in df.iloc[:, i].tolist()]
         for i in range(len(columns))
     ]
-    numeric = [pd.api.types.is_numeric_dtype(df.dtypes.iloc[i])
-               and not pd.api.types.is_bool_dtype(df.dtypes.iloc[i])
-               for i in range(len(columns))]
+    numeric = [
+        pd.api.types.is_numeric_dtype(df.dtypes.iloc[i])
+        and not pd.api.types.is_bool_dtype(df.dtypes.iloc[i])
+        for i in range(len(columns))
+    ]
     widths = [max([len(columns[i]), *(len(c) for c in cells[i])]) for i in range(len(columns))]
 
     def line(values: Sequence[str]) -> str:
@@ -676,8 +725,11 @@ def format_result(df: pd.DataFrame, output_format: OutputFormat = "table") -> st
         for column in plain.columns:
             if plain[column].dtype == object:
                 plain[column] = plain[column].map(
-                    lambda v: json.dumps(_json_value(v))
-                    if isinstance(v, (np.ndarray, list, tuple, dict)) else v
+                    lambda v: (
+                        json.dumps(_json_value(v))
+                        if isinstance(v, (np.ndarray, list, tuple, dict))
+                        else v
+                    )
                 )
         return plain.to_csv(index=False).rstrip("\n")
     if output_format == "table":
@@ -693,15 +745,21 @@ def format_views(views: Sequence[ViewInfo], width: int = 100) -> str:
         head = f"{view.name} ({runs}): {view.description}"
         lines = textwrap.wrap(head, width, subsequent_indent="    ")
         if view.error is not None:
-            lines += textwrap.wrap(f"UNAVAILABLE: {view.error}", width, initial_indent="  ",
-                                   subsequent_indent="    ")
+            lines += textwrap.wrap(
+                f"UNAVAILABLE: {view.error}", width, initial_indent="  ", subsequent_indent="    "
+            )
         else:
             # break lines only between columns (\xa0: a space textwrap does not break at)
             columns = ", ".join(f"{c} {t}".replace(" ", "\xa0") for c, t in view.columns)
             lines += [
                 line.replace("\xa0", " ")
-                for line in textwrap.wrap(columns, width, initial_indent="  ",
-                                          subsequent_indent="  ", break_on_hyphens=False)
+                for line in textwrap.wrap(
+                    columns,
+                    width,
+                    initial_indent="  ",
+                    subsequent_indent="  ",
+                    break_on_hyphens=False,
+                )
             ]
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)

@@ -118,8 +118,8 @@ class RunInfo(BaseModel):
     )
     created: str = Field(description="creation time, ISO 8601 UTC")
     started: str | None = Field(
-        None, description="time training first started, ISO 8601 UTC (each session's start: "
-        "sessions)"
+        None,
+        description="time training first started, ISO 8601 UTC (each session's start: sessions)",
     )
     ended: str | None = Field(None, description="time the run ended, ISO 8601 UTC")
     heartbeat: str | None = Field(None, description="last sign of life of the training process")
@@ -139,8 +139,9 @@ class RunInfo(BaseModel):
     steps_per_second: float | None = Field(None, description="training throughput, env steps/s")
     spec_hash: str = Field(description="softtrack.spec.spec_hash of the spec (seed-independent)")
     git_commit: str | None = Field(
-        None, description="commit of the softtrack code when the run was created, if in git "
-        "(a resumed run may have trained on later commits: see sessions)"
+        None,
+        description="commit of the softtrack code when the run was created, if in git "
+        "(a resumed run may have trained on later commits: see sessions)",
     )
     git_dirty: bool | None = Field(None, description="uncommitted changes in the checkout")
     versions: dict[str, str] = Field(
@@ -152,8 +153,9 @@ class RunInfo(BaseModel):
     )
     host: str | None = Field(None, description="host name of the (last) running process")
     cpu: str | None = Field(
-        None, description="CPU model, usable cores and vector extension of the (last) running "
-        "process (steps_per_second depends on it)"
+        None,
+        description="CPU model, usable cores and vector extension of the (last) running "
+        "process (steps_per_second depends on it)",
     )
     pid: int | None = Field(None, description="process id of the (last) running process")
     error: str | None = Field(None, description="one-line error of a failed run")
@@ -169,8 +171,15 @@ class RunInfo(BaseModel):
     )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
 
-    @field_validator("seed", "total_timesteps", "global_step", "arm_total_timesteps",
-                     "arm_steps", "pid", mode="after")
+    @field_validator(
+        "seed",
+        "total_timesteps",
+        "global_step",
+        "arm_total_timesteps",
+        "arm_steps",
+        "pid",
+        mode="after",
+    )
     @classmethod
     def _fits_int64(cls, value: Any) -> Any:
         """Counters fit the store's 64-bit integer columns (``softtrack query``)."""
@@ -293,8 +302,10 @@ class RunRecord:
             problem = f"cannot be read ({exc.strerror or exc})"
         else:
             return None
-        return (f"{path}: the run's spec {problem}; restore it (a copy of the run, or the "
-                f"experiment's YAML) and resume again; run {self.run_id} keeps its status")
+        return (
+            f"{path}: the run's spec {problem}; restore it (a copy of the run, or the "
+            f"experiment's YAML) and resume again; run {self.run_id} keeps its status"
+        )
 
     def load_spec(self) -> ExperimentSpec:
         """The run's fully resolved spec.
@@ -319,8 +330,10 @@ class UnreadableRun:
 
     @property
     def fix(self) -> str:
-        return (f"restore {self.path / 'run.json'} from a backup or copy, or move the directory "
-                "out of the runs directory")
+        return (
+            f"restore {self.path / 'run.json'} from a backup or copy, or move the directory "
+            "out of the runs directory"
+        )
 
 
 def resolve_runs_dir(option: str | os.PathLike[str] | None = None) -> Path:
@@ -426,7 +439,8 @@ class RunStore:
         ]
         if not matches and key:  # a directory named otherwise (models/<name>): its run.json id
             matches = [
-                item.path for item in self._scan()
+                item.path
+                for item in self._scan()
                 if isinstance(item, RunRecord) and item.info.run_id.upper().startswith(key)
             ]
         if len(matches) == 1:
@@ -535,8 +549,10 @@ class RunStore:
         record = self.get_run(run_id)
         info = record.info
         sessions = _close_last_session(  # open: its process died unrecorded
-            info.sessions, ended=info.heartbeat,
-            end_step=max(info.global_step, record.saved_steps()), status="lost",
+            info.sessions,
+            ended=info.heartbeat,
+            end_step=max(info.global_step, record.saved_steps()),
+            status="lost",
         )
         commit, dirty = git_info()
         session = {
@@ -599,7 +615,12 @@ class RunStore:
             steps_per_second=fields.get("steps_per_second", info.steps_per_second),
         )
         return self.update_run(
-            run_id, status=status, ended=now, heartbeat=now, error=error, sessions=sessions,
+            run_id,
+            status=status,
+            ended=now,
+            heartbeat=now,
+            error=error,
+            sessions=sessions,
             **fields,
         )
 

@@ -33,8 +33,8 @@ __all__ = [
     "DEFAULT_FINAL_STAGE_FRACTION",
     "DEFAULT_HEARTBEAT_INTERVAL_S",
     "RUN_TABLE_COLUMNS",
-    "effective_status",
     "complete_episodes",
+    "effective_status",
     "episodes_by_arm",
     "final_stage_fraction",
     "final_stage_return",
@@ -43,10 +43,10 @@ __all__ = [
     "format_runs_table",
     "is_lost",
     "list_run_summaries",
-    "unreadable_summary",
     "run_summary",
     "stale_after_s",
     "training_seconds",
+    "unreadable_summary",
 ]
 
 #: ``training.final_stage_fraction`` of a spec that does not set it.
@@ -266,12 +266,29 @@ def unreadable_summary(item: UnreadableRun) -> dict[str, Any]:
     """The ``softtrack runs`` row of a run whose run.json is missing or unreadable: status
     ``unreadable``, the directory name as its id and the reason as its error."""
     return {
-        "run_id": item.path.name, "name": "", "algo": "", "controller": "", "seed": None,
-        "status": "unreadable", "stored_status": None, "stale": False, "sweep": None,
-        "global_step": None, "total_timesteps": None, "final_return": None,
-        "final_return_episodes": 0, "steps_per_second": None, "cpu": None, "created": None,
-        "started": None, "ended": None, "spec_hash": None, "git_commit": None,
-        "git_dirty": None, "error": f"{item.reason}; {item.fix}", "traceback": None,
+        "run_id": item.path.name,
+        "name": "",
+        "algo": "",
+        "controller": "",
+        "seed": None,
+        "status": "unreadable",
+        "stored_status": None,
+        "stale": False,
+        "sweep": None,
+        "global_step": None,
+        "total_timesteps": None,
+        "final_return": None,
+        "final_return_episodes": 0,
+        "steps_per_second": None,
+        "cpu": None,
+        "created": None,
+        "started": None,
+        "ended": None,
+        "spec_hash": None,
+        "git_commit": None,
+        "git_dirty": None,
+        "error": f"{item.reason}; {item.fix}",
+        "traceback": None,
         "path": str(item.path),
     }
 
@@ -283,8 +300,9 @@ def format_failures(summaries: Sequence[dict[str, Any]]) -> str:
     for s in summaries:
         head = f"== {s['run_id']}  {s['name']}  seed {s['seed']}: {s.get('error') or '(no error)'}"
         body = (s.get("traceback") or "").rstrip()
-        blocks.append(head + ("\n" + "\n".join("   " + line for line in body.splitlines())
-                              if body else ""))
+        blocks.append(
+            head + ("\n" + "\n".join("   " + line for line in body.splitlines()) if body else "")
+        )
     return "\n".join(blocks)
 
 
@@ -336,6 +354,7 @@ def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
             for i, cell in enumerate(row)
         ]
         lines.append("  ".join(cells).rstrip())
-    lines += [f"{s['run_id']}: unreadable: {s['error']}"
-              for s in summaries if s["status"] == "unreadable"]
+    lines += [
+        f"{s['run_id']}: unreadable: {s['error']}" for s in summaries if s["status"] == "unreadable"
+    ]
     return "\n".join(lines)

@@ -107,8 +107,13 @@ def _write_parquet(table: pa.Table, path: Path) -> None:
             encodings[field.name] = "DELTA_BINARY_PACKED"
         elif not pa.types.is_nested(field.type):
             dictionary.append(field.name)
-    pq.write_table(table, path, compression="zstd", use_dictionary=dictionary,
-                   column_encoding=encodings or None)
+    pq.write_table(
+        table,
+        path,
+        compression="zstd",
+        use_dictionary=dictionary,
+        column_encoding=encodings or None,
+    )
 
 
 def _write(path: Path, table: pa.Table) -> None:

@@ -30,7 +30,9 @@ _OLD_MOMENT_COLUMNS = ("max_abs_moment", "element_torques")
 _POSITION_COLUMNS = tuple(f"{kind}_{axis}" for kind in ("tip", "target") for axis in "xyz")
 
 
-def upgrade_run_tables(run_dir: str | os.PathLike[str], keep_full_moments: bool = False) -> list[str]:
+def upgrade_run_tables(
+    run_dir: str | os.PathLike[str], keep_full_moments: bool = False
+) -> list[str]:
     """Rewrite ``run_dir``'s evaluation tables in the current format (module docstring).
 
     Args:
@@ -66,8 +68,11 @@ def _split_moments(tables: Path, old: pd.DataFrame, keep_full: bool) -> list[str
         index = rows["arm"].to_numpy() * n_dirs + rows["direction"].to_numpy()
         per_channel = np.zeros((n_arms * n_dirs, torques.shape[1]), dtype=np.float32)
         np.maximum.at(per_channel, index, np.abs(torques))
-        peaks.append(element_peaks_frame(str(run_id), str(trajectory),
-                                         per_channel.reshape(n_arms, n_dirs, -1)))
+        peaks.append(
+            element_peaks_frame(
+                str(run_id), str(trajectory), per_channel.reshape(n_arms, n_dirs, -1)
+            )
+        )
     written = []
     if keep_full:
         full = old.drop(columns=[c for c in ("rms_moment", "max_abs_moment") if c in old.columns])

@@ -68,8 +68,17 @@ class TuneWorker:
 
     @property
     def command(self) -> list[str]:
-        return [sys.executable, "-m", "softtrack.tune.worker", "--storage", self.storage,
-                "--study", self.study, "--runs-dir", str(self.runs_dir)]
+        return [
+            sys.executable,
+            "-m",
+            "softtrack.tune.worker",
+            "--storage",
+            self.storage,
+            "--study",
+            self.study,
+            "--runs-dir",
+            str(self.runs_dir),
+        ]
 
     def log_path(self) -> Path:
         """``<runs dir>/tune-<study>-w<k>.log`` (appended)."""
@@ -150,20 +159,28 @@ def tune(
 
     options = options or ExecOptions()
     if options.executor not in dispatch.EXECUTORS:
-        raise SpecError("--executor", f"unknown executor {options.executor!r}",
-                        "use local or slurm")
+        raise SpecError(
+            "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
+        )
     if trials < 1:
         raise SpecError("--trials", f"{trials} trials", "give 1 or more")
     spec = load_spec(path, overrides)
     if spec.tune is None:
-        raise SpecError(str(path), "no tune: section, so there is nothing to search",
-                        "add one, e.g. tune: {params: {algo.learning_rate: {type: float, low: "
-                        "1.0e-4, high: 3.0e-3, log: true}}} (docs/tuning.md)", field="tune")
+        raise SpecError(
+            str(path),
+            "no tune: section, so there is nothing to search",
+            "add one, e.g. tune: {params: {algo.learning_rate: {type: float, low: "
+            "1.0e-4, high: 3.0e-3, log: true}}} (docs/tuning.md)",
+            field="tune",
+        )
     check_supported(spec, str(path))
     name = study or spec.name
     if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,127}", name):
-        raise SpecError("--study", f"invalid study name {name!r}",
-                        "use letters, digits, '_', '-' or '.', starting with a letter or digit")
+        raise SpecError(
+            "--study",
+            f"invalid study name {name!r}",
+            "use letters, digits, '_', '-' or '.', starting with a letter or digit",
+        )
     root = resolve_runs_dir(runs_dir)
     url = _storage_url(storage, root)
     chain = [portable_path(f) for f in spec_chain(path)]
@@ -179,9 +196,14 @@ def tune(
         if options.detach:
             for job in jobs:
                 with open(job.log_path(), "ab") as fh:
-                    subprocess.Popen(job.command, stdin=subprocess.DEVNULL, stdout=fh,
-                                     stderr=subprocess.STDOUT, start_new_session=True,
-                                     env=_worker_env())
+                    subprocess.Popen(
+                        job.command,
+                        stdin=subprocess.DEVNULL,
+                        stdout=fh,
+                        stderr=subprocess.STDOUT,
+                        start_new_session=True,
+                        env=_worker_env(),
+                    )
             outcome.detached, outcome.log = True, str(jobs[0].log_path().parent)
         elif workers == 1:
             from softtrack.tune.worker import work
@@ -199,8 +221,11 @@ def tune(
             codes = pool.run(jobs, on_tick=_ticker(ts, on_progress))
             outcome.stop_signal = pool.stop_signal
             if pool.stop_signal is None:
-                outcome.crashed = [(str(job.log_path()), codes[job.key]) for job in jobs
-                                   if codes.get(job.key, 0) != 0]
+                outcome.crashed = [
+                    (str(job.log_path()), codes[job.key])
+                    for job in jobs
+                    if codes.get(job.key, 0) != 0
+                ]
             outcome.log = ", ".join(str(j.log_path()) for j in jobs)
     else:
         outcome.log = _run_on_slurm(ts, root, url, options, workers, on_progress)
@@ -230,15 +255,22 @@ def _ticker(ts: TuneStudy, on_progress: Callable[[str], None] | None) -> Callabl
     return tick
 
 
-def _run_on_slurm(ts: TuneStudy, root: Path, url: str, options: ExecOptions, workers: int,
-                  on_progress: Callable[[str], None] | None) -> str:
+def _run_on_slurm(
+    ts: TuneStudy,
+    root: Path,
+    url: str,
+    options: ExecOptions,
+    workers: int,
+    on_progress: Callable[[str], None] | None,
+) -> str:
     from softtrack.executors.slurm import submit_commands
 
     slurm = slurm_options(options, ts.spec.cluster, RunStore(root))
     root.mkdir(parents=True, exist_ok=True)
     jobs = [TuneWorker(str(root), url, ts.name, k) for k in range(workers)]
-    submitted = submit_commands([(j.command, str(j.log_path())) for j in jobs], slurm,
-                                name=f"tune-{ts.name}")
+    submitted = submit_commands(
+        [(j.command, str(j.log_path())) for j in jobs], slurm, name=f"tune-{ts.name}"
+    )
     if not options.detach:
         tick = _ticker(ts, on_progress)
         while not all(j.done() for j in submitted):
@@ -248,16 +280,21 @@ def _run_on_slurm(ts: TuneStudy, root: Path, url: str, options: ExecOptions, wor
     return slurm.folder
 
 
-def tune_status(study: str, *, storage: str | None = None,
-                runs_dir: str | os.PathLike[str] | None = None) -> str:
+def tune_status(
+    study: str, *, storage: str | None = None, runs_dir: str | os.PathLike[str] | None = None
+) -> str:
     """The study's summary and one line per trial (number, state, score, step, run, params,
     note)."""
     return format_status(load_study(_storage_url(storage, resolve_runs_dir(runs_dir)), study))
 
 
-def tune_best(study: str, out: str | os.PathLike[str] | None = None, *,
-              storage: str | None = None,
-              runs_dir: str | os.PathLike[str] | None = None) -> tuple[Path, Any]:
+def tune_best(
+    study: str,
+    out: str | os.PathLike[str] | None = None,
+    *,
+    storage: str | None = None,
+    runs_dir: str | os.PathLike[str] | None = None,
+) -> tuple[Path, Any]:
     """Write the study's best trial as a spec file (default ``<study>-best.yaml`` in the
     current directory; see :func:`~softtrack.tune.study.best_spec_text`); returns the file
     and the best trial (``optuna.trial.FrozenTrial``).
@@ -272,8 +309,10 @@ def tune_best(study: str, out: str | os.PathLike[str] | None = None, *,
     ts = load_study(_storage_url(storage, root), study)
     target = Path(out) if out is not None else Path(f"{_SAFE.sub('_', study)}-best.yaml")
     if target.is_dir():
-        raise TuneError(f"--out {target}: is a directory; give a file name, e.g. "
-                        f"{target / (study + '-best.yaml')}")
+        raise TuneError(
+            f"--out {target}: is a directory; give a file name, e.g. "
+            f"{target / (study + '-best.yaml')}"
+        )
     text = best_spec_text(ts, target, root)
     atomic_write_text(target, text)
     return target, best_trial(ts)

@@ -90,8 +90,9 @@ def optuna_module() -> Any:
     try:
         import optuna
     except ImportError:
-        raise TuneError("softtrack tune needs optuna; install it with "
-                        "`pip install -c constraints.txt -e .`") from None
+        raise TuneError(
+            "softtrack tune needs optuna; install it with `pip install -c constraints.txt -e .`"
+        ) from None
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     return optuna
 
@@ -116,7 +117,7 @@ def shown_url(url: str) -> str:
         from sqlalchemy.engine import make_url
 
         return str(make_url(url).render_as_string(hide_password=True))
-    except Exception:  # noqa: BLE001 (a malformed URL is shown as given)
+    except Exception:
         return url
 
 
@@ -126,7 +127,7 @@ def _sqlite_file(url: str) -> Path | None:
 
     try:
         parsed = make_url(url)
-    except Exception:  # noqa: BLE001 (RDBStorage reports it)
+    except Exception:
         return None
     if parsed.get_backend_name() != "sqlite" or not parsed.database:
         return None
@@ -141,16 +142,21 @@ def _open_storage(url: str, *, create: bool) -> Any:
         if create:
             db.parent.mkdir(parents=True, exist_ok=True)
         elif not db.is_file():
-            raise TuneError(f"{db}: no study database; start a study with `softtrack tune SPEC "
-                            "--trials N --study NAME` (or give its --storage / --runs-dir)")
+            raise TuneError(
+                f"{db}: no study database; start a study with `softtrack tune SPEC "
+                "--trials N --study NAME` (or give its --storage / --runs-dir)"
+            )
         engine_kwargs = {"connect_args": {"timeout": 60}}  # workers wait for each other's writes
     try:
         with _quiet():
             return optuna.storages.RDBStorage(
-                url, engine_kwargs=engine_kwargs, heartbeat_interval=HEARTBEAT_S,
-                grace_period=GRACE_S, heartbeat_stale_trial_callback=_replace_dead,
+                url,
+                engine_kwargs=engine_kwargs,
+                heartbeat_interval=HEARTBEAT_S,
+                grace_period=GRACE_S,
+                heartbeat_stale_trial_callback=_replace_dead,
             )
-    except Exception as exc:  # noqa: BLE001 (any driver or URL problem is one line)
+    except Exception as exc:
         first = " ".join(str(exc).split())[:200] or type(exc).__name__
         raise TuneError(
             f"--storage {shown_url(url)}: cannot open the study storage ({first}); give "
@@ -173,8 +179,9 @@ def make_pruner(tune: TuneSpec) -> Any:
     optuna = optuna_module()
     p = tune.pruner
     if p.type == "median":
-        return optuna.pruners.MedianPruner(n_startup_trials=p.n_startup_trials,
-                                           n_warmup_steps=p.n_warmup_steps)
+        return optuna.pruners.MedianPruner(
+            n_startup_trials=p.n_startup_trials, n_warmup_steps=p.n_warmup_steps
+        )
     if p.type == "threshold":
         return optuna.pruners.ThresholdPruner(upper=p.upper, n_warmup_steps=p.n_warmup_steps)
     return optuna.pruners.NopPruner()
@@ -189,8 +196,9 @@ def make_sampler(tune: TuneSpec, number: int) -> Any:
     optuna = optuna_module()
     seed = int(np.random.SeedSequence([int(tune.seed), int(number)]).generate_state(1)[0])
     with _quiet():
-        return optuna.samplers.TPESampler(seed=seed, n_startup_trials=tune.n_startup_trials,
-                                          constant_liar=True)
+        return optuna.samplers.TPESampler(
+            seed=seed, n_startup_trials=tune.n_startup_trials, constant_liar=True
+        )
 
 
 @dataclass
@@ -254,8 +262,9 @@ class TuneStudy:
             os.close(fd)
 
 
-def create_or_continue(url: str, name: str, spec: ExperimentSpec, spec_files: Sequence[str],
-                       spec_file: str | None) -> TuneStudy:
+def create_or_continue(
+    url: str, name: str, spec: ExperimentSpec, spec_files: Sequence[str], spec_file: str | None
+) -> TuneStudy:
     """Open study ``name`` (creating it, and the SQLite file, if needed) for ``spec``.
 
     Raises:
@@ -273,14 +282,21 @@ def create_or_continue(url: str, name: str, spec: ExperimentSpec, spec_files: Se
         "spec_file": spec_file,
     }
     with _quiet():
-        study = optuna.create_study(study_name=name, storage=storage, direction="minimize",
-                                    load_if_exists=True, pruner=make_pruner(spec.tune),
-                                    sampler=make_sampler(spec.tune, 0))
+        study = optuna.create_study(
+            study_name=name,
+            storage=storage,
+            direction="minimize",
+            load_if_exists=True,
+            pruner=make_pruner(spec.tune),
+            sampler=make_sampler(spec.tune, 0),
+        )
     existing = study.user_attrs.get(STUDY_ATTR)
     if existing is None:
         if study.trials:
-            raise TuneError(f"study {name!r} in {shown_url(url)} was not made by softtrack tune; "
-                            "name another study with --study")
+            raise TuneError(
+                f"study {name!r} in {shown_url(url)} was not made by softtrack tune; "
+                "name another study with --study"
+            )
         study.set_user_attr(STUDY_ATTR, info)
         existing = info
     elif existing.get("search_key") != info["search_key"]:
@@ -308,8 +324,10 @@ def load_study(url: str, name: str) -> TuneStudy:
     except KeyError:
         names = optuna.study.get_all_study_names(storage)
         there = ", ".join(names) if names else "none"
-        raise TuneError(f"no study {name!r} in {shown_url(url)} (studies there: {there}); "
-                        "start it with `softtrack tune SPEC --trials N --study NAME`") from None
+        raise TuneError(
+            f"no study {name!r} in {shown_url(url)} (studies there: {there}); "
+            "start it with `softtrack tune SPEC --trials N --study NAME`"
+        ) from None
     info = study.user_attrs.get(STUDY_ATTR)
     if not isinstance(info, dict) or "spec" not in info:
         raise TuneError(f"study {name!r} in {shown_url(url)} was not made by softtrack tune")
@@ -338,8 +356,9 @@ def suggest(trial: Any, tune: TuneSpec) -> dict[str, Any]:
             values[path] = trial.suggest_float(path, p.low, p.high, log=p.log, step=p.step)
         elif p.type == "int":
             assert p.low is not None and p.high is not None
-            values[path] = trial.suggest_int(path, int(p.low), int(p.high), log=p.log,
-                                             step=int(p.step or 1))
+            values[path] = trial.suggest_int(
+                path, int(p.low), int(p.high), log=p.log, step=int(p.step or 1)
+            )
         else:
             choices = list(p.choices or [])
             keys = [choice_key(c) for c in choices]
@@ -404,8 +423,12 @@ def enqueue_retry(study: Any, trial: Any, *, died: bool) -> None:
     if deaths > MAX_DEATHS or not complete:
         study.enqueue_trial({}, user_attrs={"replaces": trial.number})
         return
-    study.enqueue_trial(dict(trial.params), user_attrs=_attrs(
-        retry_of=trial.number, run_id=trial.user_attrs.get("run_id"), deaths=deaths or None))
+    study.enqueue_trial(
+        dict(trial.params),
+        user_attrs=_attrs(
+            retry_of=trial.number, run_id=trial.user_attrs.get("run_id"), deaths=deaths or None
+        ),
+    )
 
 
 def enqueue_fresh(study: Any, replaces: int | None = None) -> None:
@@ -448,8 +471,9 @@ def _fail_lost_trials(ts: TuneStudy, store: RunStore) -> None:
             continue
         trial_id = ts.trial_id(t.number)
         try:
-            ts.storage.set_trial_user_attr(trial_id, "failure",
-                                           f"its worker died (run {run_id} lost)")
+            ts.storage.set_trial_user_attr(
+                trial_id, "failure", f"its worker died (run {run_id} lost)"
+            )
             if not ts.storage.set_trial_state_values(trial_id, optuna.trial.TrialState.FAIL):
                 continue
         except optuna.exceptions.UpdateFinishedTrialError:
@@ -504,14 +528,14 @@ def take_trial(ts: TuneStudy, store: RunStore) -> Any | None:
         for t in waiting:
             trial_id = ts.trial_id(t.number)
             try:
-                if not ts.storage.set_trial_state_values(trial_id,
-                                                         optuna.trial.TrialState.RUNNING):
+                if not ts.storage.set_trial_state_values(trial_id, optuna.trial.TrialState.RUNNING):
                     continue
             except optuna.exceptions.UpdateFinishedTrialError:
                 continue
             ts.storage.record_heartbeat(trial_id)
-            ts.storage.set_trial_user_attr(trial_id, "worker",
-                                           f"{socket.gethostname()}:{os.getpid()}")
+            ts.storage.set_trial_user_attr(
+                trial_id, "worker", f"{socket.gethostname()}:{os.getpid()}"
+            )
             ts.study.sampler = make_sampler(ts.tune, t.number)
             with _quiet():
                 return optuna.trial.Trial(ts.study, trial_id)
@@ -530,8 +554,9 @@ def _short(value: Any) -> str:
 def _param_labels(paths: Sequence[str]) -> dict[str, str]:
     """Each path's last part, or the whole path where two paths share it."""
     leaves = [p.rsplit(".", 1)[-1] for p in paths]
-    return {p: (leaf if leaves.count(leaf) == 1 else p) for p, leaf in zip(paths, leaves,
-                                                                           strict=True)}
+    return {
+        p: (leaf if leaves.count(leaf) == 1 else p) for p, leaf in zip(paths, leaves, strict=True)
+    }
 
 
 def best_trial(ts: TuneStudy) -> Any | None:
@@ -545,9 +570,11 @@ def summary_line(ts: TuneStudy) -> str:
     best trial 3: 0.0412 m``."""
     c = counts(ts.trials())
     n = ts.n_trials
-    text = (f"study {ts.name}: {c['finished']}/{n} finished ({c['complete']} complete, "
-            f"{c['pruned']} pruned), {c['running']} running, {c['waiting']} waiting, "
-            f"{c['fail']} failed")
+    text = (
+        f"study {ts.name}: {c['finished']}/{n} finished ({c['complete']} complete, "
+        f"{c['pruned']} pruned), {c['running']} running, {c['waiting']} waiting, "
+        f"{c['fail']} failed"
+    )
     best = best_trial(ts)
     if best is not None:
         text += f"; best trial {best.number}: {best.value:.4g} m"
@@ -573,15 +600,17 @@ def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
         value = t.value
         if value is None and t.intermediate_values:
             value = t.intermediate_values[max(t.intermediate_values)]
-        rows.append({
-            "number": t.number,
-            "state": t.state.name,
-            "value": None if value is None or not math.isfinite(value) else float(value),
-            "step": max(t.intermediate_values) if t.intermediate_values else None,
-            "params": decode_params(ts.tune, t.params),
-            "run_id": attrs.get("run_id"),
-            "note": "; ".join(notes),
-        })
+        rows.append(
+            {
+                "number": t.number,
+                "state": t.state.name,
+                "value": None if value is None or not math.isfinite(value) else float(value),
+                "step": max(t.intermediate_values) if t.intermediate_values else None,
+                "params": decode_params(ts.tune, t.params),
+                "run_id": attrs.get("run_id"),
+                "note": "; ".join(notes),
+            }
+        )
     return rows
 
 
@@ -590,18 +619,26 @@ def format_status(ts: TuneStudy) -> str:
     rows = status_rows(ts)
     labels = _param_labels(list(ts.tune.params))
     header = ["trial", "state", "score_m", "step", "run_id", "params", "note"]
-    lines = [[str(r["number"]), r["state"].lower(),
-              "" if r["value"] is None else f"{r['value']:.4f}",
-              "" if r["step"] is None else f"{r['step']:,}", r["run_id"] or "",
-              " ".join(f"{labels[p]}={_short(v).replace(' ', '')}"
-                       for p, v in r["params"].items()),
-              r["note"]] for r in rows]
+    lines = [
+        [
+            str(r["number"]),
+            r["state"].lower(),
+            "" if r["value"] is None else f"{r['value']:.4f}",
+            "" if r["step"] is None else f"{r['step']:,}",
+            r["run_id"] or "",
+            " ".join(f"{labels[p]}={_short(v).replace(' ', '')}" for p, v in r["params"].items()),
+            r["note"],
+        ]
+        for r in rows
+    ]
     widths = [max(len(x) for x in col) for col in zip(header, *lines, strict=True)]
     out = [summary_line(ts), f"storage {shown_url(ts.url)}"]
     if lines:
         out.append("  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip())
-        out += ["  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip()
-                for line in lines]
+        out += [
+            "  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip()
+            for line in lines
+        ]
     return "\n".join(out)
 
 
@@ -622,8 +659,9 @@ def best_spec_text(ts: TuneStudy, out: Path, runs_dir: str | os.PathLike[str] | 
 
     best = best_trial(ts)
     if best is None:
-        raise TuneError(f"study {ts.name!r} has no complete trial yet; see `softtrack tune "
-                        f"--status {ts.name}`")
+        raise TuneError(
+            f"study {ts.name!r} has no complete trial yet; see `softtrack tune --status {ts.name}`"
+        )
     run_id = best.user_attrs.get("run_id")
     name = trial_name(ts.spec.name, best.number)
     if run_id and runs_dir is not None:
@@ -632,31 +670,38 @@ def best_spec_text(ts: TuneStudy, out: Path, runs_dir: str | os.PathLike[str] | 
     values = decode_params(ts.tune, best.params)
     spec = trial_spec(ts, values, name)
     shown = ", ".join(f"{p} = {json.dumps(v)}" for p, v in values.items())
-    header = (f"# Best trial of study {ts.name} (softtrack tune): trial {best.number} of "
-              f"{ts.n_trials}, run {run_id or '?'},\n"
-              f"# validation score {best.value:.6g} m (mean 3-D RMSE at its best checkpoint)\n"
-              f"# storage: {shown_url(ts.url)}\n# values: {shown}\n"
-              "# Train it with `softtrack train THIS_FILE`: its runs join the trial's run (same "
-              "experiment\n# name and spec hash).\n")
+    header = (
+        f"# Best trial of study {ts.name} (softtrack tune): trial {best.number} of "
+        f"{ts.n_trials}, run {run_id or '?'},\n"
+        f"# validation score {best.value:.6g} m (mean 3-D RMSE at its best checkpoint)\n"
+        f"# storage: {shown_url(ts.url)}\n# values: {shown}\n"
+        "# Train it with `softtrack train THIS_FILE`: its runs join the trial's run (same "
+        "experiment\n# name and spec hash).\n"
+    )
     base_file = ts.info.get("spec_file")
     if base_file and Path(base_file).is_file():
         try:
             base = load_spec(base_file)
             exclude = {"tune", "name", "seeds"}
-            diff = _diff(base.model_dump(mode="json", exclude=exclude),
-                         spec.model_dump(mode="json", exclude=exclude))
-            relative = os.path.relpath(os.path.abspath(base_file),
-                                       os.path.abspath(out.parent))
+            diff = _diff(
+                base.model_dump(mode="json", exclude=exclude),
+                spec.model_dump(mode="json", exclude=exclude),
+            )
+            relative = os.path.relpath(os.path.abspath(base_file), os.path.abspath(out.parent))
             doc: dict[str, Any] = {"base": relative, "name": name, "tune": None, **diff}
-            text = header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None,
-                                           width=100, allow_unicode=True)
+            text = header + yaml.safe_dump(
+                doc, sort_keys=False, default_flow_style=None, width=100, allow_unicode=True
+            )
             if _hash_of_text(text, out) == spec_hash(spec):
                 return text
         except SpecError:
             pass
     full = spec.model_copy(update={"seeds": list(ts.spec.seeds)})
-    return header + "# (the whole resolved spec: the tuned spec file is not available)\n" \
+    return (
+        header
+        + "# (the whole resolved spec: the tuned spec file is not available)\n"
         + spec_to_yaml(full)
+    )
 
 
 def _diff(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
@@ -681,8 +726,9 @@ def _hash_of_text(text: str, out: Path) -> str | None:
     from softtrack.spec import load_spec
 
     out.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", suffix=".yaml", dir=out.parent, delete=False,
-                                     encoding="utf-8") as fh:
+    with tempfile.NamedTemporaryFile(
+        "w", suffix=".yaml", dir=out.parent, delete=False, encoding="utf-8"
+    ) as fh:
         fh.write(text)
     try:
         return spec_hash(load_spec(fh.name))

@@ -141,8 +141,14 @@ def _same_values(ts: TuneStudy, values: dict[str, Any], record: RunRecord) -> bo
         return False
 
 
-def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec, store: RunStore,
-               values: dict[str, Any], log: Log = _stderr) -> tuple[RunRecord, str]:
+def _trial_run(
+    ts: TuneStudy,
+    trial: Any,
+    spec: ExperimentSpec,
+    store: RunStore,
+    values: dict[str, Any],
+    log: Log = _stderr,
+) -> tuple[RunRecord, str]:
     """The trial's run and what to do with it: ``train``, ``resume``, ``score`` (completed),
     ``pruned``, ``failed`` (raised before) or ``busy`` (still training elsewhere).
 
@@ -157,8 +163,10 @@ def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec, store: RunStore,
         except RunStoreError:
             record = None
         if record is not None and not _same_values(ts, values, record):
-            log(f"trial {trial.number}: run {record.run_id} was trained with other values; "
-                "starting a fresh run for this trial")
+            log(
+                f"trial {trial.number}: run {record.run_id} was trained with other values; "
+                "starting a fresh run for this trial"
+            )
             record = None
         if record is not None:
             record = _note_trial(store, record, ts, trial.number)
@@ -172,8 +180,14 @@ def _trial_run(ts: TuneStudy, trial: Any, spec: ExperimentSpec, store: RunStore,
             if status == "queued":
                 return record, "resume" if record.info.global_step else "train"
             return record, "failed" if status == "failed" else "busy"
-    notes = {"tune": {"study": ts.name, "trial": trial.number, "trials": [trial.number],
-                      "storage": shown_url(ts.url)}}
+    notes = {
+        "tune": {
+            "study": ts.name,
+            "trial": trial.number,
+            "trials": [trial.number],
+            "storage": shown_url(ts.url),
+        }
+    }
     record = store.create_run(spec, spec.seeds[0], notes=notes, spec_files=ts.spec_files)
     trial.set_user_attr("run_id", record.run_id)
     return record, "train"
@@ -187,8 +201,13 @@ def _fail(ts: TuneStudy, trial: Any, key: str, text: str) -> None:
         ts.study.tell(trial, state=optuna.trial.TrialState.FAIL)
 
 
-def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
-              show_progress: bool | None = None) -> tuple[str, int]:
+def run_trial(
+    ts: TuneStudy,
+    trial: Any,
+    store: RunStore,
+    log: Log = _stderr,
+    show_progress: bool | None = None,
+) -> tuple[str, int]:
     """Run one taken trial to its end (module docstring); returns (``complete``, ``pruned``,
     ``interrupted`` or ``failed``, the exit code of its training)."""
     from softtrack.rl.factory import check_supported
@@ -208,8 +227,9 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
         _fail(ts, trial, "error", str(exc))
         enqueue_fresh(ts.study, replaces=number)
         return "failed", 1
-    shown = ", ".join(f"{p}={v:.4g}" if isinstance(v, float) else f"{p}={v}"
-                      for p, v in values.items())
+    shown = ", ".join(
+        f"{p}={v:.4g}" if isinstance(v, float) else f"{p}={v}" for p, v in values.items()
+    )
     verb = {"train": "training", "resume": "resuming"}.get(action, action)
     log(f"trial {number}: {verb} run {record.run_id} ({shown})")
     if action in ("failed", "busy"):
@@ -228,17 +248,21 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
 
         def on_validation(step: int, score: float) -> bool:
             try:
-                trial.report(score if math.isfinite(score) else math.inf,
-                             _report_step(spec, step))
+                trial.report(score if math.isfinite(score) else math.inf, _report_step(spec, step))
                 return bool(trial.should_prune())
             except optuna.exceptions.UpdateFinishedTrialError:
                 taken_over.append(True)  # failed by another process: stop, keep the run
                 return True
 
         try:
-            outcome = train_run(store, record, resume=action == "resume",
-                                show_progress=show_progress, on_validation=on_validation)
-        except Exception as exc:  # noqa: BLE001 (before training: recorded in the trial)
+            outcome = train_run(
+                store,
+                record,
+                resume=action == "resume",
+                show_progress=show_progress,
+                on_validation=on_validation,
+            )
+        except Exception as exc:
             line = " ".join(f"{type(exc).__name__}: {exc}".split())
             log(f"trial {number}: failed: {line}")
             _fail(ts, trial, "error", line)
@@ -246,14 +270,17 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
             return "failed", 1
         if taken_over:
             notes = store.get_run(record.run_id).info.notes
-            store.update_run(record.run_id,
-                             notes={k: v for k, v in notes.items() if k != "pruned"})
-            log(f"trial {number}: failed by another process while training (its heartbeat "
-                f"was late); run {record.run_id} stopped at a checkpoint for the retry")
+            store.update_run(record.run_id, notes={k: v for k, v in notes.items() if k != "pruned"})
+            log(
+                f"trial {number}: failed by another process while training (its heartbeat "
+                f"was late); run {record.run_id} stopped at a checkpoint for the retry"
+            )
             return "failed", 1
         if outcome.status == "interrupted":
-            log(f"trial {number}: interrupted at step {outcome.global_step:,}; run "
-                f"{record.run_id} resumes when the study continues")
+            log(
+                f"trial {number}: interrupted at step {outcome.global_step:,}; run "
+                f"{record.run_id} resumes when the study continues"
+            )
             _fail(ts, trial, "interrupted", f"interrupted at step {outcome.global_step}")
             enqueue_retry(ts.study, ts.storage.get_trial(ts.trial_id(number)), died=False)
             return "interrupted", outcome.exit_code
@@ -264,8 +291,10 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
             return "failed", 1
         if outcome.status == "pruned":
             pruned = store.get_run(record.run_id).info.notes.get("pruned", {})
-            log(f"trial {number}: pruned at step {pruned.get('global_step', 0):,} "
-                f"(validation score {pruned.get('score', math.nan):.4f} m)")
+            log(
+                f"trial {number}: pruned at step {pruned.get('global_step', 0):,} "
+                f"(validation score {pruned.get('score', math.nan):.4f} m)"
+            )
             ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
             return "pruned", 0
         record = store.get_run(record.run_id)
@@ -278,8 +307,10 @@ def run_trial(ts: TuneStudy, trial: Any, store: RunStore, log: Log = _stderr,
     try:
         ts.study.tell(trial, score)
     except optuna.exceptions.UpdateFinishedTrialError:
-        log(f"trial {number}: already failed by another process (its heartbeat was late); "
-            "its score is not counted")
+        log(
+            f"trial {number}: already failed by another process (its heartbeat was late); "
+            "its score is not counted"
+        )
         return "failed", 1
     log(f"trial {number}: complete, validation score {score:.4f} m (run {record.run_id})")
     return "complete", 0
@@ -294,8 +325,9 @@ def _interrupted(ts: TuneStudy, trial: Any, why: str) -> None:
     enqueue_retry(ts.study, ts.storage.get_trial(trial_id), died=False)
 
 
-def work(ts: TuneStudy, runs_dir: str, *, log: Log = _stderr,
-         show_progress: bool | None = None) -> int:
+def work(
+    ts: TuneStudy, runs_dir: str, *, log: Log = _stderr, show_progress: bool | None = None
+) -> int:
     """Take and run the study's trials until none is left; the exit code (module docstring)."""
     from softtrack.signals import StopFlag, stop_on_signals
 
@@ -320,8 +352,10 @@ def work(ts: TuneStudy, runs_dir: str, *, log: Log = _stderr,
                 return code
             errors = errors + 1 if result == "failed" else 0
             if errors >= MAX_ERRORS_IN_A_ROW:
-                log(f"worker: {errors} failed trials in a row; stopping (see `softtrack tune "
-                    f"--status {ts.name}` and `softtrack runs --failed`)")
+                log(
+                    f"worker: {errors} failed trials in a row; stopping (see `softtrack tune "
+                    f"--status {ts.name}` and `softtrack runs --failed`)"
+                )
                 return 1
     return 128 + (flag.signum or 2)
 

@@ -97,9 +97,7 @@ VARIANTS: tuple[Variant, ...] = (
         name="actor_preactivation_penalty",
         enabled=lambda spec: spec.algo.actor_preactivation_penalty > 0,
         algo_class="softtrack.rl.variants.bounded_actor:PreactivationPenaltyTD3",
-        model_kwargs=lambda spec: {
-            "preactivation_penalty": spec.algo.actor_preactivation_penalty
-        },
+        model_kwargs=lambda spec: {"preactivation_penalty": spec.algo.actor_preactivation_penalty},
     ),
 )
 """Every variant, in the order their keyword arguments are merged."""

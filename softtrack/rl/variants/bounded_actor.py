@@ -54,8 +54,11 @@ class PenalisedActor(nn.Module):
         for n_units in self.net_arch:
             x = self.activation_fn(nn.Dense(n_units)(x))
         preactivation = nn.Dense(self.action_dim)(x)
-        self.sow(PENALTY_COLLECTION, "preactivation",
-                 self.preactivation_penalty * jnp.mean(preactivation**2))
+        self.sow(
+            PENALTY_COLLECTION,
+            "preactivation",
+            self.preactivation_penalty * jnp.mean(preactivation**2),
+        )
         return nn.tanh(preactivation)
 
 
@@ -77,8 +80,9 @@ class PreactivationPenaltyTD3(TD3):
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        self._set_actor(PenalisedActor(**self._actor_fields(),
-                                       preactivation_penalty=self.preactivation_penalty))
+        self._set_actor(
+            PenalisedActor(**self._actor_fields(), preactivation_penalty=self.preactivation_penalty)
+        )
 
     def save(self, *args: Any, **kwargs: Any) -> None:
         """SB3's ``save``, with SBX's own actor module in the file (module docstring)."""
@@ -111,9 +115,7 @@ class PreactivationPenaltyTD3(TD3):
         key, dropout_key = jax.random.split(key, 2)
 
         def actor_loss(params: Any) -> jax.Array:
-            actions, sown = actor_state.apply_fn(
-                params, observations, mutable=[PENALTY_COLLECTION]
-            )
+            actions, sown = actor_state.apply_fn(params, observations, mutable=[PENALTY_COLLECTION])
             q = qf_state.apply_fn(
                 qf_state.params, observations, actions, rngs={"dropout": dropout_key}
             )

@@ -79,8 +79,13 @@ class RewardShareReplayBuffer(ReplayBuffer):
         if optimize_memory_usage:
             raise ValueError("RewardShareReplayBuffer does not support optimize_memory_usage")
         super().__init__(
-            buffer_size, observation_space, action_space, device, n_envs,
-            optimize_memory_usage, handle_timeout_termination,
+            buffer_size,
+            observation_space,
+            action_space,
+            device,
+            n_envs,
+            optimize_memory_usage,
+            handle_timeout_termination,
         )
         self.reward_shares = np.zeros((self.buffer_size, self.n_envs, n_shares), dtype=np.float32)
 
@@ -191,8 +196,12 @@ class PerArmTD3Policy(TD3Policy):
     actor_observation: str = "full"
 
     def __init__(
-        self, *args: Any, n_reward_shares: int = 2, per_arm_networks: bool = False,
-        actor_observation: str = "full", **kwargs: Any
+        self,
+        *args: Any,
+        n_reward_shares: int = 2,
+        per_arm_networks: bool = False,
+        actor_observation: str = "full",
+        **kwargs: Any,
     ) -> None:
         super().__init__(*args, **kwargs)
         if actor_observation not in ("full", "own_arm"):
@@ -287,10 +296,18 @@ class PerArmTD3(TD3):
 
     policy_aliases: ClassVar[dict[str, type[TD3Policy]]] = {"MlpPolicy": PerArmTD3Policy}
 
-    def __init__(self, policy: Any, env: Any, *args: Any, n_reward_shares: int = 2,
-                 per_arm_networks: bool = False, actor_observation: str = "full",
-                 replay_buffer_kwargs: dict[str, Any] | None = None,
-                 policy_kwargs: dict[str, Any] | None = None, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        policy: Any,
+        env: Any,
+        *args: Any,
+        n_reward_shares: int = 2,
+        per_arm_networks: bool = False,
+        actor_observation: str = "full",
+        replay_buffer_kwargs: dict[str, Any] | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
         self.n_reward_shares = n_reward_shares
         policy_kwargs = {**(policy_kwargs or {}), "n_reward_shares": n_reward_shares}
         # absent at their defaults: models saved before the options load alike
@@ -364,7 +381,9 @@ class PerArmTD3(TD3):
         noise = jnp.clip(noise, -target_noise_clip, target_noise_clip)
         next_actions = jnp.clip(next_actions + noise, -1.0, 1.0)
         next_q = qf_state.apply_fn(
-            qf_state.target_params, next_observations, next_actions,
+            qf_state.target_params,
+            next_observations,
+            next_actions,
             rngs={"dropout": dropout_key_target},
         )  # (n_critics, batch, A)
         bootstrap = ((1 - dones) * discounts)[:, None]
