@@ -78,3 +78,26 @@ def test_portable_path(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     assert portable_path(tmp_path.parent / "else" / "b.yaml") == "../else/b.yaml"
     assert portable_path("../else/./b.yaml") == "../else/b.yaml"
     assert portable_path(tmp_path) == "."
+
+
+def test_git_dirty_counts_code_not_shipped_results(tmp_path: Path) -> None:
+    """A run created while an export to models/ (or a report) is uncommitted is still trained
+    from committed code; a change to the code is dirty."""
+    import subprocess
+
+    from softtrack.store.provenance import git_info
+
+    def git(*args: str) -> None:
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "c")
+    assert git_info.__wrapped__(str(tmp_path))[1] is False
+    for result in ("models/run/run.json", "reports/study/index.md", "docs/x.md"):
+        (tmp_path / result).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / result).write_text("{}")
+    assert git_info.__wrapped__(str(tmp_path))[1] is False
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert git_info.__wrapped__(str(tmp_path))[1] is True

@@ -87,13 +87,20 @@ def portable_command(
     return out
 
 
+#: Paths (from the checkout's root) of results, not code: changes there leave a run's
+#: ``git_dirty`` false (a shipped run exported while others train is not a code change).
+RESULT_PATHS = ("models", "reports", "docs")
+
+
 @functools.cache
 def git_info(directory: str | None = None) -> tuple[str | None, bool | None]:
     """``(commit, dirty)`` of the git checkout containing ``directory`` (default: the
     softtrack package), or ``(None, None)`` outside git or without a git executable.
 
     ``dirty`` is true when tracked files differ from the commit or untracked (non-ignored)
-    files exist. Read-only: ``--no-optional-locks`` keeps ``git status`` from touching the index.
+    files exist, outside the results the project writes and ships (:data:`RESULT_PATHS`:
+    exported runs, reports, documentation), which cannot change what a run trains. Read-only:
+    ``--no-optional-locks`` keeps ``git status`` from touching the index.
     """
     cwd = directory or str(Path(__file__).resolve().parents[1])
     try:
@@ -108,7 +115,15 @@ def git_info(directory: str | None = None) -> tuple[str | None, bool | None]:
         if commit.returncode != 0:
             return None, None
         status = subprocess.run(
-            ["git", "--no-optional-locks", "status", "--porcelain"],
+            [
+                "git",
+                "--no-optional-locks",
+                "status",
+                "--porcelain",
+                "--",
+                ".",
+                *(f":(exclude){path}" for path in RESULT_PATHS),
+            ],
             check=False,
             cwd=cwd,
             capture_output=True,
