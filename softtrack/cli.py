@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 import typer
 
 from softtrack import api
+from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.executors.dispatch import ExecOptions
 
 if TYPE_CHECKING:
@@ -783,12 +784,11 @@ def query_command(
         typer.echo(format_result(result, output_format.value))
 
 
-class TrajectoryChoice(enum.StrEnum):
-    circle = "circle"
-    rectangle = "rectangle"
-    figure8 = "figure8"
-    all = "all"
-    none = "none"
+#: --trajectory: one of the evaluation trajectories (softtrack.env.targets), all or none
+TrajectoryChoice = enum.StrEnum(  # type: ignore[misc]
+    "TrajectoryChoice", [(name, name) for name in (*EVAL_TRAJECTORIES, "all", "none")]
+)
+ALL_TRAJECTORIES = TrajectoryChoice("all")
 
 
 class ModelOption(enum.StrEnum):
@@ -812,7 +812,7 @@ def evaluate(
         typer.Option(
             "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
         ),
-    ] = TrajectoryChoice.all,
+    ] = ALL_TRAJECTORIES,
     random: Annotated[
         int,
         typer.Option(
@@ -862,10 +862,10 @@ def evaluate(
     creates one run per seed of the spec and evaluates it (docs/mpc.md); its metrics add the
     planning time per control step.
     """
-    if trajectory is TrajectoryChoice.all:
+    if trajectory.value == "all":
         chosen: list[str] | None = None
     else:
-        chosen = [] if trajectory is TrajectoryChoice.none else [trajectory.value]
+        chosen = [] if trajectory.value == "none" else [trajectory.value]
 
     with _user_errors(runs_dir):
         api.evaluate(
@@ -976,7 +976,7 @@ def robustness(
         typer.Option(
             "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
         ),
-    ] = TrajectoryChoice.all,
+    ] = ALL_TRAJECTORIES,
     episodes: Annotated[
         int,
         typer.Option(
@@ -1015,9 +1015,9 @@ def robustness(
     obs_noise=0,0.002,0.005,0.01 --grid action_delay=0,1,2,4 --grid
     youngs_modulus_scale=0.7,1,1.3
     """
-    if trajectory is TrajectoryChoice.none:
+    if trajectory.value == "none":
         _fail("robustness: --trajectory none leaves nothing to evaluate; name a trajectory or all")
-    chosen = None if trajectory is TrajectoryChoice.all else [trajectory.value]
+    chosen = None if trajectory.value == "all" else [trajectory.value]
 
     def cell(record: RunRecord, setting: Any, rows: pd.DataFrame) -> None:
         for name, part in rows.groupby("trajectory", sort=False):

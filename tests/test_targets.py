@@ -397,3 +397,23 @@ def test_random_batched_equals_singles_bit_for_bit() -> None:
                 assert np.array_equal(batched.position[i], single.position[0]), (k, i)
                 assert np.array_equal(batched.velocity[i], single.velocity[0]), (k, i)
                 assert batched.time[i] == single.time[0]
+
+
+def test_trajectory_names_are_defined_once() -> None:
+    """The evaluation trajectories' names come from softtrack.env.targets everywhere: the
+    spec default and its allowed values, the target modes, the CLI's --trajectory choices, the
+    evaluation and the study's reference values."""
+    import typing
+
+    from softtrack.cli import TrajectoryChoice
+    from softtrack.env.targets import EVAL_TRAJECTORIES, TARGET_MODES, TrajectoryName
+    from softtrack.evaluation import EVAL_TRAJECTORIES as evaluated
+    from softtrack.report.reference import STUDY_RMSE_3D
+    from softtrack.spec import ExperimentSpec
+
+    assert EVAL_TRAJECTORIES == ("circle", "rectangle", "figure8")
+    assert typing.get_args(TrajectoryName) == EVAL_TRAJECTORIES == evaluated
+    assert TARGET_MODES == ("random", *EVAL_TRAJECTORIES, "fixed")
+    assert tuple(ExperimentSpec(name="x").training.eval_trajectories) == EVAL_TRAJECTORIES
+    assert [c.value for c in TrajectoryChoice] == [*EVAL_TRAJECTORIES, "all", "none"]
+    assert all(set(cells) == set(EVAL_TRAJECTORIES) for cells in STUDY_RMSE_3D.values())

@@ -21,20 +21,30 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
 __all__ = [
     "CLOSED_FORM_MODES",
+    "EVAL_TRAJECTORIES",
     "TARGET_MODES",
     "BatchedTargets",
     "TargetConfig",
+    "TargetMode",
+    "TrajectoryName",
     "trajectory_position",
     "trajectory_velocity",
 ]
 
-TARGET_MODES = ("random", "circle", "rectangle", "figure8", "fixed")
-CLOSED_FORM_MODES = ("circle", "rectangle", "figure8", "fixed")
+#: The closed-form trajectories of the evaluation (the study's three), by name: the one place
+#: the names are written (specs, the CLI, evaluation and reports take them from here).
+TrajectoryName = Literal["circle", "rectangle", "figure8"]
+EVAL_TRAJECTORIES: tuple[TrajectoryName, ...] = get_args(TrajectoryName)
+#: Every target motion: the random training target, the trajectories, a fixed point.
+TargetMode = Literal["random", TrajectoryName, "fixed"]
+TARGET_MODES: tuple[str, ...] = get_args(TargetMode)
+CLOSED_FORM_MODES: tuple[str, ...] = (*EVAL_TRAJECTORIES, "fixed")
 
 # A redirect that is due at t = k·interval still happens on the step that ends at
 # k·interval even when the summed time steps fall short of it by rounding (s).

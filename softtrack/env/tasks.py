@@ -22,8 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["TASKS", "TaskConfig"]
+__all__ = ["N_ARMS", "TASKS", "TaskConfig"]
 
+#: Arms of the dual-arm scene. An independent run trains one policy per arm, each to the
+#: spec's ``training.total_timesteps`` (run.json ``arm_total_timesteps``; ``total_timesteps``
+#: is their sum).
+N_ARMS = 2
 TASKS = ("shared", "viewpoints")
 
 

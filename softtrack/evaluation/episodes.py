@@ -20,6 +20,7 @@ import numpy as np
 from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
 from softtrack.env.observation import arm_view_columns
+from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.evaluation.metrics import arm_clearance
 
 __all__ = [
@@ -33,7 +34,6 @@ __all__ = [
     "run_episode",
 ]
 
-EVAL_TRAJECTORIES = ("circle", "rectangle", "figure8")
 # Random-target evaluation episode k draws its target path from seed RANDOM_TARGET_SEED + k.
 # Training seeds environment i of a run with seed run_seed + i (small), so these never recur.
 RANDOM_TARGET_SEED = 1_000_000

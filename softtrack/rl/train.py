@@ -43,6 +43,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from softtrack.env.tasks import N_ARMS
 from softtrack.rl.confirmation import confirm_run
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy_training import (
@@ -56,7 +57,6 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import remove_temp_files
 from softtrack.store.disk import storage_problem
 from softtrack.store.runs import (
-    N_ARMS,
     RunRecord,
     RunStore,
     RunStoreError,

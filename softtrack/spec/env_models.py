@@ -8,6 +8,7 @@ from typing import Any, Literal
 
 from pydantic import field_validator, model_validator
 
+from softtrack.env.targets import TargetMode
 from softtrack.sim.params import (
     CONTACT_ON,
     MODEL_PARAMETERS,
@@ -136,7 +137,7 @@ class TargetSpec(SpecModel):
     evaluation uses the trajectories listed in ``training.eval_trajectories`` with these
     geometry parameters."""
 
-    name: Literal["random", "circle", "rectangle", "figure8", "fixed"] = unit_field(
+    name: TargetMode = unit_field(
         "random", "target motion: random (training), circle, rectangle, figure8 or fixed", "-"
     )
     sphere_radius: Float = unit_field(0.05, "radius of the target sphere", "m", gt=0)

@@ -10,6 +10,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
+from softtrack.env.targets import EVAL_TRAJECTORIES, TrajectoryName
 from softtrack.spec.algo_models import AlgoSpec
 from softtrack.spec.env_models import EnvSpec
 from softtrack.spec.fields import (
@@ -68,8 +69,8 @@ class TrainingSpec(SpecModel):
     torch_threads: Int = unit_field(
         1, "torch.set_num_threads per training process", "threads", ge=1
     )
-    eval_trajectories: list[Literal["circle", "rectangle", "figure8"]] = unit_field(
-        ["circle", "rectangle", "figure8"],
+    eval_trajectories: list[TrajectoryName] = unit_field(
+        list(EVAL_TRAJECTORIES),
         "target trajectories of the deterministic evaluation after training (one episode each)",
         "-",
     )

@@ -28,6 +28,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from softtrack.env.tasks import N_ARMS
 from softtrack.spec import ExperimentSpec, chain_comment, load_spec, spec_hash, spec_to_yaml
 from softtrack.spec.fields import check_int64
 from softtrack.store.atomic import atomic_write_text, is_temp_file
@@ -43,7 +44,6 @@ from softtrack.store.provenance import (
 )
 
 __all__ = [
-    "N_ARMS",
     "RUNS_DIR_ENV",
     "RUN_STATUSES",
     "RunInfo",
@@ -63,10 +63,6 @@ __all__ = [
     "utc_now",
 ]
 
-#: Arms of the scene: an independent run trains one policy per arm, each to the spec's
-#: ``training.total_timesteps`` (run.json ``arm_total_timesteps``; ``total_timesteps`` is
-#: their sum).
-N_ARMS = 2
 
 RUNS_DIR_ENV = "SOFTTRACK_RUNS_DIR"
 LOCK_NAME = "run.lock"

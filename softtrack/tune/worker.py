@@ -31,9 +31,10 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from softtrack.env.tasks import N_ARMS
 from softtrack.executors.base import failed_by_signal
 from softtrack.spec import ExperimentSpec, SpecError
-from softtrack.store.runs import N_ARMS, RunRecord, RunStore, RunStoreError
+from softtrack.store.runs import RunRecord, RunStore, RunStoreError
 from softtrack.tune import TuneError
 from softtrack.tune.study import (
     HEARTBEAT_S,
