@@ -26,6 +26,7 @@ from softtrack.evaluation.metrics import (
     tracking_metrics,
 )
 from softtrack.sim.actuation import N_CONTROL_POINTS
+from softtrack.store.tables import element_peaks_frame
 
 __all__ = [
     "STEADY_START",
@@ -177,22 +178,6 @@ def moment_peaks_table(run_id: str, episode: Episode) -> pd.DataFrame:
     absolute torque of that element over the episode (``peak_abs_moment``, N·m)."""
     peaks = np.abs(episode.element_torques.astype(np.float32)).max(axis=0)  # (A, 2, n_elem)
     return element_peaks_frame(run_id, episode.trajectory, peaks)
-
-
-def element_peaks_frame(run_id: str, trajectory: str, peaks: np.ndarray) -> pd.DataFrame:
-    """Rows (run_id, trajectory, arm, direction, element, peak_abs_moment) from peaks of shape
-    (A arms, 2 directions, n_elem elements), N·m, stored as float32."""
-    n_arms, n_dirs, n_elem = peaks.shape
-    return pd.DataFrame(
-        {
-            "run_id": run_id,
-            "trajectory": trajectory,
-            "arm": np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs * n_elem),
-            "direction": np.tile(np.repeat(np.arange(n_dirs, dtype=np.int32), n_elem), n_arms),
-            "element": np.tile(np.arange(n_elem, dtype=np.int32), n_arms * n_dirs),
-            "peak_abs_moment": peaks.reshape(-1).astype(np.float32),
-        }
-    )
 
 
 def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:

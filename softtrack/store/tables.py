@@ -26,6 +26,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -44,6 +45,7 @@ __all__ = [
     "TableError",
     "TableNotFoundError",
     "append_rows",
+    "element_peaks_frame",
     "list_tables",
     "read_arrow",
     "read_table",
@@ -254,3 +256,19 @@ def list_tables(tables_dir: str | os.PathLike[str]) -> dict[str, Path]:
         for p in sorted(tables_dir.iterdir())
         if p.name.endswith(".parquet") and not is_temp_file(p) and not p.name.startswith(".")
     }
+
+
+def element_peaks_frame(run_id: str, trajectory: str, peaks: np.ndarray) -> pd.DataFrame:
+    """Rows (run_id, trajectory, arm, direction, element, peak_abs_moment) from peaks of shape
+    (A arms, 2 directions, n_elem elements), N·m, stored as float32."""
+    n_arms, n_dirs, n_elem = peaks.shape
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "trajectory": trajectory,
+            "arm": np.repeat(np.arange(n_arms, dtype=np.int32), n_dirs * n_elem),
+            "direction": np.tile(np.repeat(np.arange(n_dirs, dtype=np.int32), n_elem), n_arms),
+            "element": np.tile(np.arange(n_elem, dtype=np.int32), n_arms * n_dirs),
+            "peak_abs_moment": peaks.reshape(-1).astype(np.float32),
+        }
+    )

@@ -21,8 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation import element_peaks_frame
-from softtrack.store.tables import read_table, write_table
+from softtrack.store.tables import element_peaks_frame, read_table, write_table
 
 __all__ = ["upgrade_run_tables"]
 
