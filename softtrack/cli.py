@@ -54,6 +54,7 @@ InPlaceOption = Annotated[
     bool,
     typer.Option(
         "--in-place",
+        metavar="",
         help="Store the results in a shipped (read-only) run itself, e.g. to update "
         "models/ on purpose [default: in its copy in the runs directory].",
     ),
@@ -116,7 +117,10 @@ def _exit_on_sigterm(signum: int, _frame: object) -> None:
 @app.callback()
 def main(
     version: Annotated[
-        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")
+        bool,
+        typer.Option(
+            "--version", metavar="", callback=_version, is_eager=True, help="Print the version."
+        ),
     ] = False,
 ) -> None:
     """Train, evaluate and compare controllers for two soft arms tracking a moving target."""
@@ -156,10 +160,11 @@ def spec_command(
     ] = None,
     overrides: SetOption = None,
     schema: Annotated[
-        bool, typer.Option("--schema", help="Print the JSON Schema of specs.")
+        bool, typer.Option("--schema", metavar="", help="Print the JSON Schema of specs.")
     ] = False,
     defaults: Annotated[
-        bool, typer.Option("--defaults", help="Print the default spec as commented YAML.")
+        bool,
+        typer.Option("--defaults", metavar="", help="Print the default spec as commented YAML."),
     ] = False,
 ) -> None:
     """Show the spec format: the JSON Schema, the defaults, or a file fully resolved.
@@ -288,7 +293,9 @@ WorkersOption = Annotated[
 DetachOption = Annotated[
     bool,
     typer.Option(
-        "--detach", help="Return once the runs are submitted (follow them with `softtrack runs`)."
+        "--detach",
+        metavar="",
+        help="Return once the runs are submitted (follow them with `softtrack runs`).",
     ),
 ]
 PartitionOption = Annotated[
@@ -696,7 +703,10 @@ def runs(
         OutputFormat, typer.Option("--format", "-f", help="Output format.", case_sensitive=False)
     ] = OutputFormat.table,
     failed: Annotated[
-        bool, typer.Option("--failed", help="Only failed runs, each with its stored traceback.")
+        bool,
+        typer.Option(
+            "--failed", metavar="", help="Only failed runs, each with its stored traceback."
+        ),
     ] = False,
 ) -> None:
     """List the runs with their status, progress and final-stage return.
@@ -752,7 +762,7 @@ def query_command(
         ),
     ] = QueryFormat.table,
     views: Annotated[
-        bool, typer.Option("--views", help="List the views and their columns instead.")
+        bool, typer.Option("--views", metavar="", help="List the views and their columns instead.")
     ] = False,
 ) -> None:
     """Run SQL (DuckDB) over the runs' run.json and tables and print the result.
@@ -838,6 +848,7 @@ def evaluate(
         bool,
         typer.Option(
             "--full-moments",
+            metavar="",
             help="Also store every element torque at every step (table "
             "eval_element_moments, ~2 MB per trajectory); by default only "
             "the per-step RMS and the per-element peaks are stored.",
@@ -922,7 +933,7 @@ def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
     note = f"  ({diverged} diverged)" if diverged else ""
     typer.echo(
         f"{record.run_id}  random     3-D RMSE arm 1 / arm 2: {cells} m "
-        f"(mean ± std over {n} episodes){note}"
+        f"(mean ± std over {n} episode{'s' if n != 1 else ''}){note}"
     )
 
 
@@ -967,6 +978,7 @@ def robustness(
         bool,
         typer.Option(
             "--full-grid",
+            metavar="",
             help="Every combination of the axes' levels "
             "[default: one factor at a time, the others nominal].",
         ),
@@ -990,12 +1002,14 @@ def robustness(
         bool,
         typer.Option(
             "--keep-realism",
+            metavar="",
             help="Perturb each run's own env.realism "
             "[default: the idealised environment, realism off].",
         ),
     ] = False,
     redo: Annotated[
-        bool, typer.Option("--redo", help="Evaluate again settings the tables already hold.")
+        bool,
+        typer.Option("--redo", metavar="", help="Evaluate again settings the tables already hold."),
     ] = False,
     in_place: InPlaceOption = False,
     *,
@@ -1099,6 +1113,7 @@ def upgrade(
         bool,
         typer.Option(
             "--keep-full-moments",
+            metavar="",
             help="Keep the per-element torque history as eval_element_moments.",
         ),
     ] = False,
@@ -1136,6 +1151,7 @@ def report(
         bool,
         typer.Option(
             "--all-figures",
+            metavar="",
             help="Draw the trajectory, error and moment figures of every controller "
             "(one per controller and trajectory), not only of the study "
             "protocol and the best centralized and independent controllers.",
@@ -1192,7 +1208,7 @@ def quickstart(
         ),
     ] = None,
     no_pretrained: Annotated[
-        bool, typer.Option("--no-pretrained", help="Leave the shipped policy out.")
+        bool, typer.Option("--no-pretrained", metavar="", help="Leave the shipped policy out.")
     ] = False,
 ) -> None:
     """Train, evaluate and report the quickstart experiment (a few minutes).

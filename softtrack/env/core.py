@@ -97,11 +97,6 @@ class TrackingCore:
         """(n,) simulated seconds since each environment's reset."""
         return self.step_count * self._control_dt
 
-    @property
-    def tip_positions(self) -> np.ndarray:
-        """(n, A, 3) tip positions, m (a copy)."""
-        return self.engine.tip_position.copy()
-
     def observe(self, env_indices: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Current true observations of the listed environments: (k, obs_dim) float32 copy
         (without the realism's delay, noise and drops, which :meth:`reset` and :meth:`step`

@@ -110,11 +110,6 @@ class TargetConfig:
         """ω = 2π / period, rad/s."""
         return 2.0 * math.pi / self.period
 
-    @property
-    def is_closed_form(self) -> bool:
-        """True for the deterministic modes (everything but ``random``)."""
-        return self.name in CLOSED_FORM_MODES
-
     def validate(self) -> None:
         """Raise ValueError naming the first invalid field and how to fix it."""
         if self.name not in TARGET_MODES:

@@ -88,8 +88,6 @@ def _contact_levels(level: str) -> tuple[str, str]:
     return level, repr(CONTACT_ON["contact_nu"])
 
 
-#: The columns in front of the metrics columns, in this order.
-SETTING_COLUMNS = ("perturbation", "level", "setting", "baseline", "episode", "seed")
 _KEY = ["setting", "baseline", "trajectory"]
 _PARTS_DIR = "eval_robustness-parts"
 

@@ -7,13 +7,11 @@ two sweeps writing into one runs directory only ever count their own runs.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from softtrack.executors.base import Job, failed_by_signal
@@ -283,7 +281,3 @@ def cluster_of(store: RunStore, run_ids: Sequence[str]) -> ClusterSpec:
         except Exception:
             break
     return ClusterSpec()
-
-
-def runs_dir_of(path: str | os.PathLike[str]) -> Path:
-    return Path(path)

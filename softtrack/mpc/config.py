@@ -48,11 +48,6 @@ class PlannerConfig:
     def n_knots(self) -> int:
         return self.horizon if self.knots is None else int(self.knots)
 
-    @property
-    def rollout_steps(self) -> int:
-        """Env control steps simulated per plan: samples × horizon × iterations."""
-        return self.samples * self.horizon * self.iterations
-
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first invalid setting and its valid range."""
         if self.method not in ("mppi", "cem"):

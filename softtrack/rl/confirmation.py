@@ -135,7 +135,7 @@ def confirm_policy(
         scores[candidate] = validation_score(rows)
         log(
             f"{name} confirmation of the {candidate} model ({step:,} steps): 3-D RMSE "
-            f"{scores[candidate]:.4f} m over {episodes} episodes in "
+            f"{scores[candidate]:.4f} m over {episodes} episode{'s' if episodes != 1 else ''} in "
             f"{time.monotonic() - started:.0f} s"
         )
     scores.setdefault("last", scores["best"])

@@ -288,7 +288,8 @@ class Validator:
             )
         self.log(
             f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
-            f"episodes in {time.monotonic() - started:.0f} s{' (new best)' if improved else ''}; "
+            f"episode{'s' if self.episodes != 1 else ''} in {time.monotonic() - started:.0f} s"
+            f"{' (new best)' if improved else ''}; "
             f"best {self.best.score:.4f} m at {self.best.step:,}{tracking}"
         )
         if self.on_score is not None:
