@@ -264,7 +264,7 @@ def evaluate(
     """
     from softtrack.evaluation import EVAL_TRAJECTORIES
     from softtrack.evaluation.runs import evaluate_random_targets, evaluate_run, resolve_run
-    from softtrack.rl.policy import MODEL_CHOICES, model_paths, require_model
+    from softtrack.rl.policy import MODEL_CHOICES, load_policy, model_paths, require_model
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
@@ -316,11 +316,19 @@ def evaluate(
         if chosen:
             frames.append(
                 evaluate_run(
-                    record, chosen, on_episode, write=store, model=model, full_moments=full_moments
+                    record,
+                    chosen,
+                    on_episode,
+                    load=load_policy,
+                    write=store,
+                    model=model,
+                    full_moments=full_moments,
                 )
             )
         if random_episodes:
-            rows = evaluate_random_targets(record, random_episodes, write=store, model=model)
+            rows = evaluate_random_targets(
+                record, random_episodes, load=load_policy, write=store, model=model
+            )
             if on_random is not None:
                 on_random(record, rows)
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
@@ -531,7 +539,7 @@ def report(
     """
     from softtrack.evaluation.runs import evaluate_run, has_evaluation, resolve_run
     from softtrack.report import build_report, select_report_runs
-    from softtrack.rl.policy import model_paths
+    from softtrack.rl.policy import load_policy, model_paths
 
     store = RunStore(resolve_runs_dir(runs_dir))
     records = select_report_runs(store, selection)
@@ -545,7 +553,7 @@ def report(
         spec = record.load_spec()
         trained = all(p.is_file() for p in model_paths(record, spec))
         if trained and not has_evaluation(record):
-            evaluate_run(record, on_episode=on_episode)
+            evaluate_run(record, on_episode=on_episode, load=load_policy)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
     return build_report(
@@ -628,7 +636,15 @@ def sweep(
         raise SpecError(
             "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
         )
-    points = expand_grid(paths, parse_grid(grid), seeds=parse_seeds(seeds), overrides=overrides)
+    from softtrack.rl.factory import check_supported
+
+    points = expand_grid(
+        paths,
+        parse_grid(grid),
+        seeds=parse_seeds(seeds),
+        overrides=overrides,
+        check=check_supported,
+    )
     store = RunStore(resolve_runs_dir(runs_dir))
     sweep_id = dispatch.new_sweep_id()
     chains = {point.path: spec_chain(point.path) for point in points}
@@ -732,6 +748,7 @@ def robustness(
     from softtrack.evaluation.runs import resolve_run
     from softtrack.executors import dispatch
     from softtrack.executors.sweep import parse_grid
+    from softtrack.rl.policy import load_policy, require_model
 
     options = options or dispatch.ExecOptions(workers=1)
     if options.executor not in dispatch.EXECUTORS:
@@ -772,6 +789,8 @@ def robustness(
         options=options,
         on_cell=on_cell,
         on_progress=on_progress,
+        load=load_policy,
+        require=require_model,
     )
 
 

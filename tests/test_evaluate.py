@@ -23,6 +23,7 @@ from softtrack.evaluation.metrics import (
     torque_statistics,
     tracking_metrics,
 )
+from softtrack.rl.policy import load_policy
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
 
@@ -260,7 +261,7 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     record = RunStore(fresh).get_run(run_id)
     episodes: list[Any] = []
     again = evaluate_random_targets(
-        record, 2, lambda _r, episode, _m: episodes.append(episode), write=False
+        record, 2, lambda _r, episode, _m: episodes.append(episode), load=load_policy, write=False
     )
     np.testing.assert_array_equal(again["rmse_3d"].to_numpy(), table["rmse_3d"].to_numpy())
     for k, episode in enumerate(episodes):

@@ -21,10 +21,10 @@ from softtrack.evaluation.robustness import (
     part_path,
     perturbed_spec,
 )
-from softtrack.evaluation.robustness_runs import main as worker_main
 from softtrack.evaluation.runs import resolve_run
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.store.tables import read_table
+from softtrack.workers import robustness_main as worker_main
 from tests.test_evaluate import _train_tiny
 
 runner = CliRunner()

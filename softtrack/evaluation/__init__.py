@@ -7,8 +7,9 @@
 * :mod:`softtrack.evaluation.tables`: the tables of an episode (trajectory, metrics, moments)
   and the validation score of a checkpoint's metrics rows.
 * :mod:`softtrack.evaluation.runs`: evaluate a stored run's policy and write its ``eval_*``
-  tables. It loads policies with :mod:`softtrack.rl.policy`, so it is not imported here: the
-  rest of this package sits below :mod:`softtrack.rl`, which uses it for validation.
+  tables, with the policy loader the caller passes in (``softtrack.rl.policy.load_policy``):
+  this package sits below :mod:`softtrack.rl`, which uses it for validation, and never
+  imports it.
 
 The names below are those of :mod:`~softtrack.evaluation.episodes` and
 :mod:`~softtrack.evaluation.tables`.

@@ -7,7 +7,7 @@
   rows of every setting are stored as soon as it is done, so an interrupted evaluation loses at
   most one setting and continues where it stopped when started again;
 * ``executor="local"`` with N workers, or ``executor="slurm"``: one worker process (or array
-  task) per cell, ``python -m softtrack.evaluation.robustness_runs RUN_DIR --level f=v ...``,
+  task) per cell, ``python -m softtrack.workers robustness RUN_DIR --level f=v ...``,
   each writing its rows to a part file of the run; this process merges them into the tables
   once the workers ended (and any later ``softtrack robustness`` merges parts left behind,
   e.g. after ``--detach``). Worker output is appended to ``<run>/robustness.log``.
@@ -15,7 +15,6 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -24,6 +23,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from softtrack.evaluation.episodes import Policy
 from softtrack.evaluation.robustness import (
     Setting,
     done_settings,
@@ -34,10 +34,8 @@ from softtrack.evaluation.robustness import (
     store_rows,
 )
 from softtrack.executors.dispatch import ExecOptions, slurm_options
-from softtrack.rl.policy import load_policy, require_model
-from softtrack.spec import ClusterSpec
+from softtrack.spec import ClusterSpec, ExperimentSpec
 from softtrack.store.runs import RunRecord, RunStore
-from softtrack.store.tables import write_table
 
 __all__ = ["RobustnessJob", "RobustnessOutcome", "run_robustness"]
 
@@ -61,7 +59,8 @@ class RobustnessJob:
         cmd = [
             sys.executable,
             "-m",
-            "softtrack.evaluation.robustness_runs",
+            "softtrack.workers",
+            "robustness",
             self.run_dir,
             "--trajectories",
             ",".join(self.trajectories),
@@ -114,6 +113,8 @@ def run_robustness(
     options: ExecOptions | None = None,
     on_cell: Callable[[RunRecord, Setting, pd.DataFrame], None] | None = None,
     on_progress: Callable[[str], None] | None = None,
+    load: Callable[[RunRecord, ExperimentSpec], Policy],
+    require: Callable[[RunRecord, ExperimentSpec], object],
 ) -> RobustnessOutcome:
     """Evaluate ``settings`` for every run (module docstring); every setting is validated
     against every run's spec before any episode runs (a SpecError names the bad one).
@@ -121,13 +122,15 @@ def run_robustness(
     Args:
         on_cell: called with (run, setting, its rows) after each cell evaluated in-process.
         on_progress: called with a progress line while workers run.
+        load: the run's deterministic policy (``softtrack.rl.policy.load_policy``).
+        require: raises if the run has no model to evaluate (``rl.policy.require_model``).
     """
     options = options or ExecOptions()
     specs = {}
     for record in records:
         merge_parts(record)
         specs[record.run_id] = spec = record.load_spec()
-        require_model(record, spec)
+        require(record, spec)
         for setting in settings:
             perturbed_spec(spec, setting, keep_realism)
     outcome = RobustnessOutcome()
@@ -146,7 +149,7 @@ def run_robustness(
         policies = {}
         for record, setting in todo:
             if record.run_id not in policies:
-                policies[record.run_id] = load_policy(record, specs[record.run_id])
+                policies[record.run_id] = load(record, specs[record.run_id])
             rows = evaluate_setting(
                 record.run_id,
                 policies[record.run_id],
@@ -218,39 +221,3 @@ def _run_jobs(
     while not all(j.done() for j in submitted):
         tick()
         time.sleep(10.0)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Worker: evaluate one setting of one run and write its rows to the run's part file."""
-    from softtrack.evaluation.runs import resolve_run
-
-    parser = argparse.ArgumentParser(prog="python -m softtrack.evaluation.robustness_runs")
-    parser.add_argument("run", help="run directory")
-    parser.add_argument("--level", action="append", default=[], metavar="FACTOR=LEVEL")
-    parser.add_argument("--trajectories", default="circle,rectangle,figure8")
-    parser.add_argument("--episodes", type=int, default=1)
-    parser.add_argument("--keep-realism", action="store_true")
-    args = parser.parse_args(argv)
-    record = resolve_run(args.run)
-    spec = record.load_spec()
-    setting = Setting(tuple((f, v) for f, _, v in (item.partition("=") for item in args.level)))
-    trajectories = args.trajectories.split(",")
-    started = time.monotonic()
-    rows = evaluate_setting(
-        record.run_id,
-        load_policy(record, spec),
-        spec,
-        setting,
-        trajectories,
-        args.episodes,
-        keep_realism=args.keep_realism,
-    )
-    path = part_path(record, setting, trajectories, args.episodes, args.keep_realism)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_table(path, rows)
-    print(f"{record.run_id} {setting.key}: {len(rows)} rows in {time.monotonic() - started:.0f} s")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

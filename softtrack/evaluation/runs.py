@@ -30,7 +30,7 @@ the table): how well the policy tracks the target it was trained on, beside how 
 tracks the closed-form paths.
 
 Both evaluate the run's policy unless told another of its models (``model``:
-:data:`softtrack.rl.policy.ModelChoice`, e.g. ``last`` beside a kept best-validated policy).
+:data:`softtrack.store.layout.ModelChoice`, e.g. ``last`` beside a kept best-validated policy).
 """
 
 from __future__ import annotations
@@ -57,8 +57,9 @@ from softtrack.evaluation.tables import (
     snapshot_table,
     trajectory_table,
 )
-from softtrack.rl.policy import ModelChoice, load_policy
+from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
+from softtrack.store.layout import ModelChoice
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import (
     RunRecord,
@@ -74,6 +75,7 @@ __all__ = [
     "EVAL_TABLES",
     "RANDOM_TABLE",
     "SNAPSHOT_TABLE",
+    "PolicyLoader",
     "evaluate_random_targets",
     "evaluate_run",
     "has_evaluation",
@@ -132,13 +134,18 @@ def _replaced_rows(
     return new.reset_index(drop=True) if len(new) else None
 
 
+#: Loads a run's deterministic policy: (run, its spec, which model) → observation → action
+#: (``softtrack.rl.policy.load_policy``; passed in, so evaluation never imports training).
+PolicyLoader = Callable[[RunRecord, ExperimentSpec, ModelChoice], Policy]
+
+
 def _episode_setup(
-    record: RunRecord, model: ModelChoice = "policy"
+    record: RunRecord, load: PolicyLoader, model: ModelChoice = "policy"
 ) -> tuple[Policy, TrackingConfig, float]:
     """The deterministic policy of the run's ``model``, its environment settings and its
     evaluation episode length (``training.eval_duration``, s)."""
     spec = record.load_spec()
-    return load_policy(record, spec, model), env_config(spec), float(spec.training.eval_duration)
+    return load(record, spec, model), env_config(spec), float(spec.training.eval_duration)
 
 
 def evaluate_run(
@@ -146,6 +153,7 @@ def evaluate_run(
     trajectories: Sequence[str] = EVAL_TRAJECTORIES,
     on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
     *,
+    load: PolicyLoader,
     write: bool = True,
     model: ModelChoice = "policy",
     full_moments: bool = False,
@@ -155,6 +163,7 @@ def evaluate_run(
 
     Args:
         on_episode: called after each trajectory with the run, the episode and its metrics.
+        load: loads the run's policy (:data:`PolicyLoader`).
         model: the run's model to evaluate (default its policy).
         full_moments: also store every element torque at every step
             (``eval_element_moments``); otherwise rows of these trajectories in an existing
@@ -166,7 +175,7 @@ def evaluate_run(
     Raises:
         RunStoreError: the run has no readable model; SpecError: its spec no longer validates.
     """
-    policy, config, duration = _episode_setup(record, model)
+    policy, config, duration = _episode_setup(record, load, model)
     tables = {
         "eval_trajectories": trajectory_table,
         "eval_metrics": metrics_table,
@@ -204,6 +213,7 @@ def evaluate_random_targets(
     episodes: int,
     on_episode: Callable[[RunRecord, Episode, pd.DataFrame], None] | None = None,
     *,
+    load: PolicyLoader,
     write: bool = True,
     model: ModelChoice = "policy",
 ) -> pd.DataFrame:
@@ -225,7 +235,7 @@ def evaluate_random_targets(
     """
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")
-    policy, config, duration = _episode_setup(record, model)
+    policy, config, duration = _episode_setup(record, load, model)
     cpu = cpu_kind()
     parts = []
     for k in range(episodes):

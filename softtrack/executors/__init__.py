@@ -2,7 +2,7 @@
 
 A *job* is one run of the store (:class:`~softtrack.executors.base.Job`: runs directory + run
 id). Every executor runs the same worker entry point,
-``python -m softtrack.executors.worker --runs-dir D RUN_ID``, in its own process: it trains
+``python -m softtrack.workers train --runs-dir D RUN_ID``, in its own process: it trains
 the run (resuming it from its last checkpoint if it has started before) and records the
 outcome in ``run.json``, so the run store stays the single source of truth and a crash of
 one job never affects the others.

@@ -5,12 +5,11 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import traceback
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from softtrack.store.runs import RunLockedError, RunStore, RunStoreError, lock_held
+from softtrack.store.runs import RunStore, RunStoreError, lock_held
 
 __all__ = [
     "EXIT_LOCKED",
@@ -18,7 +17,6 @@ __all__ = [
     "PoolJob",
     "failed_by_signal",
     "record_worker_exit",
-    "run_job",
     "worker_env",
 ]
 
@@ -35,11 +33,12 @@ class Job:
 
     @property
     def command(self) -> list[str]:
-        """The worker command line (``sys.executable -m softtrack.executors.worker ...``)."""
+        """The worker command line (``sys.executable -m softtrack.workers train ...``)."""
         return [
             sys.executable,
             "-m",
-            "softtrack.executors.worker",
+            "softtrack.workers",
+            "train",
             "--runs-dir",
             str(self.runs_dir),
             self.run_id,
@@ -81,48 +80,6 @@ def worker_env(threads: int = 1) -> dict[str, str]:
         env[key] = str(threads)
     env["CI"] = env.get("CI") or "1"
     return env
-
-
-def run_job(runs_dir: str | os.PathLike[str], run_id: str, *, threads: int = 1) -> int:
-    """Train run ``run_id`` in this process (resuming it if it started before); its exit code.
-
-    0 completed (or already completed), 128 + signal interrupted, 1 failed (the traceback is
-    in run.json), :data:`EXIT_LOCKED` another process is training the run, 2 no such run.
-    An error before training starts (an invalid stored spec, say) is recorded as failed too.
-    """
-    import torch
-
-    torch.set_num_threads(threads)
-    from softtrack.rl.train import train_run
-
-    store = RunStore(runs_dir)
-    try:
-        record = store.get_run(run_id)
-    except RunStoreError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    if record.info.status == "completed":
-        print(f"{record.run_id}: already completed", file=sys.stderr)
-        return 0
-    problem = record.spec_problem()
-    if problem is not None:  # nothing to train from: the run keeps its status
-        print(f"error: {problem}", file=sys.stderr)
-        return 2
-    started = record.info.status != "queued" or bool(record.info.global_step)
-    try:
-        outcome = train_run(store, record, resume=started, show_progress=False)
-    except RunLockedError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_LOCKED
-    except Exception as exc:
-        text = "".join(traceback.format_exception(exc))
-        print(text, file=sys.stderr)
-        line = " ".join(f"{type(exc).__name__}: {exc}".split())
-        if lock_held(record) is not True:
-            store.mark_finished(record.run_id, "failed", error=line, traceback=text)
-        return 1
-    print(f"{outcome.run_id}: {outcome.status} at step {outcome.global_step}", file=sys.stderr)
-    return outcome.exit_code
 
 
 def record_worker_exit(runs_dir: str | os.PathLike[str], run_id: str, returncode: int) -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -113,14 +113,14 @@ def expand_grid(
     *,
     seeds: Sequence[int] | None = None,
     overrides: Sequence[str] = (),
+    check: Callable[[ExperimentSpec, str], None] | None = None,
 ) -> list[GridPoint]:
-    """Every (spec file × grid point), validated and checked to be supported.
+    """Every (spec file × grid point), validated and, with ``check`` (e.g.
+    ``softtrack.rl.factory.check_supported``), checked to be supported.
 
     Raises:
         SpecError: a spec, an override or a grid value is invalid (nothing is written).
     """
-    from softtrack.rl.factory import check_supported
-
     if not paths:
         raise SpecError(
             "sweep",
@@ -139,7 +139,8 @@ def expand_grid(
             if values and "name" not in keys:
                 name = _point_name(spec.name, values)
                 spec = spec.model_copy(update={"name": name})
-            check_supported(spec, str(path))
+            if check is not None:
+                check(spec, str(path))
             where = f"{path} {' '.join(sets)}".strip()
             if spec.name in names and names[spec.name] != where:
                 raise SpecError(

@@ -20,7 +20,7 @@ import numpy as np
 from softtrack.evaluation import Policy, independent_policy
 from softtrack.rl.factory import model_class
 from softtrack.spec import ExperimentSpec
-from softtrack.store.layout import PolicyDir
+from softtrack.store.layout import MODEL_CHOICES, ModelChoice, PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
 __all__ = [
@@ -35,13 +35,6 @@ __all__ = [
     "policy_choice",
     "require_model",
 ]
-
-ModelChoice = Literal["policy", "last", "best"]
-"""Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
-``last``, the model at the end of training; ``best``, the best-validated model (runs trained
-with ``training.validation_episodes`` ≥ 1)."""
-
-MODEL_CHOICES: tuple[ModelChoice, ...] = ("policy", "last", "best")
 
 
 def model_paths(

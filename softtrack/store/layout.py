@@ -36,7 +36,21 @@ import numpy as np
 
 from softtrack.store.atomic import is_temp_file
 
-__all__ = ["MANIFEST_NAME", "OTHER_MODELS_DIR", "PolicyDir", "arm_dir"]
+__all__ = [
+    "MANIFEST_NAME",
+    "MODEL_CHOICES",
+    "OTHER_MODELS_DIR",
+    "ModelChoice",
+    "PolicyDir",
+    "arm_dir",
+]
+
+ModelChoice = Literal["policy", "last", "best"]
+"""Which model of a run to load: ``policy``, the run's policy (``training.final_policy``);
+``last``, the model at the end of training; ``best``, the best-validated model (runs trained
+with ``training.validation_episodes`` ≥ 1)."""
+
+MODEL_CHOICES: tuple[ModelChoice, ...] = ("policy", "last", "best")
 
 MANIFEST_NAME = "policy.json"
 """The file that marks an exported policy directory and names the model ``model.zip`` is."""
