@@ -509,7 +509,8 @@ def write_figure(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from softtrack.report.figures import DPI, GROUP_COLORS
+    from softtrack.report.families import PALETTE as GROUP_COLORS
+    from softtrack.report.figures import DPI
 
     fig = Figure(figsize=(12, 4.8), layout="constrained")
     FigureCanvasAgg(fig)

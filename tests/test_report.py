@@ -380,7 +380,7 @@ def test_policy_actions_table(report: Path) -> None:
     for c in cells:
         clearance = float(c[9].split(" ± ")[0])
         assert float(c[8].split(" ± ")[0]) > 0 and 0.05 < clearance <= 0.1
-        assert c[10] == "0.0 ± 0.0"
+        assert c[10] == "0 ± 0"  # collision steps: whole numbers
     assert cells[0][9] == cells[1][9]  # per episode: the same in both arms' rows
     text = md.split("### Policy actions\n", 1)[1]
     caption = text.split("\n\n")[1]
@@ -656,8 +656,9 @@ def test_training_curves_scale_with_each_run_and_compare_returns_per_second(
 ) -> None:
     """A 10,000-step run with 2-s episodes beside a 1,000,000-step run with 10-s episodes: each
     curve is smoothed over 3 % of its own run (not of the longest), and returns are per
-    second of episode, in a figure with one panel per run."""
-    from softtrack.report import figures as fg
+    second of episode; the report's figure draws them in separate panels."""
+    from softtrack.report import comparison_figures as cf
+    from softtrack.report.plan import plan_figures
 
     store = RunStore(tmp_path / "runs")
     short = store.create_run(
@@ -686,7 +687,12 @@ def test_training_curves_scale_with_each_run_and_compare_returns_per_second(
     assert np.nanmean(by_name["short"].mean) == pytest.approx(-400.0 / 2.0)
     assert np.nanmean(by_name["long"].mean) == pytest.approx(15000.0 / 10.0)
     assert "per second" in smoothing.describe()
-    path = fg.training_curves_figure(curves, smoothing, tmp_path / "curves.png")
+    # the report's figure compares returns at equal episode length only: one panel each
+    plan = plan_figures(groups, pd.DataFrame())
+    panels = [cf.CurvePanel(s, *training_curves(s.shown)) for s in plan.training]
+    assert sorted(len(p.curves) for p in panels) == [1, 1]
+    assert not any(p.smoothing.per_second for p in panels)
+    path = cf.training_curves_figure(panels, plan.colors, tmp_path / "curves.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # episodes of one length: plain returns
     alone, plain = training_curves(group_runs(load_runs([long])))
@@ -805,13 +811,13 @@ def test_trajectory_figure_labels_and_ticks_do_not_overlap(
     from softtrack.report import figures as fg
 
     drawn = []
-    save = fg._save
+    save = fg.save_figure
 
     def keep(fig, path, footer):  # type: ignore[no-untyped-def]
         drawn.append(fig)
         return save(fig, path, footer)
 
-    monkeypatch.setattr(fg, "_save", keep)
+    monkeypatch.setattr(fg, "save_figure", keep)
     runs = load_runs(select_report_runs(store, ["td3", "independent-td3"]))
     rows = []
     for run in runs[:1] + runs[-1:]:

@@ -9,7 +9,13 @@ import pandas as pd
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.evaluation import Episode, moment_peaks_table, moments_table, trajectory_table
+from softtrack.evaluation import (
+    Episode,
+    metrics_table,
+    moment_peaks_table,
+    moments_table,
+    trajectory_table,
+)
 from softtrack.evaluation.metrics import moment_rms
 from softtrack.store.tables import read_table, write_table
 from softtrack.store.upgrade import upgrade_run_tables
@@ -99,3 +105,18 @@ def test_upgrade_of_a_missing_directory_is_one_line(tmp_path: Path) -> None:
     result = runner.invoke(app, ["upgrade", str(tmp_path / "nowhere")])
     assert result.exit_code == 2
     assert len(result.output.strip().splitlines()) == 1 and "nowhere" in result.output
+
+
+def test_upgrade_adds_the_peak_moment_of_older_metrics(tmp_path: Path) -> None:
+    """Metrics stored before ``peak_moment`` existed get it from ``eval_moment_peaks``, equal
+    (to float32 precision) to the column a fresh evaluation writes; other columns unchanged."""
+    run, episodes = _old_run(tmp_path)
+    fresh = _fresh(metrics_table, episodes)
+    write_table(run / "tables" / "eval_metrics.parquet", fresh.drop(columns=["peak_moment"]))
+    assert upgrade_run_tables(run)[-1] == "eval_metrics"
+    upgraded = read_table(run / "tables" / "eval_metrics.parquet")
+    np.testing.assert_allclose(upgraded["peak_moment"], fresh["peak_moment"], rtol=1e-6)
+    pd.testing.assert_frame_equal(
+        upgraded.drop(columns=["peak_moment"]), fresh.drop(columns=["peak_moment"])
+    )
+    assert upgrade_run_tables(run) == []

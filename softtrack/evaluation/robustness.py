@@ -31,9 +31,11 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import yaml
@@ -57,6 +59,7 @@ __all__ = [
     "done_settings",
     "evaluate_setting",
     "expand_settings",
+    "factor_axis_label",
     "factor_paths",
     "merge_parts",
     "part_path",
@@ -110,6 +113,31 @@ def factor_paths(factor: str) -> tuple[str, ...]:
         f"unknown perturbation {factor!r}",
         f"use one of {known}, or a spec path such as env.physics.damping",
     )
+
+
+def factor_axis_label(factor: str) -> str:
+    """``obs_noise (m)``, ``youngs_modulus_scale (× nominal)``, ``action_delay (control
+    steps)``: a factor with the unit of the first spec field it sets (the ``[unit]`` that ends
+    the field's description); the factor alone where it has none or is unknown."""
+    try:
+        path = factor_paths(factor)[0].split(".")
+    except SpecError:
+        return factor
+    model: Any = ExperimentSpec
+    info = None
+    for part in path:
+        fields = getattr(model, "model_fields", {})
+        if part not in fields:
+            return factor
+        info = fields[part]
+        model = info.annotation
+    match = re.search(r"\[([^\]]+)\]$", (info.description or "") if info else "")
+    if not match:
+        return factor
+    unit = match.group(1)
+    if unit in ("-", "–"):
+        return f"{factor} (× nominal)" if factor.endswith("_scale") else f"{factor} (–)"
+    return f"{factor} ({unit})"
 
 
 @dataclass(frozen=True)

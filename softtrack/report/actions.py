@@ -47,7 +47,7 @@ _SAFETY_CELLS = (
     ("torque_rate_rms", 1.0, 0),
     ("peak_moment", 1.0, 1),
     ("min_arm_distance", 1.0, 3),
-    ("collision_steps", 1.0, 1),
+    ("collision_steps", 1.0, 0),
 )
 _NOT_STORED = "–"
 

@@ -48,6 +48,7 @@ from softtrack.report.evaluation_sections import (
     trajectories_section,
 )
 from softtrack.report.featured import featured_groups
+from softtrack.report.plan import plan_figures
 from softtrack.report.planning import planning_section
 from softtrack.report.robustness import robustness_section
 from softtrack.report.select import EmptySelectionError, select_report_runs
@@ -122,7 +123,7 @@ def build_report(
     trajectories = trajectories_in(groups)
     figures_dir = out_dir / FIGURES_DIR
     figures_dir.mkdir(parents=True, exist_ok=True)
-    ctx = Context(groups, command, figures_dir, all_figures)
+    ctx = Context(groups, command, figures_dir, all_figures, plan_figures(groups, summary))
 
     names = ", ".join(dict.fromkeys(g.name for g in groups))
     title = f"softtrack report: {names}"

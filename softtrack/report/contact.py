@@ -244,7 +244,7 @@ def contact_timeline_figure(
 ) -> Path:
     """Per controller (rows): the arms' surface clearance (mm; < 0: overlap) and the contact
     force between them (N) at every control step of ``trajectory``."""
-    fig = fg._new(11, 1.2 + 2.2 * len(runs))
+    fig = fg.new_figure(11, 1.2 + 2.2 * len(runs))
     axes = fig.subplots(len(runs), 2, squeeze=False)
     for (label, run), (ax_gap, ax_force) in zip(runs, axes, strict=True):
         table = run.trajectories
@@ -269,14 +269,14 @@ def contact_timeline_figure(
             ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("t (s)")
-    fg._suptitle(
+    fg.suptitle(
         fig,
-        f"Contact between the arms, {fg._traj_title(trajectory)}",
+        f"Contact between the arms, {fg.trajectory_title(trajectory)}",
         12,
         "left: gap between the surfaces (node to node, minus 2r); right: total "
         "contact force between the arms, mean over each 2-ms control step",
     )
-    return fg._save(fig, path, footer)
+    return fg.save_figure(fig, path, footer)
 
 
 def _draw_arm(ax: Axes, x: np.ndarray, y: np.ndarray, radius: float, color: str) -> None:
@@ -310,7 +310,7 @@ def arms_figure(
             "no eval_snapshots (evaluate again to record them)",
             footer,
         )
-    fig = fg._new(2.6 * n_cols, 0.8 + 4.6 * len(runs))
+    fig = fg.new_figure(2.6 * n_cols, 0.8 + 4.6 * len(runs))
     grid = fig.subfigures(len(runs), 1, squeeze=False)
     for (label, run, snap), sub in zip(snapshots, grid[:, 0], strict=True):
         sub.suptitle(label, fontsize=10)
@@ -348,15 +348,15 @@ def arms_figure(
                         + (f", gap {1e3 * gap:.1f} mm" if np.isfinite(gap) else ""),
                         fontsize=9,
                     )
-    fg._suptitle(
+    fg.suptitle(
         fig,
-        f"Both arms with their radius ({radius:g} m), {fg._traj_title(trajectory)}",
+        f"Both arms with their radius ({radius:g} m), {fg.trajectory_title(trajectory)}",
         12,
         "top row: front view (x–y), bottom row: from above (x–z); shaded tubes are "
         "the rods' surfaces, crosses each arm's target point; 'gap' is the 3-D "
         "surface clearance (negative: the arms overlap)",
     )
-    return fg._save(fig, path, footer)
+    return fg.save_figure(fig, path, footer)
 
 
 def _clearance_at(table: pd.DataFrame | None, trajectory: str, step: int) -> float:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Literal, TypeAlias
 
 from softtrack.report.data import Group, RunData
+from softtrack.report.plan import FigurePlan
 from softtrack.report.reference import STUDY_BUDGET_TEXT
 
 __all__ = [
@@ -214,13 +215,20 @@ def group_provenance(group: Group) -> str:
 
 
 class Context:
-    """What every section needs: the groups, the report command, the figure list, and whether
-    to draw the per-run figures of every controller (``all_figures``) or of a chosen few."""
+    """What every section needs: the groups, the report command, the figure list, whether
+    to draw the per-run figures of every controller (``all_figures``) or of a chosen few, and
+    the controllers and colours of the comparison figures (``plan``)."""
 
     def __init__(
-        self, groups: list[Group], command: str, figures_dir: Path, all_figures: bool = False
+        self,
+        groups: list[Group],
+        command: str,
+        figures_dir: Path,
+        all_figures: bool = False,
+        plan: FigurePlan | None = None,
     ) -> None:
         self.groups = groups
+        self.plan = plan if plan is not None else FigurePlan()
         self.command = command
         self.figures_dir = figures_dir
         self.all_figures = all_figures

@@ -13,11 +13,14 @@ import numpy as np
 import pandas as pd
 
 from softtrack.evaluation import RANDOM_TARGET_SEED
+from softtrack.report import comparison_figures as cf
 from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
 from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
 from softtrack.report.document import NOT_IN_STUDY, Context, Doc, num_text, study_text
+from softtrack.report.families import MAX_SERIES
 from softtrack.report.featured import Featured
+from softtrack.report.plan import PER_KIND
 from softtrack.report.reference import (
     STUDY_PEAK_MOMENTS,
     STUDY_RMSE_3D,
@@ -138,9 +141,20 @@ def errors_section(
         f"study {controller} TD3": {(t, a): v[a] for t, v in values.items() for a in (0, 1)}
         for controller, values in STUDY_RMSE_3D.items()
     }
+    shown = [g for s in ctx.plan.headline for g in s.shown]
     path, rel = ctx.figure("rmse_comparison.png")
-    fg.rmse_comparison_figure(summary, study, trajectories, path, ctx.footer())
-    doc.img(rel, "3-D RMSE per trajectory and arm against the study")
+    cf.rmse_comparison_figure(
+        ctx.plan.headline, summary, ctx.plan.colors, study, trajectories, path, ctx.footer(shown)
+    )
+    doc.img(rel, "3-D RMSE per trajectory and arm against the study, one panel per task")
+    doc.p(
+        "One panel per task (a controller trained and evaluated with contact is never drawn "
+        "beside one without). Each panel draws one controller of each kind (the study "
+        "protocol at the study's budget, the best centralized variant, the best independent "
+        "controller, the best planner) and then the next best by mean 3-D RMSE over the cells, "
+        f"at most {PER_KIND} of a kind and {MAX_SERIES} in all; every controller is in the "
+        "tables above. Study markers: the study's values (without contact)."
+    )
 
 
 def _cell_title(trajectory: str, arm: int) -> str:

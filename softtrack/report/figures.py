@@ -11,24 +11,20 @@ can put a few chosen controllers side by side in one figure per trajectory.
 
 from __future__ import annotations
 
-import math
 import os
 import textwrap
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
 
 import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.layout_engine import ConstrainedLayoutEngine
 from matplotlib.ticker import MaxNLocator
 
-from softtrack.report.curves import Curve, Smoothing
 from softtrack.report.data import DIRECTIONS
 from softtrack.report.reference import TRAJECTORY_TITLES
 from softtrack.store.atomic import atomic_path
@@ -36,36 +32,24 @@ from softtrack.store.atomic import atomic_path
 __all__ = [
     "DPI",
     "PathRow",
-    "final_returns_figure",
     "moments_figure",
+    "new_figure",
     "no_data_figure",
-    "rmse_comparison_figure",
-    "robustness_figure",
+    "save_figure",
+    "steps_axis",
+    "suptitle",
     "tracking_errors_figure",
-    "training_curves_figure",
     "trajectory_3d_figure",
-    "validation_figure",
+    "trajectory_title",
 ]
 
 DPI = 110  # a 12-inch-wide figure is 1,320 px: sharp in a browser, ~4x smaller than 150 dpi
 ARM_COLORS = ("tab:blue", "tab:orange")
 AXIS_COLORS = {"x": "tab:red", "y": "tab:green", "z": "tab:purple"}
-GROUP_COLORS = (
-    "tab:blue",
-    "tab:orange",
-    "tab:green",
-    "tab:red",
-    "tab:purple",
-    "tab:brown",
-    "tab:pink",
-    "tab:olive",
-    "tab:cyan",
-    "tab:gray",
-)
 STEADY_START = 1.0  # s, the start of the "steady" metrics
 
 
-def _new(width: float, height: float) -> Figure:
+def new_figure(width: float, height: float) -> Figure:
     fig = Figure(figsize=(width, height), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -78,14 +62,14 @@ def _wrap(text: str, width_in: float, fontsize: float) -> str:
     return "\n".join(textwrap.wrap(text, width=chars, break_on_hyphens=False))
 
 
-def _suptitle(fig: Figure, title: str, fontsize: float, subtitle: str = "") -> None:
+def suptitle(fig: Figure, title: str, fontsize: float, subtitle: str = "") -> None:
     """A short one-line ``title`` and, below it, ``subtitle`` wrapped to the figure's width."""
     width = fig.get_size_inches()[0]
     text = title if not subtitle else f"{title}\n{_wrap(subtitle, width, fontsize - 1)}"
     fig.suptitle(text, fontsize=fontsize, linespacing=1.35)
 
 
-def _save(fig: Figure, path: str | os.PathLike[str], footer: str | None) -> Path:
+def save_figure(fig: Figure, path: str | os.PathLike[str], footer: str | None) -> Path:
     if footer:  # wrapped to the figure's width, below the axes
         width, height = fig.get_size_inches()
         lines = textwrap.wrap(footer, width=max(40, int(width * 17)))
@@ -106,7 +90,7 @@ def no_data_figure(
     path: str | os.PathLike[str], title: str, reason: str, footer: str | None = None
 ) -> Path:
     """A figure that states that ``title`` has no data, and why."""
-    fig = _new(7, 3)
+    fig = new_figure(7, 3)
     ax = fig.add_subplot()
     ax.set_axis_off()
     ax.text(
@@ -130,161 +114,17 @@ def no_data_figure(
         transform=ax.transAxes,
         wrap=True,
     )
-    return _save(fig, path, footer)
+    return save_figure(fig, path, footer)
 
 
-def _traj_title(trajectory: str) -> str:
+def trajectory_title(trajectory: str) -> str:
     return TRAJECTORY_TITLES.get(trajectory, trajectory)
 
 
-def _palette(n: int) -> Sequence[object]:
-    """:data:`GROUP_COLORS`, or the 20 colours of ``tab20`` for more than 10 groups."""
-    if n <= len(GROUP_COLORS):
-        return GROUP_COLORS
-    from matplotlib import colormaps
-
-    tab20 = colormaps["tab20"]
-    assert isinstance(tab20, ListedColormap)
-    # a tuple of RGB tuples; the stubs type ``colors`` as any ArrayLike or colour
-    return list(cast(Sequence[object], tab20.colors))
-
-
-def _steps_axis(ax: Axes) -> None:
+def steps_axis(ax: Axes) -> None:
     ax.set_xlabel("environment steps")
     ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     ax.grid(alpha=0.3)
-
-
-def training_curves_figure(
-    curves: Sequence[Curve],
-    smoothing: Smoothing,
-    path: str | os.PathLike[str],
-    footer: str | None = None,
-) -> Path:
-    """Episode return against env steps: mean ± 1 sample std across seeds, one curve per
-    algorithm (per arm policy for independent controllers), each smoothed over a window
-    proportional to its group's training length. Returns are per second of episode when the
-    groups' episodes differ in length (:attr:`Smoothing.per_second`); groups whose training
-    lengths differ more than tenfold get their own panels (own x axis, shared y axis)."""
-    if not curves:
-        return no_data_figure(
-            path, "Training curves", "no selected run has training episodes", footer
-        )
-    groups = list(dict.fromkeys(c.group.label for c in curves))
-    length = {g: max(float(c.steps[-1]) for c in curves if c.group.label == g) for g in groups}
-    split = max(length.values()) > 10 * min(length.values())
-    panels = [[c for c in curves if c.group.label == g] for g in groups] if split else [curves]
-    ncols = min(3, len(panels))
-    nrows = math.ceil(len(panels) / ncols)
-    many = not split and len(curves) > 8  # the legend goes beside the axes
-    width = 9 if ncols == 1 else 5.2 * ncols
-    fig = _new(
-        width + (4.5 if many else 0),
-        max(5.2, 0.22 * len(curves) + 1.5) if many else 5.2 if nrows == 1 else 4.0 * nrows + 1.2,
-    )
-    axes = fig.subplots(nrows, ncols, squeeze=False, sharey=True).ravel()
-    palette = _palette(len(groups))
-    colors = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
-    for ax, panel in zip(axes, panels, strict=False):
-        for curve in panel:
-            color = colors[curve.group.label]
-            style = "-" if curve.arm in (None, 0) else "--"
-            seeds = f"{curve.n_runs} seed{'s' if curve.n_runs != 1 else ''}"
-            if curve.per_second:
-                seeds += f", {curve.episode_seconds:g}-s episodes"
-            ax.plot(
-                curve.steps,
-                curve.mean,
-                style,
-                color=color,
-                lw=1.8,
-                label=f"{curve.label} ({seeds})",
-            )
-            band = np.isfinite(curve.std)
-            if band.any():
-                ax.fill_between(
-                    curve.steps,
-                    curve.mean - curve.std,
-                    curve.mean + curve.std,
-                    where=band,
-                    color=color,
-                    alpha=0.2,
-                    lw=0,
-                )
-        _steps_axis(ax)
-        if many:
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-        else:
-            ax.legend(loc="best", fontsize=8 if split else 9)
-    for ax in axes[len(panels) :]:
-        ax.set_axis_off()
-    if smoothing.per_second:
-        ylabel = "return per second (episode return / episode duration, 1/s)"
-    else:
-        seconds = sorted({c.episode_seconds for c in curves})
-        ylabel = f"episode return ({', '.join(f'{s:g}' for s in seconds)}-s episodes, –)"
-    for ax in axes[::ncols]:
-        ax.set_ylabel(ylabel)
-    windows = sorted({c.window for c in curves})
-    span = (
-        f"{windows[0]:,.0f} env steps"
-        if len(windows) == 1
-        else f"{windows[0]:,.0f}–{windows[-1]:,.0f} env steps"
-    )
-    _suptitle(
-        fig,
-        "Training curves: mean ± 1 sample std across seeds",
-        12,
-        f"smoothing: centred window of {smoothing.window_fraction:.0%} of each group's steps "
-        f"({span})" + ("; own x axis per group" if split else ""),
-    )
-    return _save(fig, path, footer)
-
-
-def final_returns_figure(
-    table: pd.DataFrame, path: str | os.PathLike[str], footer: str | None = None
-) -> Path:
-    """Bars of the final-stage return per algorithm, mean ± sample std across seeds, with the
-    individual seeds as dots."""
-    rows = table[table["n"] > 0] if not table.empty else table
-    if rows.empty:
-        return no_data_figure(
-            path, "Final-stage return", "no run has episodes in the last part of its budget", footer
-        )
-    fig = _new(max(5.0, 1.4 * len(rows) + 2), 4.5)
-    ax = fig.add_subplot()
-    labels = [
-        r.group if r.arm < 0 else f"{r.group}\narm {int(r.arm) + 1} policy"
-        for r in rows.itertuples()
-    ]
-    x = np.arange(len(rows))
-    std = rows["std"].fillna(0.0).to_numpy()
-    ax.bar(
-        x,
-        rows["mean"],
-        yerr=std,
-        capsize=5,
-        color=[GROUP_COLORS[i % 10] for i in x],
-        alpha=0.75,
-        label="mean ± sample std",
-    )
-    for i, values in enumerate(rows["values"]):
-        ax.plot(
-            [i] * len(values),
-            list(values.values()),
-            "k.",
-            ms=8,
-            label="one seed" if i == 0 else None,
-        )
-    ax.set_xticks(x, labels, fontsize=9)
-    ax.set_ylabel("final-stage episode return (–)")
-    ax.set_title(
-        "Final-stage return: mean episode return at the end of training (docs/environment.md)"
-    )
-    ax.axhline(0, color="0.5", lw=0.8)
-    ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8)
-    return _save(fig, path, footer)
 
 
 def _arm_frame(traj: pd.DataFrame, arm: int) -> pd.DataFrame:
@@ -396,7 +236,7 @@ def trajectory_3d_figure(
     return _per_row_figure(
         rows,
         path,
-        f"{_traj_title(trajectory)}: target and tip paths",
+        f"{trajectory_title(trajectory)}: target and tip paths",
         "dashed: target; dots: start of each tip",
         (11, 4.3),
         _path_panels,
@@ -418,14 +258,14 @@ def _per_row_figure(
     if not any(r.has_data for r in rows):
         names = ", ".join(r.title for r in rows)
         return no_data_figure(path, title, f"no stored evaluation trajectory ({names})", footer)
-    fig = _new(size[0], size[1] * len(rows) + 0.7)
+    fig = new_figure(size[0], size[1] * len(rows) + 0.7)
     for sub, row in zip(_row_figures(fig, rows), rows, strict=True):
         if row.has_data:
             draw(sub, row)
         else:
             _no_row_data(sub, "no stored evaluation trajectory")
-    _suptitle(fig, title, 13, subtitle)
-    return _save(fig, path, footer)
+    suptitle(fig, title, 13, subtitle)
+    return save_figure(fig, path, footer)
 
 
 def _error_panels(sub: Figure, row: PathRow) -> None:
@@ -483,7 +323,7 @@ def tracking_errors_figure(
     return _per_row_figure(
         rows,
         path,
-        f"{_traj_title(trajectory)}: tracking error against time",
+        f"{trajectory_title(trajectory)}: tracking error against time",
         f"grey dotted line: t = {STEADY_START:g} s, start of the steady metrics",
         (13, 3.1),
         _error_panels,
@@ -511,14 +351,14 @@ def moments_figure(
     if not any(df is not None and not df.empty for df in moments.values()):
         return no_data_figure(path, title, "no stored evaluation moments", footer)
     trajectories = list(moments)
-    fig = _new(12, 2.6 * len(trajectories) + 1.0)
+    fig = new_figure(12, 2.6 * len(trajectories) + 1.0)
     axes = fig.subplots(len(trajectories), 2, sharex=True, squeeze=False)
     for row, trajectory in enumerate(trajectories):
         df = moments[trajectory]
         peak_rows = (peaks or {}).get(trajectory)
         for arm in (0, 1):
             ax = axes[row, arm]
-            name = f"{_traj_title(trajectory)}, arm {arm + 1}"
+            name = f"{trajectory_title(trajectory)}, arm {arm + 1}"
             if subtitles and subtitles.get(trajectory):
                 name += f" ({subtitles[trajectory]})"
             ax.set_title(name, fontsize=10)
@@ -563,156 +403,5 @@ def moments_figure(
             ax.legend(loc="upper right", fontsize=8, ncol=2)
     for ax in axes[-1]:
         ax.set_xlabel("time (s)")
-    _suptitle(fig, title, 12, "spatial RMS over the 20 elements against time")
-    return _save(fig, path, footer)
-
-
-def rmse_comparison_figure(
-    summary: pd.DataFrame,
-    study: Mapping[str, Mapping[tuple[str, int], float]],
-    trajectories: Sequence[str],
-    path: str | os.PathLike[str],
-    footer: str | None = None,
-) -> Path:
-    """3-D RMSE per trajectory and arm: one bar (mean ± std across seeds) per group, and the
-    study's values as markers.
-
-    Args:
-        summary: :func:`softtrack.report.summaries.metrics_summary` output.
-        study: ``{marker label: {(trajectory, arm): value}}``.
-    """
-    title = "3-D RMSE per trajectory and arm"
-    if summary.empty or "rmse_3d_mean" not in summary:
-        return no_data_figure(path, title, "no stored evaluation metrics", footer)
-    groups = list(dict.fromkeys(summary["group"]))
-    slots = [(t, a) for t in trajectories for a in (0, 1)]
-    x = np.arange(len(slots))
-    width = 0.8 / max(1, len(groups))
-    fig = _new(max(8.0, 1.3 * len(slots) + 2), 4.8)
-    ax = fig.add_subplot()
-    for i, group in enumerate(groups):
-        part = summary[summary["group"] == group].set_index(["trajectory", "arm"])
-        mean = [part["rmse_3d_mean"].get(s, np.nan) for s in slots]
-        std = [part["rmse_3d_std"].get(s, np.nan) for s in slots]
-        ax.bar(
-            x - 0.4 + width * (i + 0.5),
-            mean,
-            width,
-            yerr=np.nan_to_num(std),
-            capsize=3,
-            color=GROUP_COLORS[i % 10],
-            alpha=0.8,
-            label=group,
-        )
-    markers = ("k*", "kx", "k^", "ks")
-    for j, (label, values) in enumerate(study.items()):
-        ys = [values.get(s, np.nan) for s in slots]
-        if np.isfinite(ys).any():
-            ax.plot(x, ys, markers[j % len(markers)], ms=9, label=label)
-    ax.set_xticks(x, [f"{_traj_title(t)}\narm {a + 1}" for t, a in slots], fontsize=9)
-    ax.set_ylabel("3-D RMSE (m)")
-    ax.set_title(f"{title} (bars: mean ± sample std across seeds)")
-    ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _save(fig, path, footer)
-
-
-def validation_figure(
-    scores: Mapping[tuple[str, int, int], pd.DataFrame],
-    path: str | os.PathLike[str],
-    footer: str | None = None,
-) -> Path:
-    """Validation score against env steps, one line per (group, seed, policy) with the selected
-    checkpoint circled; colour by group, dashed for an independent run's arm-2 policy.
-
-    Args:
-        scores: (group label, seed, policy) → rows ``global_step``, ``score`` (m) of
-            :func:`softtrack.report.summaries.validation_scores`; policy -1 is a centralized
-            run's, 0/1 an independent run's arm.
-    """
-    if not scores:
-        return no_data_figure(path, "Validation", "no selected run has validation episodes", footer)
-    fig = _new(9, 5.2)
-    ax = fig.add_subplot()
-    colors: dict[str, str] = {}
-    labelled: set[tuple[str, int]] = set()
-    for (group, _seed, policy), rows in scores.items():
-        color = colors.setdefault(group, GROUP_COLORS[len(colors) % len(GROUP_COLORS)])
-        finite = rows[np.isfinite(rows["score"])]
-        label = None
-        if (group, policy) not in labelled:
-            labelled.add((group, policy))
-            label = group if policy < 0 else f"{group}, arm {policy + 1} policy"
-        ax.plot(
-            finite["global_step"],
-            finite["score"],
-            "--" if policy == 1 else "-",
-            color=color,
-            lw=1.3,
-            alpha=0.8,
-            marker=".",
-            label=label,
-        )
-        if len(finite):
-            best = finite.loc[finite["score"].idxmin()]
-            ax.plot(best["global_step"], best["score"], "o", mfc="none", mec=color, ms=10)
-    ax.set_xlabel("environment steps (of the policy)")
-    ax.set_ylabel("validation 3-D RMSE (m)")
-    ax.set_title(
-        "Validation: mean 3-D RMSE on held-out random-target episodes per checkpoint\n"
-        "(one line per seed; circled: the checkpoint kept as best)",
-        fontsize=11,
-    )
-    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=9)
-    return _save(fig, path, footer)
-
-
-def robustness_figure(
-    summary: pd.DataFrame, path: str | os.PathLike[str], footer: str | None = None
-) -> Path:
-    """3-D RMSE against level, one panel per one-factor perturbation with at least two
-    levels; one line per group (seed mean) with its min–max band across seeds.
-
-    Args:
-        summary: rows of :func:`softtrack.report.robustness.robustness_summary` with a
-            numeric ``level``.
-    """
-    counts = summary.groupby("perturbation")["level"].nunique()
-    factors = [f for f in dict.fromkeys(summary["perturbation"]) if counts[f] >= 2]
-    if not factors:
-        return no_data_figure(path, "Robustness", "no perturbation with two levels", footer)
-    cols = min(3, len(factors))
-    n_rows = -(-len(factors) // cols)
-    fig = _new(max(6.0, 4.2 * cols), 3.4 * n_rows + 0.8)
-    groups = list(dict.fromkeys(summary["group"]))
-    colors = _palette(len(groups))
-    for i, factor in enumerate(factors):
-        ax = fig.add_subplot(n_rows, cols, i + 1)
-        for j, group in enumerate(groups):
-            part = summary[(summary["perturbation"] == factor) & (summary["group"] == group)]
-            part = part.sort_values("level")
-            if part.empty:
-                continue
-            color = colors[j % len(colors)]
-            ax.plot(part["level"], part["rmse_3d_mean"], "-o", ms=4, color=color, label=group)
-            ax.fill_between(
-                part["level"],
-                part["rmse_3d_min"],
-                part["rmse_3d_max"],
-                color=color,
-                alpha=0.15,
-                lw=0,
-            )
-        ax.set_xlabel(factor)
-        ax.set_ylabel("3-D RMSE (m)")
-        ax.grid(alpha=0.3)
-    fig.axes[0].legend(loc="upper left", fontsize=8)
-    _suptitle(
-        fig,
-        "Tracking error under perturbations",
-        12,
-        "mean over trajectories and arms; line: seed mean; band: min–max of seeds",
-    )
-    return _save(fig, path, footer)
+    suptitle(fig, title, 12, "spatial RMS over the 20 elements against time")
+    return save_figure(fig, path, footer)

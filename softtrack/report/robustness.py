@@ -13,8 +13,8 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation.robustness import ROBUSTNESS_SEED
-from softtrack.report import figures as fg
+from softtrack.evaluation.robustness import ROBUSTNESS_SEED, factor_axis_label
+from softtrack.report import comparison_figures as cf
 from softtrack.report.data import Group
 from softtrack.report.document import Context, Doc
 from softtrack.report.text import mean_pm_std
@@ -147,7 +147,15 @@ def robustness_section(doc: Doc, ctx: Context) -> None:
     one_factor = summary[np.isfinite(summary["level"].astype(float))]
     if one_factor.groupby("perturbation")["level"].nunique().max() >= 2:
         path, rel = ctx.figure("robustness.png")
-        fg.robustness_figure(
-            one_factor, path, ctx.footer([g for g in ctx.groups if g.label in labels])
+        selection = ctx.plan.robustness
+        assert selection is not None  # planned from the same tables
+        axis_labels = {f: factor_axis_label(f) for f in set(one_factor["perturbation"])}
+        cf.robustness_figure(
+            one_factor,
+            selection,
+            ctx.plan.colors,
+            axis_labels,
+            path,
+            ctx.footer(list(selection.shown)),
         )
         doc.img(rel, "3-D RMSE against perturbation level")

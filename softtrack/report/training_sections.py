@@ -13,10 +13,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from softtrack.evaluation import CONFIRM_SEED, VALIDATION_SEED
-from softtrack.report import figures as fg
+from softtrack.report import comparison_figures as cf
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import RunData
 from softtrack.report.document import NOT_IN_STUDY, Context, Doc, commit_text, seeds_text
+from softtrack.report.plan import Selection
 from softtrack.report.summaries import validation_scores, validation_summary
 from softtrack.report.text import mean_pm_std
 from softtrack.store.status import training_seconds
@@ -96,22 +97,38 @@ def _training_speed(run: RunData) -> tuple[str, str]:
 def training_section(doc: Doc, ctx: Context) -> None:
     """Episode return against environment steps per group (study Fig. 3)."""
     doc.h(2, "Training curves (study Fig. 3)")
-    curves, smoothing = training_curves(ctx.groups)
+    panels = [
+        cf.CurvePanel(selection, *training_curves(selection.shown))
+        for selection in ctx.plan.training
+    ]
+    shown = [g for p in panels for g in p.selection.shown]
     path, rel = ctx.figure("training_curves.png")
-    fg.training_curves_figure(curves, smoothing, path, ctx.footer())
+    cf.training_curves_figure(panels, ctx.plan.colors, path, ctx.footer(shown))
     doc.img(rel, "Training curves: episode return against environment steps")
-    if curves:
-        unit = (
-            "return per second of episode (the runs' training episodes differ in length)"
-            if smoothing.per_second
-            else "Episode return"
-        )
+    if any(p.curves for p in panels):
         doc.p(
-            f"{unit[0].upper()}{unit[1:]} against environment steps, mean ± 1 sample std across "
-            f"seeds; smoothing: {smoothing.describe()}. The study's curves are not published as numbers."
+            "Episode return against environment steps, mean ± 1 sample std across seeds, one "
+            "panel per family of controllers (docs/report.md), each with its own axes: budgets "
+            "differ between families, and an independent controller's curves are one arm "
+            "policy's return, not both arms'. Smoothing: each run's episode returns averaged "
+            f"over a centred window of {panels[0].smoothing.window_fraction:.0%} of its "
+            "controller's training steps (at least two episode ends). "
+            + _hidden_text(ctx.plan.training)
+            + "The study's curves are not published as numbers."
         )
     else:
         doc.p("No data: no selected run has stored training episodes.")
+
+
+def _hidden_text(selections: Sequence[Selection]) -> str:
+    """Which panels draw only their best controllers (the rest: the tables)."""
+    partial = [f"{s.title}: {s.note}" for s in selections if s.hidden]
+    if not partial:
+        return ""
+    return (
+        f"Panels that draw only their best controllers ({'; '.join(partial)}); the others "
+        "are in the tables. "
+    )
 
 
 def final_section(doc: Doc, ctx: Context) -> None:
@@ -154,9 +171,17 @@ def final_section(doc: Doc, ctx: Context) -> None:
         "budget (docs/environment.md; the run's `training.final_stage_fraction`), then mean ± sample std "
         f"across seeds. Study values: {NOT_IN_STUDY} = the study does not state them."
     )
+    panels = [
+        (s, table[table["group"].isin([g.label for g in s.shown])]) for s in ctx.plan.training
+    ]
+    shown = [g for s in ctx.plan.training for g in s.shown]
     path, rel = ctx.figure("final_returns.png")
-    fg.final_returns_figure(table, path, ctx.footer())
-    doc.img(rel, "Final-stage return per algorithm")
+    cf.final_returns_figure(panels, ctx.plan.colors, path, ctx.footer(shown))
+    doc.img(rel, "Final-stage return per family of controllers")
+    doc.p(
+        "One panel per family, as the training curves; a controller derived from another's "
+        "runs (the same training) is drawn once. " + _hidden_text(ctx.plan.training)
+    )
 
 
 def validation_section(doc: Doc, ctx: Context) -> None:
@@ -218,8 +243,18 @@ def validation_section(doc: Doc, ctx: Context) -> None:
         f'{CONFIRM_SEED:,} + k), and the lower score decided the run\'s policy; "–": no '
         "confirmation."
     )
+    panels = [
+        (
+            selection,
+            {
+                (g.label, r.seed, k): part
+                for g, r, k, part in scores
+                if g.label in {s.label for s in selection.shown}
+            },
+        )
+        for selection in ctx.plan.validation
+    ]
+    shown = [g for s in ctx.plan.validation for g in s.shown]
     path, rel = ctx.figure("validation.png")
-    fg.validation_figure(
-        {(g.label, r.seed, k): part for g, r, k, part in scores}, path, ctx.footer()
-    )
+    cf.validation_figure(panels, ctx.plan.colors, path, ctx.footer(shown))
     doc.img(rel, "Validation 3-D RMSE against environment steps")

@@ -105,8 +105,8 @@ def relayout_exported_run(run_dir: Path) -> bool:
     models under ``best/``, full training-state model files) the current layout, in place.
 
     The new directory is exported beside the old one and then takes its place; a directory
-    already laid out (``policy.json``) or holding checkpoints (a training run, which keeps
-    its training layout) is left as it is.
+    already laid out (``policy.json``), holding checkpoints (a training run, which keeps its
+    training layout) or of a planner (no model) is left as it is.
 
     Returns:
         True if the directory was rewritten.
@@ -114,6 +114,8 @@ def relayout_exported_run(run_dir: Path) -> bool:
     run_dir = Path(run_dir)
     record = RunStore(run_dir.parent).get_run(run_dir.name)
     spec = record.load_spec()
+    if spec.controller == "mpc":  # a planner's run has no model to lay out
+        return False
     policies = PolicyDir.all_of_run(run_dir, spec.controller == "independent")
     if any(p.manifest_path.is_file() or p.checkpoints_dir.exists() for p in policies):
         return False

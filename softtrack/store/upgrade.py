@@ -6,7 +6,10 @@ run) and positions as float64 in ``eval_trajectories``. The current format (see
 
 * ``eval_moments``: the per-step spatial RMS per arm and direction, float32;
 * ``eval_moment_peaks``: each element's largest absolute torque over the episode;
-* ``eval_trajectories``: positions as float32.
+* ``eval_trajectories``: positions as float32;
+* ``eval_metrics``: the ``peak_moment`` column (the arm's largest absolute element torque over
+  the episode), where it predates that column, from ``eval_moment_peaks``. The other torque
+  and clearance columns need the episode again (``softtrack evaluate``).
 
 The conversion reads only the stored tables (no episode is run again), so the summaries equal
 those a fresh evaluation of the same episodes stores. Each table is replaced atomically; a
@@ -55,7 +58,30 @@ def upgrade_run_tables(
         if any(frame[c].dtype != np.float32 for c in _POSITION_COLUMNS if c in frame.columns):
             write_table(trajectories_path, _narrow(frame, _POSITION_COLUMNS))
             written.append("eval_trajectories")
+    if _add_peak_moment(tables):
+        written.append("eval_metrics")
     return written
+
+
+def _add_peak_moment(tables: Path) -> bool:
+    """Add ``peak_moment`` (N·m) to an ``eval_metrics`` without it, per trajectory and arm the
+    maximum of ``eval_moment_peaks`` over elements and directions; False when there is nothing
+    to add (column present, a table missing, or a trajectory or arm without peaks)."""
+    metrics_path = tables / "eval_metrics.parquet"
+    peaks_path = tables / "eval_moment_peaks.parquet"
+    if not (metrics_path.is_file() and peaks_path.is_file()):
+        return False
+    metrics = read_table(metrics_path)
+    if "peak_moment" in metrics.columns:
+        return False
+    peaks = read_table(peaks_path)
+    peak = peaks.groupby(["trajectory", "arm"])["peak_abs_moment"].max()
+    keys = list(zip(metrics["trajectory"].astype(str), metrics["arm"].astype(int), strict=True))
+    if not all(key in peak.index for key in keys):
+        return False
+    metrics["peak_moment"] = [float(peak[key]) for key in keys]
+    write_table(metrics_path, metrics)
+    return True
 
 
 def _split_moments(tables: Path, old: pd.DataFrame, keep_full: bool) -> list[str]:
