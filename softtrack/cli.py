@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 import typer
 
 from softtrack import api
+from softtrack.cli_classes import Command, Group
 from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.executors.dispatch import ExecOptions
 
@@ -37,6 +38,7 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_show_locals=False,
     rich_markup_mode="markdown",
+    cls=Group,
 )
 
 SetOption = Annotated[
@@ -133,7 +135,7 @@ def main(
         signal.signal(signal.SIGTERM, _exit_on_sigterm)
 
 
-@app.command()
+@app.command(cls=Command)
 def validate(
     spec: Annotated[
         str, typer.Argument(metavar="SPEC", help="Experiment spec (YAML).", show_default=False)
@@ -150,13 +152,11 @@ def validate(
     typer.echo(api.validation_summary(resolved, chain))
 
 
-@app.command("spec")
+@app.command("spec", cls=Command)
 def spec_command(
     spec: Annotated[
         str | None,
-        typer.Argument(
-            metavar="[SPEC]", help="Print this spec fully resolved.", show_default=False
-        ),
+        typer.Argument(metavar="SPEC", help="Print this spec fully resolved.", show_default=False),
     ] = None,
     overrides: SetOption = None,
     schema: Annotated[
@@ -193,12 +193,12 @@ def spec_command(
             typer.echo(api.resolved_spec_yaml(spec, overrides or []), nl=False)
 
 
-@app.command()
+@app.command(cls=Command)
 def train(
     spec: Annotated[
         str | None,
         typer.Argument(
-            metavar="[SPEC]", help="Experiment spec (YAML): one run per seed.", show_default=False
+            metavar="SPEC", help="Experiment spec (YAML): one run per seed.", show_default=False
         ),
     ] = None,
     overrides: SetOption = None,
@@ -439,13 +439,13 @@ def _finish(outcome: Outcome, what: str) -> None:
         raise typer.Exit(o.exit_code)
 
 
-@app.command()
+@app.command(cls=Command)
 @_with_exec_options
 def sweep(
     specs: Annotated[
         list[str],
         typer.Argument(
-            metavar="SPEC...",
+            metavar="SPEC",
             help="Experiment specs (YAML): one run per seed and grid point.",
             show_default=False,
         ),
@@ -504,13 +504,13 @@ def sweep(
     _finish(outcome, "sweep")
 
 
-@app.command("resume")
+@app.command("resume", cls=Command)
 @_with_exec_options
 def resume_command(
     selection: Annotated[
         list[str] | None,
         typer.Argument(
-            metavar="[EXPERIMENT|SWEEP_ID|RUN_ID]...",
+            metavar="EXPERIMENT|SWEEP_ID|RUN_ID",
             show_default=False,
             help="Experiment names, sweep ids or run ids [default: every resumable run].",
         ),
@@ -548,13 +548,13 @@ def resume_command(
     _finish(outcome, "resume")
 
 
-@app.command("tune")
+@app.command("tune", cls=Command)
 @functools.partial(_with_exec_options, workers=TuneWorkersOption)
 def tune_command(
     spec: Annotated[
         str | None,
         typer.Argument(
-            metavar="[SPEC]",
+            metavar="SPEC",
             show_default=False,
             help="Experiment spec (YAML) with a tune: section (the search space).",
         ),
@@ -696,7 +696,7 @@ def tune_command(
         raise typer.Exit(outcome.exit_code)
 
 
-@app.command()
+@app.command(cls=Command)
 def runs(
     runs_dir: RunsDirOption = None,
     output_format: Annotated[
@@ -741,12 +741,12 @@ class QueryFormat(enum.StrEnum):
     json = "json"
 
 
-@app.command("query")
+@app.command("query", cls=Command)
 def query_command(
     sql: Annotated[
         str | None,
         typer.Argument(
-            metavar="[SQL]",
+            metavar="SQL",
             show_default=False,
             help='A DuckDB SQL query (quote it), e.g. "SELECT * FROM runs".',
         ),
@@ -807,12 +807,12 @@ class ModelOption(enum.StrEnum):
     best = "best"
 
 
-@app.command()
+@app.command(cls=Command)
 def evaluate(
     references: Annotated[
         list[str],
         typer.Argument(
-            metavar="RUN_ID_OR_DIR...",
+            metavar="RUN_ID_OR_DIR",
             help="Run ids (or prefixes) or run directories.",
             show_default=False,
         ),
@@ -951,13 +951,13 @@ RobustnessWorkersOption = Annotated[
 ]
 
 
-@app.command()
+@app.command(cls=Command)
 @functools.partial(_with_exec_options, workers=RobustnessWorkersOption)
 def robustness(
     references: Annotated[
         list[str],
         typer.Argument(
-            metavar="RUN_ID_OR_DIR...",
+            metavar="RUN_ID_OR_DIR",
             help="Run ids (or prefixes) or run directories.",
             show_default=False,
         ),
@@ -1058,6 +1058,13 @@ def robustness(
             in_place=in_place,
             on_copied=_print_copied,
         )
+    if outcome.copied:
+        keys = ", ".join(dict.fromkeys(key for _, key in outcome.copied))
+        typer.echo(
+            f"robustness: {keys} equal the nominal setting of the run(s): its episodes are "
+            "stored under them too, not run again",
+            err=True,
+        )
     if outcome.skipped:
         typer.echo(
             f"robustness: {len(outcome.skipped)} settings already stored (--redo "
@@ -1076,7 +1083,7 @@ def robustness(
         raise typer.Exit(outcome.exit_code)
 
 
-@app.command()
+@app.command(cls=Command)
 def export(
     run: Annotated[
         str,
@@ -1101,13 +1108,11 @@ def export(
     typer.echo(f"exported: {path} ({size / 1e6:.1f} MB)")
 
 
-@app.command()
+@app.command(cls=Command)
 def upgrade(
     run_dirs: Annotated[
         list[str],
-        typer.Argument(
-            metavar="RUN_DIR...", show_default=False, help="Run directories to rewrite."
-        ),
+        typer.Argument(metavar="RUN_DIR", show_default=False, help="Run directories to rewrite."),
     ],
     keep_full_moments: Annotated[
         bool,
@@ -1133,12 +1138,12 @@ def upgrade(
         typer.echo(f"{path}: {', '.join(written) if written else 'already current'}")
 
 
-@app.command()
+@app.command(cls=Command)
 def report(
     selection: Annotated[
         list[str] | None,
         typer.Argument(
-            metavar="SELECTION...",
+            metavar="SELECTION",
             show_default=False,
             help="Experiment names, run ids (or prefixes) or spec files.",
         ),
@@ -1190,7 +1195,7 @@ def report(
     typer.echo(f"report: {index}")
 
 
-@app.command()
+@app.command(cls=Command)
 def quickstart(
     overrides: SetOption = None,
     runs_dir: RunsDirOption = None,

@@ -104,7 +104,9 @@ def test_train_prints_progress_lines_into_a_log(
     steps = [int(re.match(r"\S+ ([\d,]+)/400 steps", line)[1].replace(",", "")) for line in lines]
     assert len(steps) >= 10 and steps == sorted(steps) and steps[-1] <= 400
     assert all("steps/s" in line for line in lines[1:])
-    assert any(re.search(r"return -?[\d,]+\.\d\d, \d+:\d\d h left$", line) for line in lines)
+    assert any(
+        re.search(r"the last 20 episodes -?[\d,]+\.\d\d, \d+:\d\d h left$", line) for line in lines
+    )
 
 
 def test_a_training_log_gets_a_line_every_5_percent_and_a_final_line(tmp_path: Path) -> None:
@@ -151,7 +153,8 @@ def test_progress_line_format() -> None:
 
     line = progress_line("5JP1EEN4", 2_650_720, 4_000_000, 378.1, 14169.214)
     assert line == (
-        "5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, return 14,169.21, 0:59 h left"
+        "5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, "
+        "mean return of the last 20 episodes 14,169.21, 0:59 h left"
     )
     assert progress_line("x arm1", 0, 10, None, float("nan")) == "x arm1 0/10 steps (0.0%)"
 
@@ -477,3 +480,38 @@ def test_quickstart_reports_the_shipped_policy_as_it_just_measured_it(tmp_path: 
             start = f"| {name} | arm {arm + 1} |"
             row = next(r for r in section.splitlines() if r.startswith(start))
             assert f"| {value} |" in row, (row, value)
+
+
+def test_tensorboard_logs_into_the_run_and_keeps_the_spec_hash(tmp_path: Path) -> None:
+    """``training.tensorboard: true`` writes SB3's scalars to ``<run>/tb/`` (the episode
+    return among them), and a spec differs from its hash only in where it logs."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    from softtrack.spec import load_spec, spec_hash
+
+    spec = _spec(tmp_path, tensorboard=True)
+    result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    run_dir = tmp_path / "runs" / result.stdout.strip()
+    events = sorted((run_dir / "tb").rglob("events.out.tfevents.*"))
+    assert events, sorted(p.name for p in run_dir.iterdir())
+    accumulator = EventAccumulator(str(events[0].parent))
+    accumulator.Reload()
+    assert "rollout/ep_rew_mean" in accumulator.Tags()["scalars"]
+    (tmp_path / "plain").mkdir()
+    plain = _spec(tmp_path / "plain")
+    assert spec_hash(load_spec(spec)) == spec_hash(load_spec(plain))
+
+
+def test_tensorboard_without_the_package_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from softtrack.rl import factory
+
+    monkeypatch.setattr(factory, "installed", lambda module: module != "tensorboard")
+    spec = _spec(tmp_path, tensorboard=True)
+    result = runner.invoke(app, ["train", str(spec), "--runs-dir", str(tmp_path / "runs")])
+    assert result.exit_code == 2
+    assert "training.tensorboard needs the tensorboard package" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "runs").exists() or not any((tmp_path / "runs").iterdir())

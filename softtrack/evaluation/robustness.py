@@ -56,6 +56,7 @@ __all__ = [
     "ROBUSTNESS_SEED",
     "ROBUSTNESS_TABLE",
     "Setting",
+    "copy_nominal",
     "done_settings",
     "evaluate_setting",
     "expand_settings",
@@ -289,6 +290,31 @@ def store_rows(record: RunRecord, rows: pd.DataFrame) -> None:
         replaced = old.set_index(_KEY).index.isin(rows.set_index(_KEY).index)
         rows = pd.concat([old[~replaced], rows], ignore_index=True)
     write_table(path, rows.reset_index(drop=True))
+
+
+def copy_nominal(
+    record: RunRecord, setting: Setting, trajectories: Sequence[str], keep_realism: bool = False
+) -> bool:
+    """Store the run's ``nominal`` rows again under ``setting``, a setting whose perturbed spec
+    equals the nominal one (e.g. ``obs_noise=0`` for a run without observation noise), so the
+    episodes run once. False when the nominal rows of ``trajectories`` are not stored."""
+    path = record.table_path(ROBUSTNESS_TABLE)
+    if not path.is_file():
+        return False
+    table = read_table(path)
+    baseline = "run" if keep_realism else "idealised"
+    rows = table[
+        (table["setting"] == "nominal")
+        & (table["baseline"] == baseline)
+        & table["trajectory"].isin(trajectories)
+    ].copy()
+    if set(rows["trajectory"]) != set(trajectories):
+        return False
+    rows["perturbation"] = setting.perturbation
+    rows["level"] = setting.level
+    rows["setting"] = setting.key
+    store_rows(record, rows)
+    return True
 
 
 def done_settings(

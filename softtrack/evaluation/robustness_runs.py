@@ -26,6 +26,7 @@ import pandas as pd
 from softtrack.evaluation.episodes import Policy
 from softtrack.evaluation.robustness import (
     Setting,
+    copy_nominal,
     done_settings,
     evaluate_setting,
     merge_parts,
@@ -89,6 +90,9 @@ class RobustnessOutcome:
         skipped: cells already in the tables.
         failed: cells whose worker failed (see ``<run>/robustness.log``).
         detached: the workers were left running (their parts merge on the next call).
+        copied: cells whose setting equals the nominal one for that run (e.g.
+            ``action_delay=0`` of a run without delay): the nominal rows stored under their
+            key, no episode run again.
     """
 
     rows: pd.DataFrame = field(default_factory=pd.DataFrame)
@@ -96,6 +100,7 @@ class RobustnessOutcome:
     skipped: list[tuple[str, str]] = field(default_factory=list)
     failed: list[tuple[str, str]] = field(default_factory=list)
     detached: bool = False
+    copied: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def exit_code(self) -> int:
@@ -127,22 +132,64 @@ def run_robustness(
     """
     options = options or ExecOptions()
     specs = {}
+    as_nominal: dict[str, list[Setting]] = {}  # run id → settings equal to its nominal one
     for record in records:
         merge_parts(record)
         specs[record.run_id] = spec = record.load_spec()
         require(record, spec)
+        nominal = perturbed_spec(spec, Setting(()), keep_realism)
         for setting in settings:
-            perturbed_spec(spec, setting, keep_realism)
+            if perturbed_spec(spec, setting, keep_realism) == nominal and setting.levels:
+                as_nominal.setdefault(record.run_id, []).append(setting)
     outcome = RobustnessOutcome()
     todo: list[tuple[RunRecord, Setting]] = []
     for record in records:
         done = set() if redo else done_settings(record, trajectories, episodes, keep_realism)
+        copied = as_nominal.get(record.run_id, [])
         for setting in settings:
             cell = (record.run_id, setting.key)
             if setting.key in done:
                 outcome.skipped.append(cell)
-            else:
+            elif setting not in copied:
                 todo.append((record, setting))
+    try:
+        _evaluate(
+            todo,
+            specs,
+            trajectories,
+            episodes,
+            keep_realism,
+            options,
+            outcome,
+            on_cell,
+            on_progress,
+            load,
+            records,
+        )
+    finally:
+        for record in records:
+            for setting in as_nominal.get(record.run_id, []):
+                if (record.run_id, setting.key) in outcome.skipped:
+                    continue
+                if copy_nominal(record, setting, trajectories, keep_realism):
+                    outcome.copied.append((record.run_id, setting.key))
+    return outcome
+
+
+def _evaluate(
+    todo: list[tuple[RunRecord, Setting]],
+    specs: dict[str, ExperimentSpec],
+    trajectories: Sequence[str],
+    episodes: int,
+    keep_realism: bool,
+    options: ExecOptions,
+    outcome: RobustnessOutcome,
+    on_cell: Callable[[RunRecord, Setting, pd.DataFrame], None] | None,
+    on_progress: Callable[[str], None] | None,
+    load: Callable[[RunRecord, ExperimentSpec], Policy],
+    records: Sequence[RunRecord],
+) -> None:
+    """Evaluate the ``todo`` cells in this process or on workers (:func:`run_robustness`)."""
     in_process = options.executor == "local" and (options.workers or 1) == 1 and not options.detach
     if in_process:
         frames = []
@@ -165,7 +212,7 @@ def run_robustness(
             if on_cell is not None:
                 on_cell(record, setting, rows)
         outcome.rows = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-        return outcome
+        return
     jobs = [
         RobustnessJob(str(record.path), setting, tuple(trajectories), episodes, keep_realism)
         for record, setting in todo
@@ -176,12 +223,11 @@ def run_robustness(
     ]
     _run_jobs(jobs, parts, records, options, outcome, on_progress, cluster)
     if outcome.detached:
-        return outcome
+        return
     for (record, setting), part in zip(todo, parts, strict=True):
         (outcome.cells if part.is_file() else outcome.failed).append((record.run_id, setting.key))
     for record in records:
         merge_parts(record)
-    return outcome
 
 
 def _run_jobs(

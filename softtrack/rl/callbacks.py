@@ -30,6 +30,7 @@ import os
 import shutil
 import sys
 import time
+from collections import deque
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -45,6 +46,7 @@ from softtrack.store.tables import append_rows
 __all__ = [
     "PROGRESS_LINE_INTERVAL_S",
     "PROGRESS_LINE_PERCENT",
+    "RECENT_EPISODES",
     "Checkpointer",
     "EpisodeLogger",
     "ProgressMonitor",
@@ -60,6 +62,8 @@ PROGRESS_LINE_INTERVAL_S = 120.0
 """Longest time between progress lines when stderr is not a terminal (no bar), s."""
 PROGRESS_LINE_PERCENT = 5.0
 """A progress line at every this many percent of the budget when stderr is not a terminal."""
+RECENT_EPISODES = 20
+"""The progress shows the mean return of this many last training episodes."""
 
 
 class TrainingClock:
@@ -110,8 +114,14 @@ class EpisodeLogger(BaseCallback):
         self.next_episode = int(next_episode)
         self.flush_interval = flush_interval
         self.pending: list[dict[str, Any]] = []
-        self.last_return: float | None = None
+        self.recent: deque[float] = deque(maxlen=RECENT_EPISODES)
         self._last_flush = time.monotonic()
+
+    @property
+    def recent_return(self) -> float | None:
+        """The mean return of the last :data:`RECENT_EPISODES` finished episodes (fewer at the
+        start; ``None`` before the first)."""
+        return sum(self.recent) / len(self.recent) if self.recent else None
 
     @property
     def path(self) -> Path:
@@ -137,7 +147,7 @@ class EpisodeLogger(BaseCallback):
                 }
             )
             self.next_episode += 1
-            self.last_return = ret
+            self.recent.append(ret)
         if self.pending and time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
         return True
@@ -326,15 +336,16 @@ def _duration(seconds: float) -> str:
 
 
 def progress_line(
-    name: str, step: int, total: int, steps_per_second: float | None, last_return: float | None
+    name: str, step: int, total: int, steps_per_second: float | None, recent_return: float | None
 ) -> str:
-    """One line of training progress for a log, e.g.
-    ``5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, return 14,169.21, 0:59 h left``."""
+    """One line of training progress for a log, e.g. ``5JP1EEN4 2,650,720/4,000,000 steps
+    (66.3%), 378 steps/s, mean return of the last 20 episodes 14,169.21, 0:59 h left`` (the
+    episode return: the reward summed over a training episode, :attr:`EpisodeLogger.recent_return`)."""
     parts = [f"{name} {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%)"]
     if steps_per_second:
         parts.append(f"{steps_per_second:,.0f} steps/s")
-    if last_return is not None and math.isfinite(last_return):
-        parts.append(f"return {last_return:,.2f}")
+    if recent_return is not None and math.isfinite(recent_return):
+        parts.append(f"mean return of the last {RECENT_EPISODES} episodes {recent_return:,.2f}")
     if steps_per_second and step < total:
         parts.append(f"{_duration((total - step) / steps_per_second)} left")
     return ", ".join(parts)
@@ -468,18 +479,20 @@ class ProgressMonitor(BaseCallback):
                     step,
                     self.total_timesteps,
                     self.steps_per_second(),
-                    self.episodes.last_return,
+                    self.episodes.recent_return,
                 )
                 print(line, file=sys.stderr, flush=True)
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
             sps = self.steps_per_second()
-            ret = self.episodes.last_return
+            ret = self.episodes.recent_return
             self._bar.set_postfix(
                 {
                     "steps/s": "-" if sps is None else f"{sps:,.0f}",
-                    "return": "-" if ret is None or not math.isfinite(ret) else f"{ret:.2f}",
+                    f"return (mean of last {RECENT_EPISODES})": "-"
+                    if ret is None or not math.isfinite(ret)
+                    else f"{ret:.2f}",
                 },
                 refresh=True,
             )

@@ -15,6 +15,7 @@ ends, which :mod:`softtrack.rl.callbacks` logs.
 
 from __future__ import annotations
 
+import importlib.util
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -40,6 +41,11 @@ __all__ = [
 ALGO_NAMES = ("td3", "ddpg", "sac", "tqc", "crossq", "ppo")
 
 
+def installed(module: str) -> bool:
+    """Whether ``module`` can be imported here (without importing it)."""
+    return importlib.util.find_spec(module) is not None
+
+
 def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
     """Raise :class:`SpecError` for spec settings ``softtrack train`` cannot run here."""
     if spec.algo.backend == "sbx":
@@ -54,7 +60,15 @@ def check_supported(spec: ExperimentSpec, file: str = "spec") -> None:
                 "algo.backend: sb3",
                 field="algo.backend",
             ) from None
-    elif spec.algo.name == "tqc":
+    if spec.training.tensorboard and not installed("tensorboard"):
+        raise SpecError(
+            file,
+            "training.tensorboard needs the tensorboard package, which is not installed",
+            "pip install 'softtrack[tensorboard]' (or -c constraints.txt tensorboard) or set "
+            "training.tensorboard: false",
+            field="training.tensorboard",
+        )
+    if spec.algo.backend == "sb3" and spec.algo.name == "tqc":
         try:
             import sb3_contrib  # noqa: F401
         except ImportError:
@@ -171,10 +185,15 @@ def _set_threads(spec: ExperimentSpec) -> None:
     torch.set_num_threads(spec.training.torch_threads)
 
 
-def build_model(spec: ExperimentSpec, env: Any, seed: int) -> Any:
-    """A fresh SB3 model for ``env`` with the spec's hyperparameters and ``seed``."""
+def build_model(
+    spec: ExperimentSpec, env: Any, seed: int, tensorboard_dir: Path | None = None
+) -> Any:
+    """A fresh SB3 model for ``env`` with the spec's hyperparameters and ``seed``, logging to
+    TensorBoard in ``tensorboard_dir`` when given."""
     _set_threads(spec)
     kwargs = spec.algo.sb3_kwargs()
+    if tensorboard_dir is not None:
+        kwargs["tensorboard_log"] = str(tensorboard_dir)
     noise = make_action_noise(spec, int(np.prod(env.action_space.shape)), env.num_envs)
     if noise is not None:
         kwargs["action_noise"] = noise

@@ -205,6 +205,10 @@ class PolicyTrainer:
         """The model's env steps, once a model exists."""
         return None if self.model is None else int(self.model.num_timesteps)
 
+    def _tensorboard_dir(self) -> Path | None:
+        """``<run>/tb`` when the spec logs to TensorBoard (``training.tensorboard``)."""
+        return self.record.path / "tb" if self.spec.training.tensorboard else None
+
     def _restore(self) -> dict[str, Any] | None:
         """Load the newest loadable checkpoint into ``model``/``env``; its state, or None."""
         from stable_baselines3.common.vec_env import VecNormalize
@@ -227,6 +231,7 @@ class PolicyTrainer:
                     model.load_replay_buffer(buffer)
                 if int(model.num_timesteps) != step:
                     raise ValueError("model and state.json disagree on the step count")
+                model.tensorboard_log = self._tensorboard_dir()  # None: off
                 self.model, self.env = model, env
                 return dict(state)
             except Exception as exc:
@@ -266,7 +271,7 @@ class PolicyTrainer:
                 for old in job.policy.list_checkpoints():
                     shutil.rmtree(old, ignore_errors=True)
             self.env = make_vec_env(spec, job.seed, job.arm)
-            self.model = build_model(spec, self.env, job.seed)
+            self.model = build_model(spec, self.env, job.seed, self._tensorboard_dir())
             next_episode = 0
         training = spec.training
         episodes = EpisodeLogger(record, clock, next_episode, columns=job.columns)
@@ -317,6 +322,7 @@ class PolicyTrainer:
                 total_timesteps=remaining if state is not None else job.total_timesteps,
                 callback=CallbackList(callbacks),
                 reset_num_timesteps=state is None,
+                tb_log_name=job.policy.label or "policy",
                 progress_bar=False,
             )
         self.monitor.close()

@@ -263,10 +263,11 @@ def spec_hash(spec: ExperimentSpec) -> str:
     The runs of one experiment therefore share the hash across seeds; any other change
     (including ``name``) changes it, except the ``cluster`` section (where it runs, not what),
     the ``tune`` section (how ``softtrack tune`` searches, not what a run is: a spec with a
-    search space hashes as the same spec without it) and a later-added field left at its
-    neutral value (``_FIELDS_ADDED_LATER``).
+    search space hashes as the same spec without it), ``training.tensorboard`` (logging) and
+    a later-added field left at its neutral value (``_FIELDS_ADDED_LATER``).
     """
     data = spec.model_dump(mode="json", exclude={"seeds", "cluster", "tune"})
+    data["training"].pop("tensorboard", None)  # where it logs, not what a run is
     for (*parents, leaf), neutral in _FIELDS_ADDED_LATER.items():
         section = data
         for key in parents:

@@ -51,6 +51,13 @@ class TrainingSpec(SpecModel):
         "env steps",
         ge=0,
     )
+    tensorboard: bool = unit_field(
+        False,
+        "also log training to TensorBoard in <run>/tb/ (SB3's scalars: episode return and "
+        "length, losses, fps; view with `tensorboard --logdir runs`); needs the tensorboard "
+        "package (pip install 'softtrack[tensorboard]'); does not change the spec hash",
+        "-",
+    )
     keep_checkpoints: Int = unit_field(
         2,
         "most recent checkpoints kept on disk (a 2e6-transition replay buffer is ~1.5 GB)",
