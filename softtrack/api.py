@@ -50,6 +50,8 @@ __all__ = [
     "QUICKSTART_PRETRAINED",
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
+    "compare",
+    "compare_figure",
     "copy_run",
     "effective_status",
     "evaluate",
@@ -511,6 +513,28 @@ def writable_run(
     if on_copied is not None:
         on_copied(record, copy)
     return copy
+
+
+def compare(
+    selection: Sequence[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    metric: str = "rmse_3d",
+    reps: int = 2000,
+) -> Any:
+    """:func:`softtrack.report.compare.compare_selection`: the controllers the ``selection``
+    items name, the first against each other, across their seeds (returns a ``Comparison``;
+    ``.lines()`` is what ``softtrack compare`` prints)."""
+    from softtrack.report.compare import compare_selection
+
+    return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps)
+
+
+def compare_figure(comparison: Any, path: str | os.PathLike[str]) -> Path:
+    """The performance profile of a :func:`compare` result, written to ``path`` (PNG)."""
+    from softtrack.report.compare import profile_figure
+
+    return profile_figure([("", comparison)], path)
 
 
 def report(

@@ -1196,6 +1196,58 @@ def report(
 
 
 @app.command(cls=Command)
+def compare(
+    selection: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="CONTROLLER",
+            show_default=False,
+            help="Two or more controllers, each an experiment name, run id (or prefix) or "
+            "spec file; the first is compared with each other.",
+        ),
+    ],
+    runs_dir: RunsDirOption = None,
+    metric: Annotated[
+        str,
+        typer.Option(
+            "--metric", metavar="COLUMN", help="eval_metrics column to compare (an error, m)."
+        ),
+    ] = "rmse_3d",
+    figure: Annotated[
+        str | None,
+        typer.Option(
+            "--figure",
+            metavar="PNG",
+            show_default=False,
+            help="Also write the performance profile figure here.",
+        ),
+    ] = None,
+    reps: Annotated[
+        int, typer.Option("--reps", metavar="N", min=100, help="Bootstrap resamples.")
+    ] = 2000,
+) -> None:
+    """Compare controllers across their seeds, as a reviewer would want it.
+
+    Per trajectory and arm and over all of them: the interquartile mean of the runs' 3-D RMSE
+    with a 95 % stratified bootstrap interval; the probability that the first controller
+    improves on each other (0.5: no difference); the seeds and CPU kinds behind each, and the
+    cross-CPU noise floor. Reads only stored evaluations (docs/statistics.md).
+    Example: softtrack compare td3-sbx-128-mirror-val-confirm independent-td3-sbx-2e6-val-confirm
+    --runs-dir models
+    """
+    with _user_errors(runs_dir):
+        if len(selection) < 2:
+            raise api.SpecError(
+                "compare", "needs at least two controllers", "name two or more, e.g. A B"
+            )
+        comparison = api.compare(selection, runs_dir=runs_dir, metric=metric, reps=reps)
+        for line in comparison.lines():
+            typer.echo(line)
+        if figure:
+            typer.echo(f"figure: {api.compare_figure(comparison, figure)}")
+
+
+@app.command(cls=Command)
 def quickstart(
     overrides: SetOption = None,
     runs_dir: RunsDirOption = None,

@@ -21,6 +21,7 @@ LAYERS: list[set[str]] = [
     {"evaluation"},
     {"report", "rl"},
     {"tune"},
+    {"cli_classes"},
     {"api", "cli", "workers", "__init__", "__main__"},
 ]
 LAYER = {name: level for level, names in enumerate(LAYERS) for name in names}

@@ -888,3 +888,17 @@ def test_the_command_line_chooses_the_drawn_controllers(store: RunStore, tmp_pat
     assert result.stderr.strip().startswith("error: --figures-for sac: no controller")
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad").exists()
+
+
+def test_across_seeds_tables_and_profile(report: Path) -> None:
+    """The report states the headline controllers' IQM with its interval and the probability
+    that the best improves on each other, per task, and draws their performance profiles."""
+    md = report.read_text(encoding="utf-8")
+    section = md.split("### Across seeds: interquartile mean and probability of improvement\n")[1]
+    rows = [line for line in section.split("\n\n")[1].splitlines() if line.startswith("|")]
+    assert rows[0].startswith("| controller | runs | seeds | IQM 3-D RMSE, all cells (m)")
+    body = rows[2:]
+    assert body[0].split("|")[5].strip() == "—"  # the best is not compared with itself
+    assert all(re.search(r"\d\.\d\d \[\d\.\d\d, \d\.\d\d\]", r.split("|")[5]) for r in body[1:])
+    assert "noise floor" in section.split("##")[0]
+    assert (report.parent / "figures" / "performance_profile.png").is_file()

@@ -31,6 +31,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from softtrack.report.across_seeds import across_seeds_section
 from softtrack.report.contact import contact_section
 from softtrack.report.data import group_runs, load_runs, trajectories_in
 from softtrack.report.document import (
@@ -141,6 +142,7 @@ def build_report(
     final_section(doc, ctx)
     validation_section(doc, ctx)
     errors_section(doc, ctx, summary, trajectories)
+    across_seeds_section(doc, ctx, trajectories)
     random_targets_section(doc, ctx)
     robustness_section(doc, ctx)
     contact_section(doc, ctx)

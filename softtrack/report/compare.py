@@ -1,0 +1,292 @@
+"""``softtrack compare``: controllers side by side with across-seed statistics.
+
+Each controller is the set of runs one selection item names (an experiment name, a run id or
+prefix, a spec file: :func:`softtrack.report.select.select_report_runs`). Its scores are the
+stored evaluation metric (default the 3-D RMSE, m) as a runs × cells matrix, a cell being a
+trajectory and arm. :func:`compare_controllers` gives, with the statistics of
+:mod:`softtrack.evaluation.seed_statistics`:
+
+* per controller and cell, and over all cells, the interquartile mean with its 95 % stratified
+  bootstrap interval;
+* for the first controller against each other, the probability of improvement (a random run of
+  the first has the lower error in a random cell) with its interval;
+* the seeds and the CPU kinds that computed the scores, and the cross-CPU noise floor.
+
+The report's comparison tables and performance profile use the same functions.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from softtrack.evaluation import EVAL_TRAJECTORIES
+from softtrack.evaluation.seed_statistics import (
+    BOOTSTRAP_REPS,
+    Interval,
+    interquartile_mean,
+    performance_profile,
+    probability_of_improvement,
+    stratified_bootstrap,
+)
+from softtrack.report.data import load_runs
+from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
+from softtrack.report.select import select_report_runs
+from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
+
+__all__ = [
+    "CROSS_CPU_NOTE",
+    "Comparison",
+    "ControllerScores",
+    "compare_controllers",
+    "compare_selection",
+    "profile_figure",
+]
+
+CROSS_CPU_NOTE = (
+    "cross-CPU noise floor: one deterministic evaluation of a shipped policy moved by a median "
+    "0.31 %, at most 4.4 % (0.0032 m) between CPU kinds (docs/performance.md, "
+    "benchmarks/cross_cpu_spread.py); a difference below that is not a finding"
+)
+
+
+@dataclass(frozen=True)
+class ControllerScores:
+    """One controller's runs as a score matrix.
+
+    Attributes:
+        label: the selection item that named it.
+        cells: the (trajectory, arm) of each column.
+        scores: (runs, cells) the metric of each run and cell (NaN where not stored).
+        seeds: each run's seed, in row order.
+        cpus: CPU kind → number of scores it computed (``eval_metrics.cpu``; "unrecorded" for
+            tables written before the column existed).
+    """
+
+    label: str
+    cells: tuple[tuple[str, int], ...]
+    scores: np.ndarray
+    seeds: tuple[int, ...]
+    cpus: dict[str, int]
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The statistics of :func:`compare_controllers` (all intervals at ``confidence``)."""
+
+    metric: str
+    controllers: tuple[ControllerScores, ...]
+    per_cell: dict[str, tuple[Interval | None, ...]]
+    overall: dict[str, Interval]
+    improvement: dict[str, Interval]
+    per_cell_improvement: dict[str, tuple[Interval | None, ...]]
+    reps: int
+    confidence: float
+
+    def lines(self) -> list[str]:
+        """The comparison as text tables (what ``softtrack compare`` prints)."""
+        first = self.controllers[0]
+        width = max(len(c.label) for c in self.controllers)
+        level = f"{100 * self.confidence:g} %"
+        out = [
+            f"{self.metric} (lower is better): interquartile mean over runs [{level} stratified "
+            f"bootstrap interval, {self.reps} resamples]",
+            "",
+            f"{'controller':{width}}  runs  seeds  {'all cells':>24}  CPU kinds",
+        ]
+        for c in self.controllers:
+            cpus = ", ".join(f"{kind} ({n})" for kind, n in sorted(c.cpus.items()))
+            out.append(
+                f"{c.label:{width}}  {len(c.seeds):>4}  {_seeds(c.seeds):>5}  "
+                f"{self.overall[c.label].text():>24}  {cpus}"
+            )
+        columns = {c.label: max(24, len(c.label)) for c in self.controllers}
+        out += [
+            "",
+            f"{'cell':20}" + "".join(f"  {c.label:>{columns[c.label]}}" for c in self.controllers),
+        ]
+        for j, (trajectory, arm) in enumerate(first.cells):
+            row = f"{trajectory_title(trajectory) + f', arm {arm + 1}':20}"
+            for c in self.controllers:
+                interval = self.per_cell[c.label][j]
+                row += f"  {interval.text() if interval else 'no data':>{columns[c.label]}}"
+            out.append(row)
+        for other in self.controllers[1:]:
+            p = self.improvement[other.label]
+            out += [
+                "",
+                f"P({first.label} improves on {other.label}) = {p.text(2)} over all cells "
+                "(0.5: no difference; above 0.5: the first is better)",
+            ]
+            cells = [
+                f"{trajectory_title(t)} arm {a + 1} {i.text(2) if i else 'no data'}"
+                for (t, a), i in zip(
+                    first.cells, self.per_cell_improvement[other.label], strict=True
+                )
+            ]
+            out.append("  per cell: " + "; ".join(cells))
+        out += ["", CROSS_CPU_NOTE]
+        return out
+
+
+def _seeds(seeds: Sequence[int]) -> str:
+    values = sorted(set(seeds))
+    if values and values == list(range(values[0], values[-1] + 1)) and len(values) > 2:
+        return f"{values[0]}-{values[-1]}"
+    return ",".join(str(s) for s in values)
+
+
+def controller_scores(
+    label: str,
+    metrics: Sequence[tuple[int, pd.DataFrame | None]],
+    metric: str,
+    trajectories: Sequence[str],
+) -> ControllerScores:
+    """The score matrix of one controller from its runs' ``(seed, eval_metrics)``.
+
+    Raises:
+        RunStoreError: no run has ``metric`` stored.
+    """
+    cells = tuple((t, arm) for t in trajectories for arm in (0, 1))
+    rows: list[list[float]] = []
+    seeds: list[int] = []
+    cpus: dict[str, int] = {}
+    for seed, table in metrics:
+        if table is None or metric not in table:
+            continue
+        by_cell = {
+            (str(r.trajectory), int(r.arm)): float(getattr(r, metric))
+            for r in table.itertuples(index=False)
+        }
+        rows.append([by_cell.get(cell, np.nan) for cell in cells])
+        seeds.append(seed)
+        kinds = table["cpu"].fillna("unrecorded") if "cpu" in table else ["unrecorded"] * len(table)
+        for kind in kinds:
+            cpus[str(kind)] = cpus.get(str(kind), 0) + 1
+    if not rows:
+        raise RunStoreError(
+            f"{label}: no run has {metric} in eval_metrics; evaluate it first "
+            f"(`softtrack evaluate RUN`)"
+        )
+    return ControllerScores(label, cells, np.asarray(rows, dtype=float), tuple(seeds), cpus)
+
+
+def compare_controllers(
+    controllers: Sequence[ControllerScores],
+    metric: str = "rmse_3d",
+    *,
+    reps: int = BOOTSTRAP_REPS,
+    confidence: float = 0.95,
+    seed: int = 0,
+    cells: bool = True,
+) -> Comparison:
+    """The statistics of the module docstring for ``controllers`` (the first against each
+    other); every controller must have the first one's cells. ``cells=False``: only the
+    statistics over all cells (the per-cell ones are empty)."""
+    if len(controllers) < 1:
+        raise ValueError("nothing to compare")
+    per_cell: dict[str, tuple[Interval | None, ...]] = {}
+    overall: dict[str, Interval] = {}
+    for c in controllers:
+        per_cell[c.label] = tuple(
+            stratified_bootstrap(col, reps=reps, confidence=confidence, seed=seed)
+            if cells and np.isfinite(col).any()
+            else None
+            for col in c.scores.T
+        )
+        overall[c.label] = stratified_bootstrap(
+            c.scores, interquartile_mean, reps=reps, confidence=confidence, seed=seed
+        )
+    first = controllers[0]
+    improvement, per_cell_improvement = {}, {}
+    for other in controllers[1:]:
+        improvement[other.label] = probability_of_improvement(
+            first.scores, other.scores, reps=reps, confidence=confidence, seed=seed
+        )
+        per_cell_improvement[other.label] = tuple(
+            probability_of_improvement(a, b, reps=reps, confidence=confidence, seed=seed)
+            if cells and np.isfinite(a).any() and np.isfinite(b).any()
+            else None
+            for a, b in zip(first.scores.T, other.scores.T, strict=True)
+        )
+    return Comparison(
+        metric,
+        tuple(controllers),
+        per_cell,
+        overall,
+        improvement,
+        per_cell_improvement,
+        reps,
+        confidence,
+    )
+
+
+def compare_selection(
+    selection: Sequence[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    metric: str = "rmse_3d",
+    trajectories: Sequence[str] = EVAL_TRAJECTORIES,
+    reps: int = BOOTSTRAP_REPS,
+    seed: int = 0,
+) -> Comparison:
+    """Compare the controllers the ``selection`` items name (one controller per item).
+
+    Raises:
+        EmptySelectionError, RunNotFoundError: an item names no run (one line with the fix).
+        RunStoreError: an item's runs have no stored ``metric``.
+    """
+    store = RunStore(resolve_runs_dir(runs_dir))
+    controllers = []
+    for item in selection:
+        runs = load_runs(select_report_runs(store, [item]))
+        metrics = [(run.seed, run.metrics) for run in runs]
+        controllers.append(controller_scores(item, metrics, metric, trajectories))
+    return compare_controllers(controllers, metric, reps=reps, seed=seed)
+
+
+def profile_figure(
+    panels: Sequence[tuple[str, Comparison]],
+    path: str | os.PathLike[str],
+    colors: Mapping[str, str] | None = None,
+    footer: str | None = None,
+    names: Mapping[str, str] | None = None,
+) -> Path:
+    """Performance profiles, one panel per (title, comparison): the fraction of (run, cell)
+    scores at or below each threshold, one line per controller (``names``: the legend's name
+    of a label, default the label)."""
+    fig = new_figure(7.5 if len(panels) == 1 else 12.0, 4.2 * math.ceil(len(panels) / 2) + 0.8)
+    cols = 1 if len(panels) == 1 else 2
+    axes = fig.subplots(math.ceil(len(panels) / cols), cols, squeeze=False).ravel()
+    for ax, (title, comparison) in zip(axes, panels, strict=False):
+        top = max(float(np.nanmax(c.scores)) for c in comparison.controllers)
+        bottom = min(float(np.nanmin(c.scores)) for c in comparison.controllers)
+        taus = np.linspace(0.9 * bottom, 1.05 * top, 300)
+        for i, c in enumerate(comparison.controllers):
+            color = (colors or {}).get(c.label, f"C{i}")
+            runs = len(c.seeds)
+            name = (names or {}).get(c.label, c.label)
+            label = f"{name} ({runs} run{'s' if runs != 1 else ''})"
+            ax.plot(taus, performance_profile(c.scores, taus), color=color, lw=1.6, label=label)
+        ax.set_xlabel(f"threshold τ on {comparison.metric} (m)")
+        ax.set_ylabel("fraction of runs × cells with score ≤ τ")
+        ax.set_ylim(0, 1.02)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7.5, loc="lower right")
+        if title:
+            ax.set_title(title, fontsize=9.5)
+    for ax in axes[len(panels) :]:
+        ax.set_axis_off()
+    suptitle(
+        fig,
+        "Performance profile",
+        12,
+        "higher and further left is better; every run's every trajectory and arm counts once",
+    )
+    return save_figure(fig, path, footer)

@@ -1,0 +1,109 @@
+"""``softtrack compare``: controllers across seeds from their stored metrics."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.evaluation.seed_statistics import interquartile_mean
+from softtrack.report.compare import compare_selection
+from softtrack.spec import parse_spec
+from softtrack.store.runs import RunStore
+from softtrack.store.tables import write_table
+
+runner = CliRunner()
+TRAJECTORIES = ("circle", "rectangle", "figure8")
+
+
+def _controller(store: RunStore, name: str, errors: list[float], cpu: str = "CPU A") -> None:
+    """One run per value: every cell of seed k has the error errors[k] (+1 mm for arm 2)."""
+    spec = parse_spec({"name": name, "training": {"total_timesteps": 100_000}})
+    for seed, error in enumerate(errors):
+        record = store.create_run(spec, seed)
+        rows = [
+            {
+                "run_id": record.run_id,
+                "trajectory": t,
+                "arm": arm,
+                "rmse_3d": error + 0.001 * arm,
+                "cpu": cpu,
+            }
+            for t in TRAJECTORIES
+            for arm in (0, 1)
+        ]
+        write_table(record.table_path("eval_metrics"), rows)
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> RunStore:
+    store = RunStore(tmp_path / "runs")
+    _controller(store, "good", [0.040, 0.042, 0.041, 0.043, 0.090])  # one bad seed
+    _controller(store, "worse", [0.050, 0.052, 0.051, 0.053], cpu="CPU B")
+    return store
+
+
+def test_the_first_controller_is_compared_with_each_other(store: RunStore) -> None:
+    result = compare_selection(["good", "worse"], runs_dir=store.root, reps=200)
+    good, worse = result.controllers
+    assert good.scores.shape == (5, 6) and worse.scores.shape == (4, 6)
+    assert result.overall["good"].value == pytest.approx(interquartile_mean(good.scores))
+    assert result.overall["good"].value < 0.045  # the IQM leaves the bad seed out
+    # 4 of good's 5 runs beat every run of worse in every cell; the bad seed beats none
+    assert result.improvement["worse"].value == pytest.approx(0.8)
+    assert good.cpus == {"CPU A": 30} and worse.cpus == {"CPU B": 24}
+    text = "\n".join(result.lines())
+    assert "P(good improves on worse) = 0.80" in text
+    assert "noise floor" in text and "CPU B (24)" in text
+
+
+def test_cli_prints_the_tables_and_writes_the_profile(store: RunStore, tmp_path: Path) -> None:
+    figure = tmp_path / "profile.png"
+    out = runner.invoke(
+        app,
+        [
+            "compare",
+            "good",
+            "worse",
+            "--runs-dir",
+            str(store.root),
+            "--reps",
+            "200",
+            "--figure",
+            str(figure),
+        ],
+    )
+    assert out.exit_code == 0, out.output
+    assert "interquartile mean over runs" in out.stdout
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["good"], "needs at least two controllers"),
+        (["good", "nobody"], "'nobody' is neither an experiment name"),
+    ],
+)
+def test_bad_selections_are_one_line(store: RunStore, args: list[str], message: str) -> None:
+    out = runner.invoke(app, ["compare", *args, "--runs-dir", str(store.root)])
+    assert out.exit_code == 2
+    assert message in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+def test_a_controller_without_metrics_is_one_line(store: RunStore) -> None:
+    store.create_run(parse_spec({"name": "fresh"}), 0)
+    out = runner.invoke(app, ["compare", "good", "fresh", "--runs-dir", str(store.root)])
+    assert out.exit_code == 2
+    assert "fresh: no run has rmse_3d in eval_metrics" in out.stderr
+
+
+def test_unit_scores_use_nan_for_missing_cells(store: RunStore) -> None:
+    result = compare_selection(
+        ["good", "worse"], runs_dir=store.root, reps=100, trajectories=("circle", "spiral")
+    )
+    assert np.isnan(result.controllers[0].scores[:, 2:]).all()
+    assert result.per_cell["good"][2] is None
