@@ -16,6 +16,26 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
+from softtrack.evaluation import EVAL_TRAJECTORIES
+from softtrack.evaluation.robustness import expand_settings
+from softtrack.evaluation.robustness_runs import run_robustness
+from softtrack.evaluation.runs import (
+    evaluate_random_targets,
+    evaluate_run,
+    has_evaluation,
+    resolve_run,
+)
+from softtrack.executors import dispatch
+from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
+from softtrack.rl.export import export_policy_run, relayout_exported_run
+from softtrack.rl.factory import check_supported
+from softtrack.rl.policy import (
+    MODEL_CHOICES,
+    ModelChoice,
+    load_policy,
+    model_paths,
+    require_model,
+)
 from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import (
     ExperimentSpec,
@@ -26,6 +46,7 @@ from softtrack.spec import (
     spec_json_schema,
     spec_to_yaml,
 )
+from softtrack.store.atomic import atomic_dir, is_temp_file
 from softtrack.store.provenance import portable_command, portable_path
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.status import (
@@ -39,12 +60,17 @@ from softtrack.store.status import (
     run_summary,
 )
 from softtrack.store.tables import TableError
+from softtrack.store.upgrade import upgrade_run_tables
 from softtrack.tune import TuneError
+from softtrack.tune.run import TuneOutcome
+from softtrack.tune.run import tune as run_tune
+from softtrack.tune.run import tune_best as best_trial_spec
+from softtrack.tune.run import tune_status as study_status
 
+# Imported where used, because importing them costs seconds at every command's start:
+# softtrack.rl.train (JAX, torch, Stable-Baselines3) and softtrack.report (matplotlib).
 if TYPE_CHECKING:
-    from softtrack.rl.policy import ModelChoice
     from softtrack.rl.train import TrainOutcome
-    from softtrack.tune.run import TuneOutcome
 
 __all__ = [
     "QUICKSTART_PRETRAINED",
@@ -171,7 +197,6 @@ def train(
     Returns:
         The outcome of each run started.
     """
-    from softtrack.rl.factory import check_supported
     from softtrack.rl.train import train_run
 
     spec = load_spec(path, overrides)
@@ -264,9 +289,6 @@ def evaluate(
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
     """
-    from softtrack.evaluation import EVAL_TRAJECTORIES
-    from softtrack.evaluation.runs import evaluate_random_targets, evaluate_run, resolve_run
-    from softtrack.rl.policy import MODEL_CHOICES, load_policy, model_paths, require_model
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
@@ -364,8 +386,6 @@ def export(
     and replay buffers: spec, run.json, tables, log, and its policy as ``model.zip`` beside
     ``policy.json`` (other models under ``other_models/``), inference-only (see
     :mod:`softtrack.rl.export`). Returns ``dest``."""
-    from softtrack.evaluation.runs import resolve_run
-    from softtrack.rl.export import export_policy_run
 
     return export_policy_run(resolve_run(reference, runs_dir), dest)
 
@@ -385,8 +405,6 @@ def upgrade(
     Raises:
         RunStoreError: a path is not a run directory (no ``tables/`` or no ``run.json``).
     """
-    from softtrack.rl.export import relayout_exported_run
-    from softtrack.store.upgrade import upgrade_run_tables
 
     paths = [Path(d) for d in run_dirs]
     for path in paths:
@@ -431,10 +449,6 @@ def copy_run(
     """
     import filecmp
     import shutil
-
-    from softtrack.evaluation.runs import resolve_run
-    from softtrack.rl.policy import model_paths
-    from softtrack.store.atomic import atomic_dir, is_temp_file
 
     record = resolve_run(str(source))
     root = resolve_runs_dir(runs_dir)
@@ -561,9 +575,7 @@ def report(
         figures_for: experiment names whose controllers get those figures, instead of the
             automatic choice (study protocol, best centralized, best independent).
     """
-    from softtrack.evaluation.runs import evaluate_run, has_evaluation, resolve_run
     from softtrack.report import build_report, select_report_runs
-    from softtrack.rl.policy import load_policy, model_paths
 
     store = RunStore(resolve_runs_dir(runs_dir))
     records = select_report_runs(store, selection)
@@ -652,15 +664,11 @@ def sweep(
     """
     import sys
 
-    from softtrack.executors import dispatch
-    from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
-
     options = options or dispatch.ExecOptions()
     if options.executor not in dispatch.EXECUTORS:
         raise SpecError(
             "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
         )
-    from softtrack.rl.factory import check_supported
 
     points = expand_grid(
         paths,
@@ -703,7 +711,6 @@ def resume_runs(
     Returns an :class:`~softtrack.executors.dispatch.Outcome`, or ``None`` if nothing matched
     is resumable.
     """
-    from softtrack.executors import dispatch
 
     options = options or dispatch.ExecOptions()
     store = RunStore(resolve_runs_dir(runs_dir))
@@ -766,13 +773,6 @@ def robustness(
     Returns:
         A :class:`~softtrack.evaluation.robustness_runs.RobustnessOutcome`.
     """
-    from softtrack.evaluation import EVAL_TRAJECTORIES
-    from softtrack.evaluation.robustness import expand_settings
-    from softtrack.evaluation.robustness_runs import run_robustness
-    from softtrack.evaluation.runs import resolve_run
-    from softtrack.executors import dispatch
-    from softtrack.executors.sweep import parse_grid
-    from softtrack.rl.policy import load_policy, require_model
 
     options = options or dispatch.ExecOptions(workers=1)
     if options.executor not in dispatch.EXECUTORS:
@@ -848,7 +848,6 @@ def tune(
     Returns:
         A :class:`~softtrack.tune.run.TuneOutcome` (counts, summary, exit code).
     """
-    from softtrack.tune.run import tune as run_tune
 
     return run_tune(
         path,
@@ -868,9 +867,8 @@ def tune_status(
     study: str, *, storage: str | None = None, runs_dir: str | os.PathLike[str] | None = None
 ) -> str:
     """A study's summary line and its trials (number, state, score, step, run id, params)."""
-    from softtrack.tune.run import tune_status as status
 
-    return status(study, storage=storage, runs_dir=runs_dir)
+    return study_status(study, storage=storage, runs_dir=runs_dir)
 
 
 def tune_best(
@@ -883,6 +881,5 @@ def tune_best(
     """Write a study's best complete trial as a spec file (``base:`` the tuned spec, the best
     values set; default ``<study>-best.yaml``) that ``softtrack train`` loads; returns the
     file and the trial."""
-    from softtrack.tune.run import tune_best as best
 
-    return best(study, out, storage=storage, runs_dir=runs_dir)
+    return best_trial_spec(study, out, storage=storage, runs_dir=runs_dir)

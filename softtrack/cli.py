@@ -7,12 +7,13 @@ line on stderr, ``error: <file>: <field>: <problem>; <fix>``, with exit code 2 a
 from __future__ import annotations
 
 import enum
-import functools
-import inspect
 import json
 import math
 import os
-from collections.abc import Callable, Iterator
+import signal
+import sys
+import threading
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
@@ -23,6 +24,9 @@ from softtrack import api
 from softtrack.cli_classes import Command, Group
 from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.executors.dispatch import ExecOptions
+from softtrack.store.disk import storage_problem
+from softtrack.store.query import ResultsDatabase, format_result, format_views
+from softtrack.store.runs import resolve_runs_dir
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -92,9 +96,6 @@ def _user_errors(runs_dir: str | None = None) -> Iterator[None]:
     except api.USER_ERRORS as exc:
         _fail(exc)
     except Exception as exc:
-        from softtrack.store.disk import storage_problem
-        from softtrack.store.runs import resolve_runs_dir
-
         problem = storage_problem(exc, "then run the command again", resolve_runs_dir(runs_dir))
         if problem is None:
             raise
@@ -126,8 +127,6 @@ def main(
     ] = False,
 ) -> None:
     """Train, evaluate and compare controllers for two soft arms tracking a moving target."""
-    import signal
-    import threading
 
     if threading.current_thread() is threading.main_thread():
         # SIGTERM unwinds like Ctrl-C, so every command removes its temporary files (training
@@ -354,61 +353,25 @@ TuneWorkersOption = Annotated[
 ]
 
 
-def _exec_parameters(workers: Any = WorkersOption) -> list[inspect.Parameter]:
-    return [
-        inspect.Parameter(
-            name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=annotation
-        )
-        for name, annotation, default in (
-            ("executor", ExecutorOption, ExecutorChoice.local),
-            ("workers", workers, None),
-            ("detach", DetachOption, False),
-            ("partition", PartitionOption, None),
-            ("time_min", TimeOption, None),
-            ("cpus", CpusOption, None),
-            ("mem", MemOption, None),
-        )
-    ]
-
-
-def _with_exec_options(
-    command: Callable[..., None], *, workers: Any = WorkersOption
-) -> Callable[..., None]:
-    """Give a command the executor options (``--executor`` … ``--mem``), in place of its
-    ``options`` parameter, which receives them as one :class:`ExecOptions` (``workers``: the
-    annotation of ``--workers``, for its help text)."""
-    signature = inspect.signature(command, eval_str=True)
-    parameters = list(signature.parameters.values())
-    at = list(signature.parameters).index("options")
-    parameters[at : at + 1] = _exec_parameters(workers)
-
-    @functools.wraps(command)
-    def with_options(
-        *args: Any,
-        executor: ExecutorChoice,
-        workers: int | None,
-        detach: bool,
-        partition: str | None,
-        time_min: int | None,
-        cpus: int | None,
-        mem: float | None,
-        **kwargs: Any,
-    ) -> None:
-        options = ExecOptions(
-            executor=executor.value,
-            workers=workers,
-            detach=detach,
-            partition=partition,
-            time_min=time_min,
-            cpus_per_task=cpus,
-            mem_gb=mem,
-        )
-        command(*args, options=options, **kwargs)
-
-    signature = signature.replace(parameters=parameters)
-    with_options.__signature__ = signature  # type: ignore[attr-defined]
-    with_options.__annotations__ = {p.name: p.annotation for p in parameters}
-    return with_options
+def _exec_options(
+    executor: ExecutorChoice,
+    workers: int | None,
+    detach: bool,
+    partition: str | None,
+    time_min: int | None,
+    cpus: int | None,
+    mem: float | None,
+) -> ExecOptions:
+    """The executor options of a command (``--executor`` … ``--mem``) as one object."""
+    return ExecOptions(
+        executor=executor.value,
+        workers=workers,
+        detach=detach,
+        partition=partition,
+        time_min=time_min,
+        cpus_per_task=cpus,
+        mem_gb=mem,
+    )
 
 
 def _progress(line: str) -> None:
@@ -440,7 +403,6 @@ def _finish(outcome: Outcome, what: str) -> None:
 
 
 @app.command(cls=Command)
-@_with_exec_options
 def sweep(
     specs: Annotated[
         list[str],
@@ -473,7 +435,13 @@ def sweep(
     ] = None,
     overrides: SetOption = None,
     *,
-    options: ExecOptions,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: WorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Run a grid of experiments: create every run, then train them in parallel.
@@ -484,6 +452,7 @@ def sweep(
     traceback: `softtrack runs --failed`). Ctrl-C/SIGTERM checkpoints the running jobs;
     `softtrack resume SWEEP_ID` finishes the sweep. Exit 0 when every run completed.
     """
+    options = _exec_options(executor, workers, detach, partition, time_min, cpus, mem)
 
     def created(sweep_id: str, records: list[RunRecord]) -> None:
         typer.echo(f"sweep {sweep_id}: {len(records)} runs", err=True)
@@ -505,7 +474,6 @@ def sweep(
 
 
 @app.command("resume", cls=Command)
-@_with_exec_options
 def resume_command(
     selection: Annotated[
         list[str] | None,
@@ -516,7 +484,13 @@ def resume_command(
         ),
     ] = None,
     *,
-    options: ExecOptions,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: WorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Resume interrupted, never-started, failed-by-signal and lost runs from their checkpoints.
@@ -525,6 +499,7 @@ def resume_command(
     (unless completed or still training). The runs go through the same executors as
     `softtrack sweep`.
     """
+    options = _exec_options(executor, workers, detach, partition, time_min, cpus, mem)
 
     def selected(resume_id: str, records: list[RunRecord]) -> None:
         typer.echo(f"resume {resume_id}: {len(records)} runs", err=True)
@@ -549,7 +524,6 @@ def resume_command(
 
 
 @app.command("tune", cls=Command)
-@functools.partial(_with_exec_options, workers=TuneWorkersOption)
 def tune_command(
     spec: Annotated[
         str | None,
@@ -619,7 +593,13 @@ def tune_command(
         ),
     ] = None,
     *,
-    options: ExecOptions,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: TuneWorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Search the spec's `tune:` space with Optuna (TPE, pruning on the validation score).
@@ -632,6 +612,7 @@ def tune_command(
     the best trial as a spec for `softtrack train`; `--status STUDY` lists the trials.
     Details: docs/tuning.md.
     """
+    options = _exec_options(executor, workers, detach, partition, time_min, cpus, mem)
     modes = sum([spec is not None, best is not None, status is not None])
     example = "e.g. `softtrack tune SPEC --trials 30 --study NAME`"
     if modes != 1:
@@ -723,8 +704,6 @@ def runs(
         typer.echo(json.dumps(summaries, indent=2, ensure_ascii=False))
         return
     if not summaries:
-        from softtrack.store.runs import resolve_runs_dir
-
         root = resolve_runs_dir(runs_dir)
         note = "" if root.is_dir() else " (the directory does not exist)"
         typer.echo(f"no {'failed ' if failed else ''}runs in {root}{note}", err=True)
@@ -778,7 +757,6 @@ def query_command(
     """
     if views == (sql is not None):
         _fail('query: give either SQL or --views; e.g. `softtrack query "SELECT * FROM runs"`')
-    from softtrack.store.query import ResultsDatabase, format_result, format_views
 
     with _user_errors(), ResultsDatabase(runs_dir) as db:
         for item in db.unreadable:
@@ -952,7 +930,6 @@ RobustnessWorkersOption = Annotated[
 
 
 @app.command(cls=Command)
-@functools.partial(_with_exec_options, workers=RobustnessWorkersOption)
 def robustness(
     references: Annotated[
         list[str],
@@ -1013,7 +990,13 @@ def robustness(
     ] = False,
     in_place: InPlaceOption = False,
     *,
-    options: ExecOptions,
+    executor: ExecutorOption = ExecutorChoice.local,
+    workers: RobustnessWorkersOption = None,
+    detach: DetachOption = False,
+    partition: PartitionOption = None,
+    time_min: TimeOption = None,
+    cpus: CpusOption = None,
+    mem: MemOption = None,
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Evaluate controllers under perturbed sensing, actuation and physics.
@@ -1029,6 +1012,7 @@ def robustness(
     obs_noise=0,0.002,0.005,0.01 --grid action_delay=0,1,2,4 --grid
     youngs_modulus_scale=0.7,1,1.3
     """
+    options = _exec_options(executor, workers, detach, partition, time_min, cpus, mem)
     if trajectory.value == "none":
         _fail("robustness: --trajectory none leaves nothing to evaluate; name a trajectory or all")
     chosen = None if trajectory.value == "all" else [trajectory.value]
@@ -1179,7 +1163,6 @@ def report(
     Every controller is in the tables; with more than three, the per-run figures show the
     study protocol and the best centralized and independent controllers (--all-figures: all).
     """
-    import sys
 
     with _user_errors(runs_dir):
         # an empty selection is a one-line error (EmptySelectionError), like every command's
