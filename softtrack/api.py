@@ -282,7 +282,7 @@ def evaluate(
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
             so another model's results are only returned, never stored.
         full_moments: also store every element torque at every step (table
-            ``eval_element_moments``, about 2 MB per trajectory); by default only the docs/environment.md
+            ``eval_element_moments``, about 2 MB per trajectory); by default only the
             summaries (``eval_moments``, ``eval_moment_peaks``) are stored.
         on_created: called with each run created for an MPC spec.
 

@@ -1,10 +1,11 @@
-"""The `softtrack query` examples in the README and docs/ print what the docs show: every
-``$ softtrack query ...`` in a ``console`` block is run on the shipped runs and its output
-compared line for line with the text beneath it (a shown number is the one the command prints)."""
+"""The command examples in the README and docs/ print what the docs show: every
+``$ softtrack query ...`` and ``$ softtrack validate ...`` in a code block is run (queries on the
+shipped runs) and its output compared line for line with the text beneath it (a shown number or
+error is the one the command prints). The other commands of the README's tour run in
+tests/test_readme_commands.py."""
 
 from __future__ import annotations
 
-import re
 import shlex
 from pathlib import Path
 
@@ -15,18 +16,33 @@ from softtrack.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-_BLOCK = re.compile(r"^```console\n(.*?)^```", re.S | re.M)
+_COMMANDS = ("$ softtrack query", "$ softtrack validate")  # fast and read-only
+
+
+def _blocks(text: str) -> list[str]:
+    """The bodies of the fenced code blocks without a language or marked ``console``."""
+    blocks, body, info = [], None, ""
+    for line in text.splitlines():
+        if body is None and line.startswith("```"):
+            body, info = [], line[3:].strip()
+        elif body is not None and line.strip() == "```":
+            if info in ("", "console"):
+                blocks.append("\n".join(body))
+            body = None
+        elif body is not None:
+            body.append(line)
+    return blocks
 
 
 def _examples() -> list[tuple[str, str, list[str], list[str]]]:
     """(file, command text, argv, expected output lines) of every query example."""
     found = []
     for path in DOCS:
-        for block in _BLOCK.findall(path.read_text(encoding="utf-8")):
+        for block in _blocks(path.read_text(encoding="utf-8")):
             lines = block.splitlines()
             k = 0
             while k < len(lines):
-                if not lines[k].startswith("$ softtrack query"):
+                if not lines[k].startswith(_COMMANDS):
                     k += 1
                     continue
                 text = lines[k][2:]
@@ -50,7 +66,8 @@ EXAMPLES = _examples()
 
 
 def test_the_docs_have_query_examples() -> None:
-    assert len(EXAMPLES) >= 7
+    assert len(EXAMPLES) >= 8
+    assert any(words[1] == "validate" for _, _, words, _ in EXAMPLES)
 
 
 @pytest.mark.parametrize(
@@ -68,10 +85,11 @@ def test_query_example_prints_what_the_docs_show(
         assert words[pipe + 1] == "head", text
         head = int(words[pipe + 2].lstrip("-"))
         words = words[:pipe]
-    assert words[:2] == ["softtrack", "query"], text
+    assert words[0] == "softtrack" and words[1] in ("query", "validate"), text
     result = CliRunner().invoke(app, words[1:])
-    assert result.exit_code == 0, result.output
-    printed = result.stdout.splitlines()
+    error = bool(expected) and expected[0].startswith("error:")
+    assert result.exit_code == (2 if error else 0), result.output
+    printed = (result.stderr if error else result.stdout).splitlines()
     if head is not None:
         printed = printed[:head]
     assert [line.rstrip() for line in printed] == [line.rstrip() for line in expected], (

@@ -3,7 +3,7 @@
 * :mod:`softtrack.evaluation.episodes`: deterministic episodes of a policy on a closed-form or
   random target (:func:`run_episode`, :class:`Episode`), the dual-arm policy of two single-arm
   ones (:func:`independent_policy`) and the seeds of held-out episodes.
-* :mod:`softtrack.evaluation.metrics`: the docs/environment.md tracking and actuation metrics (pure NumPy).
+* :mod:`softtrack.evaluation.metrics`: the tracking and actuation metrics of docs/environment.md (pure NumPy).
 * :mod:`softtrack.evaluation.tables`: the tables of an episode (trajectory, metrics, moments)
   and the validation score of a checkpoint's metrics rows.
 * :mod:`softtrack.evaluation.runs`: evaluate a stored run's policy and write its ``eval_*``

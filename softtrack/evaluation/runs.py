@@ -8,7 +8,7 @@ replacing the rows of the trajectories it evaluated and keeping the others):
   arms' clearance, penetration and contact force at that step;
 * ``eval_snapshots.parquet``: both arms' centrelines at four instants (figures that draw the
   arms with their radius);
-* ``eval_metrics.parquet``: the docs/environment.md metrics per arm (also over the steady window t ≥ 1 s),
+* ``eval_metrics.parquet``: the metrics of docs/environment.md per arm (also over the steady window t ≥ 1 s),
   the CPU kind that computed them (``cpu``: a deterministic episode's rounding, and so its
   numbers, differ slightly between CPU kinds; tables written before lack it), and the arm's
   action statistics (``action_saturation``, ``action_change``, ``action_rms``), its torque

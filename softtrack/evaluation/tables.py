@@ -1,7 +1,7 @@
 """The tables of an evaluation episode (:class:`~softtrack.evaluation.episodes.Episode`).
 
 One function per table a run stores (:mod:`softtrack.evaluation.runs`): tip and target
-positions per step (``eval_trajectories``), the docs/environment.md metrics per arm (``eval_metrics``, also
+positions per step (``eval_trajectories``), the metrics of docs/environment.md per arm (``eval_metrics``, also
 the rows of ``validation``, ``confirmation`` and ``eval_random``), the spatial RMS of the
 element torques per step (``eval_moments``), each element's peak torque (``eval_moment_peaks``)
 and, on request, every element torque (``eval_element_moments``); and the validation score
