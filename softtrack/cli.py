@@ -9,13 +9,11 @@ from __future__ import annotations
 import enum
 import json
 import math
-import os
 import signal
 import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
@@ -874,8 +872,8 @@ def evaluate(
 
 def _print_copied(shipped: RunRecord, copy: RunRecord) -> None:
     typer.echo(
-        f"{_shown(shipped.path)} is a shipped run (read-only): its results go to its "
-        f"copy {_shown(copy.path)} (--in-place writes into the shipped run)",
+        f"{api.shown_path(shipped.path)} is a shipped run (read-only): its results go to its "
+        f"copy {api.shown_path(copy.path)} (--in-place writes into the shipped run)",
         err=True,
     )
 
@@ -1261,56 +1259,18 @@ def quickstart(
     evaluation.
     """
     with _user_errors(runs_dir):
-        spec_path = api.quickstart_spec_path()
-        shipped = (
-            None
-            if no_pretrained
-            else (Path(pretrained) if pretrained is not None else api.quickstart_pretrained_path())
-        )
-        if shipped is not None and not (shipped / "run.json").is_file():
-            _fail(
-                f"quickstart: --pretrained {shipped} is not a run directory (no run.json); "
-                "give a directory made by `softtrack export`, or --no-pretrained"
-            )
-        # evaluated in a copy in the runs directory, so the report reads this evaluation
-        copy = None if shipped is None else api.copy_run(shipped, runs_dir=runs_dir)
-        typer.echo(f"1/4 training {_shown(spec_path)} (progress on stderr)")
-        outcomes = api.train(
-            spec_path,
+        index, code = api.quickstart(
             overrides or [],
-            runs_dir=runs_dir,
-            on_start=lambda record: typer.echo(f"    run {record.run_id}"),
-        )
-        if not outcomes or outcomes[-1].status != "completed":
-            raise typer.Exit(max((o.exit_code for o in outcomes), default=1))
-        run_ids = [o.run_id for o in outcomes]
-        typer.echo("2/4 evaluating on circle, rectangle, figure8")
-        api.evaluate(run_ids, runs_dir=runs_dir, on_episode=_print_episode)
-        extra = []
-        if shipped is None or copy is None:
-            typer.echo("3/4 no shipped policy to show (skipped)")
-        else:
-            typer.echo(
-                f"3/4 the shipped policy {_shown(shipped)} on the same trajectories "
-                f"(evaluated in its copy {_shown(copy)})"
-            )
-            api.evaluate([str(copy)], on_episode=_print_episode)
-            extra = [copy]
-        typer.echo("4/4 building the report")
-        index = api.report(
-            run_ids,
             out,
             runs_dir=runs_dir,
-            extra_runs=extra,
-            command_line=["softtrack", "quickstart", "--out", out],
+            pretrained=pretrained,
+            no_pretrained=no_pretrained,
+            on_line=typer.echo,
+            on_episode=_print_episode,
         )
+    if index is None:
+        raise typer.Exit(code)
     typer.echo(f"report: {index}")
-
-
-def _shown(path: str | os.PathLike[str]) -> str:
-    """``path`` relative to the current directory when it lies inside it, else absolute."""
-    full = Path(path).resolve()
-    return str(full.relative_to(Path.cwd())) if full.is_relative_to(Path.cwd()) else str(full)
 
 
 if __name__ == "__main__":  # python -m softtrack.cli
