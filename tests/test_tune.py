@@ -230,6 +230,36 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "tunes another spec" in result.stderr
 
 
+def test_a_trial_of_several_seeds_scores_their_aggregate(tmp_path: Path) -> None:
+    """``tune.seeds_per_trial: 2`` trains seeds 0 and 1 with the trial's values; the trial's
+    value is the mean (or IQM) of the two runs' best validation scores, and only the first run
+    reports to the pruner."""
+    tune = {**TUNE, "seeds_per_trial": 2, "aggregate": "iqm"}
+    spec = _spec(tmp_path, tune)
+    runs_dir = tmp_path / "runs"
+    result = _tune(str(spec), "--trials", "1", "--study", "m", "--runs-dir", str(runs_dir))
+    assert result.exit_code == 0, result.output
+    (trial,) = _study(runs_dir, "m").get_trials()
+    assert trial.state.name == "COMPLETE"
+    store = RunStore(runs_dir)
+    runs = [store.get_run(trial.user_attrs[k]) for k in ("run_id", "run_id_1")]
+    assert [r.info.seed for r in runs] == [0, 1]
+    assert runs[0].info.spec_hash == runs[1].info.spec_hash  # the same values
+    scores = [best_model(r.policy_dir()).score for r in runs]
+    assert trial.value == pytest.approx(sum(scores) / 2)  # the IQM of two values is their mean
+    assert sorted(trial.intermediate_values) == [200, 400]  # the first run's checkpoints only
+    assert "run 2 of 2" in result.output
+
+
+def test_multi_seed_fields_leave_old_studies_continuable() -> None:
+    from softtrack.tune.study import _search_key
+
+    plain = parse_spec(_data(TUNE))
+    explicit = parse_spec(_data({**TUNE, "seeds_per_trial": 1, "aggregate": "mean"}))
+    assert _search_key(plain) == _search_key(explicit)
+    assert _search_key(parse_spec(_data({**TUNE, "seeds_per_trial": 3}))) != _search_key(plain)
+
+
 def test_pruned_trials_stop_their_runs(tmp_path: Path) -> None:
     """A pruner that prunes at the first report (every score is above 1e-9 m)."""
     tune = {**TUNE, "pruner": {"type": "threshold", "upper": 1e-9}}

@@ -240,13 +240,28 @@ class TuneSpec(SpecModel):
         "validation",
         "the objective, minimised: the best validation score of the trial's run, the mean 3-D "
         "RMSE of training.validation_episodes held-out episodes at its best checkpoint "
-        "(independent: the mean over the arms' best)",
+        "(independent: the mean over the arms' best); with seeds_per_trial > 1 the mean or "
+        "IQM over the trial's runs",
         "m",
     )
     params: dict[ParamPath, TuneParamSpec] = Field(
         description="spec field path → distribution, e.g. algo.learning_rate: {type: float, "
         "low: 1.0e-4, high: 3.0e-3, log: true} [-]",
         min_length=1,
+    )
+    seeds_per_trial: Int = unit_field(
+        1,
+        "runs per trial, seeds spec.seeds[0], +1, …: the objective aggregates their scores, so "
+        "a tuned optimum is not one seed's luck (the pruner watches the first seed's run)",
+        "runs",
+        ge=1,
+        le=32,
+    )
+    aggregate: Literal["mean", "iqm"] = unit_field(
+        "mean",
+        "how a trial's runs' scores combine: their mean, or their interquartile mean (the "
+        "mean of the middle 50 %, robust to one bad seed; docs/statistics.md)",
+        "-",
     )
     seed: Seed = unit_field(
         0, "seed of the TPE sampler (each trial's draw is seeded by it and the trial number)", "-"

@@ -167,11 +167,18 @@ def _open_storage(url: str, *, create: bool) -> Any:
 # ------------------------------------------------------------------------------------------
 # The study
 # ------------------------------------------------------------------------------------------
+_TUNE_FIELDS_ADDED_LATER = {"seeds_per_trial": 1, "aggregate": "mean"}
+
+
 def _search_key(spec: ExperimentSpec) -> str:
     """What must stay the same when a study is continued: the spec hash (which the tune
     section leaves out) and the tune section."""
     assert spec.tune is not None
-    tune = json.dumps(spec.tune.model_dump(mode="json"), sort_keys=True)
+    data = spec.tune.model_dump(mode="json")
+    for field, neutral in _TUNE_FIELDS_ADDED_LATER.items():  # studies made before keep theirs
+        if data.get(field) == neutral:
+            data.pop(field)
+    tune = json.dumps(data, sort_keys=True)
     return hashlib.sha256(f"{spec_hash(spec)}|{tune}".encode()).hexdigest()
 
 
@@ -412,6 +419,21 @@ def _attrs(**values: Any) -> dict[str, Any]:
     return {k: v for k, v in values.items() if v is not None}
 
 
+def run_attr(index: int) -> str:
+    """The trial user attribute naming its run of seed index ``index``: ``run_id`` for the
+    first (as a one-seed trial's), ``run_id_1``, ``run_id_2``, … for the others."""
+    return "run_id" if index == 0 else f"run_id_{index}"
+
+
+def trial_runs(trial: Any) -> dict[str, str]:
+    """The trial's run ids by user attribute (:func:`run_attr`)."""
+    return {
+        key: str(value)
+        for key, value in trial.user_attrs.items()
+        if (key == "run_id" or key.startswith("run_id_")) and value
+    }
+
+
 def enqueue_retry(study: Any, trial: Any, *, died: bool) -> None:
     """Put a ticket for failed ``trial``'s slot: the same values and run (a retry), or a fresh
     ticket once its workers died :data:`MAX_DEATHS` times or when the trial died before all
@@ -425,9 +447,7 @@ def enqueue_retry(study: Any, trial: Any, *, died: bool) -> None:
         return
     study.enqueue_trial(
         dict(trial.params),
-        user_attrs=_attrs(
-            retry_of=trial.number, run_id=trial.user_attrs.get("run_id"), deaths=deaths or None
-        ),
+        user_attrs=_attrs(retry_of=trial.number, deaths=deaths or None, **trial_runs(trial)),
     )
 
 
@@ -460,15 +480,18 @@ def _fail_lost_trials(ts: TuneStudy, store: RunStore) -> None:
     with _quiet():
         optuna.storages.fail_stale_trials(ts.study)
     for t in ts.trials("RUNNING"):
-        run_id = t.user_attrs.get("run_id")
-        if not run_id or _worker_alive(str(t.user_attrs.get("worker", ""))):
+        if _worker_alive(str(t.user_attrs.get("worker", ""))):
             continue
-        try:
-            lost = is_lost(store.get_run(str(run_id)))
-        except RunStoreError:
+        lost_runs = []
+        for run_id in trial_runs(t).values():
+            try:
+                if is_lost(store.get_run(run_id)):
+                    lost_runs.append(run_id)
+            except RunStoreError:
+                continue
+        if not lost_runs:
             continue
-        if not lost:
-            continue
+        run_id = lost_runs[0]
         trial_id = ts.trial_id(t.number)
         try:
             ts.storage.set_trial_user_attr(

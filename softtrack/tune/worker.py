@@ -32,6 +32,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from softtrack.env.tasks import N_ARMS
+from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.executors.base import failed_by_signal
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError
@@ -44,6 +45,7 @@ from softtrack.tune.study import (
     enqueue_retry,
     load_study,
     optuna_module,
+    run_attr,
     shown_url,
     suggest,
     take_trial,
@@ -51,7 +53,7 @@ from softtrack.tune.study import (
     trial_spec,
 )
 
-__all__ = ["main", "run_score", "run_trial", "work"]
+__all__ = ["aggregate_scores", "main", "run_score", "run_trial", "work"]
 
 Log = Callable[[str], None]
 
@@ -149,15 +151,18 @@ def _trial_run(
     store: RunStore,
     values: dict[str, Any],
     log: Log = _stderr,
+    index: int = 0,
 ) -> tuple[RunRecord, str]:
-    """The trial's run and what to do with it: ``train``, ``resume``, ``score`` (completed),
-    ``pruned``, ``failed`` (raised before) or ``busy`` (still training elsewhere).
+    """The trial's run of seed index ``index`` (seed ``spec.seeds[0] + index``) and what to do
+    with it: ``train``, ``resume``, ``score`` (completed), ``pruned``, ``failed`` (raised
+    before) or ``busy`` (still training elsewhere).
 
     A retry's run is used only if it was trained with the trial's values; otherwise (or if it
     is gone) the trial gets a fresh run of its own."""
     from softtrack.store.status import effective_status
 
-    run_id = trial.user_attrs.get("run_id")
+    attr = run_attr(index)
+    run_id = trial.user_attrs.get(attr)
     if run_id:
         try:
             record = store.get_run(str(run_id))
@@ -189,8 +194,9 @@ def _trial_run(
             "storage": shown_url(ts.url),
         }
     }
-    record = store.create_run(spec, spec.seeds[0], notes=notes, spec_files=ts.spec_files)
-    trial.set_user_attr("run_id", record.run_id)
+    seed = spec.seeds[0] + index
+    record = store.create_run(spec, seed, notes=notes, spec_files=ts.spec_files)
+    trial.set_user_attr(attr, record.run_id)
     return record, "train"
 
 
@@ -202,6 +208,14 @@ def _fail(ts: TuneStudy, trial: Any, key: str, text: str) -> None:
         ts.study.tell(trial, state=optuna.trial.TrialState.FAIL)
 
 
+def aggregate_scores(scores: list[float], how: str) -> float:
+    """A trial's objective from its runs' scores: their ``mean`` or ``iqm`` (interquartile
+    mean, :func:`softtrack.evaluation.seed_statistics.interquartile_mean`)."""
+    if how == "iqm":
+        return interquartile_mean(scores)
+    return float(sum(scores) / len(scores))
+
+
 def run_trial(
     ts: TuneStudy,
     trial: Any,
@@ -209,45 +223,94 @@ def run_trial(
     log: Log = _stderr,
     show_progress: bool | None = None,
 ) -> tuple[str, int]:
-    """Run one taken trial to its end (module docstring); returns (``complete``, ``pruned``,
+    """Run one taken trial to its end (module docstring): its ``tune.seeds_per_trial`` runs
+    one after another, the first watched by the pruner; returns (``complete``, ``pruned``,
     ``interrupted`` or ``failed``, the exit code of its training)."""
     from softtrack.rl.factory import check_supported
-    from softtrack.rl.train import train_run
 
-    optuna = optuna_module()
     number = trial.number
     try:
         values = suggest(trial, ts.tune)
-        record_name = trial_name(ts.spec.name, number)
-        spec = trial_spec(ts, values, record_name)
+        spec = trial_spec(ts, values, trial_name(ts.spec.name, number))
         check_supported(spec, f"study {ts.name} trial {number}")
-        record, action = _trial_run(ts, trial, spec, store, values, log)
-        spec = record.load_spec()
     except (SpecError, RunStoreError) as exc:
         log(f"trial {number}: failed: {exc}")
         _fail(ts, trial, "error", str(exc))
         enqueue_fresh(ts.study, replaces=number)
         return "failed", 1
+    scores = []
+    for index in range(ts.tune.seeds_per_trial):
+        state, code, score = _run_seed(ts, trial, store, spec, values, index, log, show_progress)
+        if state != "complete":
+            return state, code
+        scores.append(score)
+    score = aggregate_scores(scores, ts.tune.aggregate)
+    try:
+        ts.study.tell(trial, score)
+    except optuna_module().exceptions.UpdateFinishedTrialError:
+        log(
+            f"trial {number}: already failed by another process (its heartbeat was late); "
+            "its score is not counted"
+        )
+        return "failed", 1
+    seeds = ""
+    if len(scores) > 1:
+        seeds = f" ({ts.tune.aggregate} of {', '.join(f'{v:.4f}' for v in scores)})"
+    log(f"trial {number}: complete, validation score {score:.4f} m{seeds}")
+    return "complete", 0
+
+
+def _run_seed(
+    ts: TuneStudy,
+    trial: Any,
+    store: RunStore,
+    spec: ExperimentSpec,
+    values: dict[str, Any],
+    index: int,
+    log: Log,
+    show_progress: bool | None,
+) -> tuple[str, int, float]:
+    """Train (or resume, or score) the trial's run of seed index ``index``; returns its state
+    as :func:`run_trial` does, the exit code and, when complete, its score. Only the first
+    run reports its validation scores to the pruner."""
+    from softtrack.rl.train import train_run
+
+    optuna = optuna_module()
+    number = trial.number
+    watched = index == 0
+    try:
+        record, action = _trial_run(ts, trial, spec, store, values, log, index)
+        spec = record.load_spec()
+    except (SpecError, RunStoreError) as exc:
+        log(f"trial {number}: failed: {exc}")
+        _fail(ts, trial, "error", str(exc))
+        enqueue_fresh(ts.study, replaces=number)
+        return "failed", 1, math.nan
     shown = ", ".join(
         f"{p}={v:.4g}" if isinstance(v, float) else f"{p}={v}" for p, v in values.items()
     )
     verb = {"train": "training", "resume": "resuming"}.get(action, action)
-    log(f"trial {number}: {verb} run {record.run_id} ({shown})")
+    of = ""
+    if ts.tune.seeds_per_trial > 1:
+        of = f" (seed {record.info.seed}, run {index + 1} of {ts.tune.seeds_per_trial})"
+    log(f"trial {number}: {verb} run {record.run_id} ({shown}){of}")
     if action in ("failed", "busy"):
         why = record.info.error if action == "failed" else "its run is training elsewhere"
         _fail(ts, trial, "error", f"run {record.run_id}: {why}")
         if action == "failed":
             enqueue_fresh(ts.study, replaces=number)
-        return "failed", 1
-    if action in ("resume", "pruned"):
+        return "failed", 1, math.nan
+    if watched and action in ("resume", "pruned"):
         _replay_scores(trial, record, spec)
     if action == "pruned":
         ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
-        return "pruned", 0
+        return "pruned", 0, math.nan
     if action in ("train", "resume"):
         taken_over: list[bool] = []
 
         def on_validation(step: int, score: float) -> bool:
+            if not watched:
+                return False
             try:
                 trial.report(score if math.isfinite(score) else math.inf, _report_step(spec, step))
                 return bool(trial.should_prune())
@@ -268,7 +331,7 @@ def run_trial(
             log(f"trial {number}: failed: {line}")
             _fail(ts, trial, "error", line)
             enqueue_fresh(ts.study, replaces=number)
-            return "failed", 1
+            return "failed", 1, math.nan
         if taken_over:
             notes = store.get_run(record.run_id).info.notes
             store.update_run(record.run_id, notes={k: v for k, v in notes.items() if k != "pruned"})
@@ -276,7 +339,7 @@ def run_trial(
                 f"trial {number}: failed by another process while training (its heartbeat "
                 f"was late); run {record.run_id} stopped at a checkpoint for the retry"
             )
-            return "failed", 1
+            return "failed", 1, math.nan
         if outcome.status == "interrupted":
             log(
                 f"trial {number}: interrupted at step {outcome.global_step:,}; run "
@@ -284,12 +347,12 @@ def run_trial(
             )
             _fail(ts, trial, "interrupted", f"interrupted at step {outcome.global_step}")
             enqueue_retry(ts.study, ts.storage.get_trial(ts.trial_id(number)), died=False)
-            return "interrupted", outcome.exit_code
+            return "interrupted", outcome.exit_code, math.nan
         if outcome.status == "failed":
             log(f"trial {number}: failed: {outcome.error}")
             _fail(ts, trial, "error", f"run {record.run_id} failed: {outcome.error}")
             enqueue_fresh(ts.study, replaces=number)
-            return "failed", 1
+            return "failed", 1, math.nan
         if outcome.status == "pruned":
             pruned = store.get_run(record.run_id).info.notes.get("pruned", {})
             log(
@@ -297,24 +360,14 @@ def run_trial(
                 f"(validation score {pruned.get('score', math.nan):.4f} m)"
             )
             ts.study.tell(trial, state=optuna.trial.TrialState.PRUNED)
-            return "pruned", 0
+            return "pruned", 0, math.nan
         record = store.get_run(record.run_id)
     try:
-        score = run_score(record, spec)
+        return "complete", 0, run_score(record, spec)
     except TuneError as exc:
         _fail(ts, trial, "error", str(exc))
         enqueue_fresh(ts.study, replaces=number)
-        return "failed", 1
-    try:
-        ts.study.tell(trial, score)
-    except optuna.exceptions.UpdateFinishedTrialError:
-        log(
-            f"trial {number}: already failed by another process (its heartbeat was late); "
-            "its score is not counted"
-        )
-        return "failed", 1
-    log(f"trial {number}: complete, validation score {score:.4f} m (run {record.run_id})")
-    return "complete", 0
+        return "failed", 1, math.nan
 
 
 def _interrupted(ts: TuneStudy, trial: Any, why: str) -> None:
