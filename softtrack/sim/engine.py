@@ -17,6 +17,7 @@ from softtrack.sim.params import (
     SimParams,
     scaled_params,
 )
+from softtrack.sim.sphere_contact import SPHERE_STATE_SIZE
 
 __all__ = ["RodBatch", "RodState"]
 
@@ -34,6 +35,9 @@ class RodState:
         torques: (k, A, 2, N) N·m, the applied element couples.
         time: (k,) s since the last reset.
         finite: (k,) bool, the state was finite after the last advance.
+        sphere: (k, 18) the rigid sphere's state rows (centre m, velocity m/s, angular
+            velocity rad/s, frame; :data:`~softtrack.sim.sphere_contact.SPHERE_STATE_SIZE`),
+            or None in a scene without one.
     """
 
     position: np.ndarray
@@ -43,6 +47,7 @@ class RodState:
     torques: np.ndarray
     time: np.ndarray
     finite: np.ndarray
+    sphere: np.ndarray | None = None
 
     @property
     def n_envs(self) -> int:
@@ -61,7 +66,9 @@ class RodBatch:
     * ``time``: (E,), s since the environment's last reset.
 
     Every environment starts straight and at rest. :meth:`advance` integrates all of them in
-    one compiled call.
+    one compiled call. With ``params.sphere`` each environment also holds a rigid sphere
+    (``sphere``: (E, 18) rows of centre, velocity, angular velocity and frame), at rest at
+    its centre after a reset.
 
     Model error: each environment has its own material constants (masses, inertias,
     stiffnesses), damping and torque factor, the nominal ones of ``params`` until
@@ -100,6 +107,11 @@ class RodBatch:
         self._contact_force = np.zeros(n_envs)  # (E,) N
         self._torque_factor = np.ones(n_envs)  # (E,)
         self._scaled_torques = False  # any torque factor ≠ 1
+        self.sphere = np.zeros((n_envs, SPHERE_STATE_SIZE))
+        self._sphere_params = (
+            p.sphere.kernel_params() if p.sphere is not None else np.zeros(7)
+        )  # (7,) R, m, J, k, ν, c_v, μ; R = 0: no sphere
+        self._sphere_out = np.zeros((n_envs, 6))  # per-arm force, overlap, contact steps
         self.reset()
 
     @property
@@ -129,6 +141,40 @@ class RodBatch:
         self._finite[idx] = True
         self._penetration[idx] = 0.0
         self._contact_force[idx] = 0.0
+        self._sphere_out[idx] = 0.0
+        if self.params.sphere is not None:
+            rest = np.zeros(SPHERE_STATE_SIZE)
+            rest[:3] = self.params.sphere.center
+            rest[9:] = np.eye(3).ravel()
+            self.sphere[idx] = rest
+
+    @property
+    def has_sphere(self) -> bool:
+        """True when the scene holds a rigid sphere (``params.sphere``)."""
+        return self.params.sphere is not None
+
+    @property
+    def sphere_position(self) -> np.ndarray:
+        """(E, 3) the sphere's centre, m (a view; zeros without a sphere)."""
+        return self.sphere[:, 0:3]
+
+    @property
+    def sphere_velocity(self) -> np.ndarray:
+        """(E, 3) the sphere's velocity, m/s (a view)."""
+        return self.sphere[:, 3:6]
+
+    def sphere_contact_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The arms' contact with the sphere during the last :meth:`advance` (zeros without
+        a sphere).
+
+        Returns:
+            force: (E, 2) N, the magnitude of each arm's contact force on the sphere, mean
+            over the steps.
+            overlap: (E, 2) m, each arm's deepest overlap with the sphere.
+            steps: (E, 2) the steps on which each arm overlapped the sphere.
+        """
+        out = self._sphere_out
+        return out[:, 0:2].copy(), out[:, 2:4].copy(), out[:, 4:6].copy()
 
     def get_state(self, env_indices: Sequence[int] | np.ndarray | None = None) -> RodState:
         """A copy of the listed environments' state (default: all)."""
@@ -141,6 +187,7 @@ class RodBatch:
             self.torques[idx].copy(),
             self.time[idx].copy(),
             self._finite[idx].copy(),
+            self.sphere[idx].copy() if self.has_sphere else None,
         )
 
     def set_state(
@@ -166,6 +213,10 @@ class RodBatch:
         self.torques[idx] = state.torques
         self.time[idx] = state.time
         self._finite[idx] = state.finite
+        if self.has_sphere:
+            if state.sphere is None:
+                raise ValueError("the state has no sphere, but this scene holds one")
+            self.sphere[idx] = state.sphere
 
     def set_parameters(
         self,
@@ -301,6 +352,9 @@ class RodBatch:
             float(p.contact_nu),
             self._penetration,
             self._contact_force,
+            self.sphere,
+            self._sphere_params,
+            self._sphere_out,
         )
         self.time += steps * p.dt
 

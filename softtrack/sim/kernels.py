@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from softtrack.sim.contact import rod_rod_contact
+from softtrack.sim.sphere_contact import sphere_drift, sphere_stage
 
 __all__ = ["advance"]
 
@@ -791,6 +792,9 @@ def _build_advance_contact(n_pad):
         contact_nu,
         penetration,
         contact_force,
+        sphere,
+        sphere_params,
+        sphere_out,
     ):
         n_env = position.shape[0]
         n_elem = rest_lengths.shape[0]
@@ -849,6 +853,8 @@ def _build_advance_contact(n_pad):
         pairs = np.zeros((n_elem * n_elem, 2), dtype=np.int64)
         force_on_b = np.zeros(3)
         half_dt = 0.5 * dt
+        has_sphere = sphere_params[0] > 0.0
+        sphere_work = np.zeros((2, 3))
         for env in range(n_env):
             _load_material(
                 env,
@@ -911,8 +917,12 @@ def _build_advance_contact(n_pad):
             deepest = 0.0
             force_total = 0.0
             n_pairs = 0
+            body = sphere[env]
+            sphere_out[env, :] = 0.0
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
             _drift(pos_b, vel_b, dirs_b, om_b, half_dt, base_pos_b, base_dirs_b, n_pad)
+            if has_sphere:
+                sphere_drift(body, half_dt)
             for step in range(n_steps):
                 _element_stage(
                     pos_a,
@@ -1000,43 +1010,68 @@ def _build_advance_contact(n_pad):
                     dt,
                     n_pad,
                 )
-                depth, n_pairs = rod_rod_contact(
-                    pos_a,
-                    vel_a,
-                    lengths_a,
-                    inv_lengths_a,
-                    f_elem_a,
-                    damp_f_a,
-                    f_contact_a,
-                    geometry_a,
-                    anchor_a,
-                    pos_b,
-                    vel_b,
-                    lengths_b,
-                    inv_lengths_b,
-                    f_elem_b,
-                    damp_f_b,
-                    f_contact_b,
-                    geometry_b,
-                    anchor_b,
-                    weight_m,
-                    gravity,
-                    vol,
-                    contact_k,
-                    contact_nu,
-                    pairs,
-                    n_pairs,
-                    step == 0,
-                    n_elem,
-                    n_pad,
-                    force_on_b,
-                )
-                deepest = max(deepest, depth)
-                force_total += math.sqrt(
-                    force_on_b[0] * force_on_b[0]
-                    + force_on_b[1] * force_on_b[1]
-                    + force_on_b[2] * force_on_b[2]
-                )
+                if contact_k > 0.0:
+                    depth, n_pairs = rod_rod_contact(
+                        pos_a,
+                        vel_a,
+                        lengths_a,
+                        inv_lengths_a,
+                        f_elem_a,
+                        damp_f_a,
+                        f_contact_a,
+                        geometry_a,
+                        anchor_a,
+                        pos_b,
+                        vel_b,
+                        lengths_b,
+                        inv_lengths_b,
+                        f_elem_b,
+                        damp_f_b,
+                        f_contact_b,
+                        geometry_b,
+                        anchor_b,
+                        weight_m,
+                        gravity,
+                        vol,
+                        contact_k,
+                        contact_nu,
+                        pairs,
+                        n_pairs,
+                        step == 0,
+                        n_elem,
+                        n_pad,
+                        force_on_b,
+                    )
+                    deepest = max(deepest, depth)
+                    force_total += math.sqrt(
+                        force_on_b[0] * force_on_b[0]
+                        + force_on_b[1] * force_on_b[1]
+                        + force_on_b[2] * force_on_b[2]
+                    )
+                else:
+                    f_contact_a[:, : n_pad + 1] = 0.0
+                    f_contact_b[:, : n_pad + 1] = 0.0
+                if has_sphere:
+                    sphere_stage(
+                        pos_a,
+                        vel_a,
+                        lengths_a,
+                        inv_lengths_a,
+                        f_contact_a,
+                        pos_b,
+                        vel_b,
+                        lengths_b,
+                        inv_lengths_b,
+                        f_contact_b,
+                        vol,
+                        n_elem,
+                        body,
+                        sphere_params,
+                        gravity,
+                        dt,
+                        sphere_work,
+                        sphere_out[env],
+                    )
                 drift_dt = half_dt if step == n_steps - 1 else dt
                 # v += dt·F/m, F = internal + damping + gravity + contact (written out: as an
                 # inlined helper this loop ran 25 % slower); with no contact force the sum is
@@ -1066,6 +1101,8 @@ def _build_advance_contact(n_pad):
                     vel_b[i, 0] = 0.0
                 _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
                 _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
+                if has_sphere:
+                    sphere_drift(body, drift_dt)
             penetration[env] = deepest
             contact_force[env] = force_total / max(n_steps, 1)
             checksum = _store_rod(
@@ -1074,6 +1111,9 @@ def _build_advance_contact(n_pad):
             checksum += _store_rod(
                 pos_b, vel_b, dirs_b, om_b, env, 1, position, velocity, directors, omega
             )
+            if has_sphere:
+                sphere_out[env, 0:2] /= max(n_steps, 1)
+                checksum += np.sum(body)
             finite[env] = math.isfinite(checksum)
 
     return advance_contact
@@ -1108,6 +1148,9 @@ def advance(
     contact_nu,
     penetration,
     contact_force,
+    sphere,
+    sphere_params,
+    sphere_out,
 ):
     """Integrate every rod of the batch by ``n_steps`` steps of ``dt`` seconds, in place.
 
@@ -1128,9 +1171,16 @@ def advance(
         penetration: (E,) output with contact on: the deepest overlap of two arms over the
             steps, m. contact_force: (E,) output with contact on: the magnitude of the total
             contact force between the arms, mean over the steps, N. Untouched without contact.
+        sphere: (E, 18) the rigid sphere's state rows (:mod:`softtrack.sim.sphere_contact`),
+            integrated in place when ``sphere_params[0]`` > 0 (two arms only).
+        sphere_params: (7,) radius R (m; 0: no sphere), mass (kg), inertia 2/5·m·R² (kg·m²),
+            contact k (N/m), ν (N·s/m), velocity damping coefficient (N·s/m), friction μ.
+        sphere_out: (E, 6) output with a sphere: per arm the magnitude of its contact force
+            on the sphere, mean over the steps (N, columns 0–1), its deepest overlap (m,
+            2–3) and its steps with an overlap (4–5).
     """
     n_pad = (rest_lengths.shape[0] // 8 + 1) * 8  # multiple of 8, > N: room for the tip node
-    contact = contact_k > 0.0 and position.shape[1] == 2
+    contact = (contact_k > 0.0 or sphere_params[0] > 0.0) and position.shape[1] == 2
     key = (n_pad, contact)
     kernel = _KERNELS.get(key)
     if kernel is None:
@@ -1163,6 +1213,9 @@ def advance(
             contact_nu,
             penetration,
             contact_force,
+            sphere,
+            sphere_params,
+            sphere_out,
         )
     else:
         kernel(

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from softtrack.sim.sphere import SphereParams
 from softtrack.sim.stability import (
     contact_mode,
     contact_stiffness_limit,
@@ -90,6 +91,8 @@ class SimParams:
         contact_k: stiffness of the contact between the arms, N/m (PyElastica's
             ``RodRodContact`` k); 0 = off, the arms pass through each other (the study).
         contact_nu: damping of that contact, N·s/m (``RodRodContact`` nu); needs contact_k > 0.
+        sphere: a rigid sphere touching the arms (:class:`~softtrack.sim.sphere.SphereParams`,
+            two arms only); None (the default) = no object.
     """
 
     n_elem: int = 20
@@ -109,6 +112,7 @@ class SimParams:
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     contact_k: float = 0.0
     contact_nu: float = 0.0
+    sphere: SphereParams | None = None
 
     @classmethod
     def from_overrides(cls, **overrides: Any) -> SimParams:
@@ -131,6 +135,11 @@ class SimParams:
         for key in ("direction", "normal"):
             if key in overrides:
                 overrides[key] = tuple(float(c) for c in overrides[key])
+        if overrides.get("sphere") is not None:
+            try:
+                overrides["sphere"] = SphereParams.from_mapping(overrides["sphere"])
+            except (TypeError, ValueError) as err:
+                raise InvalidParameterError(str(err)) from None
         params = cls(**overrides)
         params.validate()
         return params
@@ -225,6 +234,7 @@ class SimParams:
         if abs(float(d @ n)) > 1e-9:
             raise InvalidParameterError("normal must be orthogonal to direction")
         self._validate_contact()
+        self._validate_sphere()
         limit = self.dt_limit
         if self.dt > limit:
             raise InvalidParameterError(
@@ -232,6 +242,18 @@ class SimParams:
                 f"discretisation (n_elem={self.n_elem}, damping={self.damping:g}); "
                 f"use dt ≤ {limit:.3g}"
             )
+
+    def _validate_sphere(self) -> None:
+        """The sphere's fields, its place at rest and its contact's stability."""
+        if self.sphere is None:
+            return
+        if not isinstance(self.sphere, SphereParams):
+            raise InvalidParameterError(
+                f"sphere={self.sphere!r} must be a SphereParams (or None for no object)"
+            )
+        problem = self.sphere.problems(self)
+        if problem is not None:
+            raise InvalidParameterError(problem)
 
     def _validate_contact(self) -> None:
         """The contact fields: signs, two arms, and a contact_k stable at dt."""

@@ -218,7 +218,9 @@ class PyElasticaDualArm:
     at node 0 / element 0 with ``OneEndFixedBC``, damped by :class:`LegacyExplicitDamping`,
     pulled by ``GravityForces`` (−``params.gravity`` along y, only when it is non-zero) and
     actuated by :class:`ElementCouples`; with ``params.contact_k`` > 0 the two arms touch
-    through ``RodRodContact(contact_k, contact_nu)``, registered after the forcings. Time
+    through ``RodRodContact(contact_k, contact_nu)``, registered after the forcings; with
+    ``params.sphere`` a ``Sphere`` (gravity as the rods) touches each arm through
+    ``RodSphereContact``, registered after that. Time
     integration: PyElastica's ``PositionVerlet``.
 
     Shapes use A = arms, N = ``params.n_elem`` elements (N + 1 nodes).
@@ -276,10 +278,35 @@ class PyElasticaDualArm:
             sim.detect_contact_between(self.rods[0], self.rods[1]).using(
                 ea.RodRodContact, k=np.float64(params.contact_k), nu=np.float64(params.contact_nu)
             )
+        self.sphere: Any = None
+        if params.sphere is not None:
+            self.sphere = self._add_sphere(sim, ea, params)
         sim.finalize()
         self.simulator = sim
         self.stepper = ea.PositionVerlet()
         self._time = np.float64(0.0)
+
+    def _add_sphere(self, sim: Any, ea: ModuleType, params: SimParams) -> Any:
+        """The ``Sphere`` of ``params.sphere``, pulled by gravity (when on) and touching each
+        arm through ``RodSphereContact``, registered after the rod–rod contact, arm 1 first."""
+        spec = params.sphere
+        assert spec is not None
+        sphere = ea.Sphere(np.asarray(spec.center, dtype=np.float64), spec.radius, spec.density)
+        sim.append(sphere)
+        if params.gravity != 0.0:
+            sim.add_forcing_to(sphere).using(
+                ea.GravityForces, acc_gravity=np.array([0.0, -float(params.gravity), 0.0])
+            )
+        if spec.contact_k > 0.0:
+            for rod in self.rods:
+                sim.detect_contact_between(rod, sphere).using(
+                    ea.RodSphereContact,
+                    k=np.float64(spec.contact_k),
+                    nu=np.float64(spec.contact_nu),
+                    velocity_damping_coefficient=np.float64(spec.velocity_damping),
+                    friction_coefficient=np.float64(spec.friction),
+                )
+        return sphere
 
     # ---- control --------------------------------------------------------------------------
     def set_element_torques(self, torques: np.ndarray) -> None:
@@ -349,6 +376,22 @@ class PyElasticaDualArm:
     def omegas(self) -> np.ndarray:
         """(A, 3, N) element angular velocities, rad/s, local frame (a copy)."""
         return np.stack([rod.omega_collection for rod in self.rods])
+
+    @property
+    def sphere_state(self) -> np.ndarray:
+        """(18,) the sphere's state row as the engine lays it out (centre m, velocity m/s,
+        angular velocity rad/s, frame row-major); raises ValueError without a sphere."""
+        if self.sphere is None:
+            raise ValueError("this scene holds no sphere (params.sphere is None)")
+        sphere = self.sphere
+        return np.concatenate(
+            [
+                sphere.position_collection[:, 0],
+                sphere.velocity_collection[:, 0],
+                sphere.omega_collection[:, 0],
+                sphere.director_collection[:, :, 0].ravel(),
+            ]
+        )
 
 
 def rollout_pyelastica(
