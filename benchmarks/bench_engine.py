@@ -18,6 +18,11 @@ with which the arms touch now and then, and the arms pressed together (every nor
 value pushing toward the other arm, ±0.15 with noise), where they touch along their length
 at every step. Each contact row gives its cost against the contact-free step of the same
 batch size, measured in the same interleaved repeats.
+
+Last, the scene with an object (``--no-object`` leaves it out): the arms squeeze the default
+rigid sphere (``SphereParams()``, PyElastica's ``Sphere`` with ``RodSphereContact`` to each
+arm) with a pulsing couple and carry it sideways, gravity and rod–rod contact on; its cost is
+against the contact-free step as above.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ import numpy as np
 
 from softtrack.sim import RodBatch, SimParams, actions_to_element_torques
 from softtrack.sim.params import CONTACT_ON
+from softtrack.sim.sphere import SphereParams
 from softtrack.store.provenance import cpu_description
 
 
@@ -75,6 +81,18 @@ def make_softtrack_runner(params: SimParams, torques: np.ndarray, n_envs: int, c
             batch.advance()
 
     return run
+
+
+def holding_torques(params: SimParams) -> np.ndarray:
+    """(50, 2, 2, N) element torques, N·m, over 1 s: the arms bend toward each other with a
+    couple pulsing between 0.3 and 3.3 N·m (1 Hz) and sway together along z (±2 N·m)."""
+    times = np.arange(50) * 0.02
+    torques = np.zeros((50, 2, 2, params.n_elem))
+    press = 1.5 * (1.2 + np.sin(2.0 * np.pi * times))
+    torques[:, 0, 0] = -press[:, None]
+    torques[:, 1, 0] = press[:, None]
+    torques[:, :, 1] = 2.0 * np.sin(np.pi * times)[:, None, None]
+    return torques
 
 
 def scene_torques(scene: str, params: SimParams, rng: np.random.Generator) -> np.ndarray:
@@ -136,6 +154,9 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=11, help="timed runs per measurement")
     parser.add_argument("--batch", type=int, default=64, help="environments in the batch")
     parser.add_argument(
+        "--no-object", action="store_true", help="leave out the scene with the sphere"
+    )
+    parser.add_argument(
         "--no-contact", action="store_true", help="leave out the contact-on measurements"
     )
     args = parser.parse_args()
@@ -187,6 +208,8 @@ def main() -> None:
     print(f"warm start (import + first step, cached compilation): {warm:.2f} s")
     if not args.no_contact:
         contact_rows(args, steps, batch_control_steps)
+    if not args.no_object:
+        object_rows(args, steps, batch_control_steps)
 
 
 def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) -> None:
@@ -243,6 +266,55 @@ def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int)
                 f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
                 f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
             )
+
+
+def object_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) -> None:
+    """The scene with the sphere (module docstring)."""
+    free = SimParams()
+    held = SimParams(**CONTACT_ON, gravity=9.81, sphere=SphereParams())
+    torques = holding_torques(free)
+    runners = {
+        "pyelastica": (
+            make_pyelastica_runner(held, torques, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "single-free": (
+            make_softtrack_runner(free, torques, 1, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "single": (
+            make_softtrack_runner(held, torques, 1, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "batch-free": (
+            make_softtrack_runner(free, torques, args.batch, batch_control_steps),
+            batch_control_steps * steps * args.batch,
+        ),
+        "batch": (
+            make_softtrack_runner(held, torques, args.batch, batch_control_steps),
+            batch_control_steps * steps * args.batch,
+        ),
+    }
+    rates = interleaved_rates(runners, args.repeats)
+    sphere = held.sphere
+    assert sphere is not None
+    print(
+        f"with a sphere held between the arms (R = {sphere.radius:g} m, {sphere.mass:.2f} kg, "
+        f"contact_k = {sphere.contact_k:g} N/m, friction {sphere.friction:g}; gravity and "
+        "rod–rod contact on):"
+    )
+    pyelastica = statistics.median(rates["pyelastica"])
+    print(
+        f"  PyElastica + Sphere + contacts {pyelastica:7,.0f}   ({1e6 / pyelastica:6.2f} µs/step)"
+    )
+    for name, label in (("single", "1 env"), ("batch", f"{args.batch} envs, per env")):
+        rate = statistics.median(rates[name])
+        cost = median_ratio(rates[f"{name}-free"], rates[name])
+        speedup = median_ratio(rates[name], rates["pyelastica"])
+        print(
+            f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
+            f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
+        )
 
 
 if __name__ == "__main__":
