@@ -19,12 +19,14 @@ elements (i of arm A, j of arm B), in the order i outer, j inner:
 The element radius follows volume conservation, r = √(V/(π·l)), as PyElastica's rods do.
 
 Broad phase (speed only, the result is unchanged): a neighbour list of the element pairs whose
-midpoints are within r_i + r_j + ½(l_i + l_j) + 1e-5 m + a margin, rebuilt at the first step of
-every advance and whenever the nodes have moved (or the radii and lengths grown) by more than
-the margin since it was built. Each step, a listed pair is evaluated only when its midpoints
-are within r_i + r_j + ½(l_i + l_j) + 1e-5 m (+1e-9 m for rounding): farther segments are
-provably more than r_i + r_j + 1e-5 m apart, so PyElastica skips them too. Listed pairs are
-kept in PyElastica's order, so every pair PyElastica evaluates is evaluated in its order.
+midpoints are within r_i + r_j + ½(l_i + l_j) + 1e-5 m + a margin, kept with each environment
+between advances and rebuilt when it is missing (after a reset) or when the nodes have moved
+(or the radii and lengths grown) by more than the margin since it was built: whatever moved
+the nodes (steps, a new state, new materials), the list then holds every pair within reach.
+Each step, a listed pair is evaluated only when its midpoints are within
+r_i + r_j + ½(l_i + l_j) + 1e-5 m (+1e-9 m for rounding): farther segments are provably
+more than r_i + r_j + 1e-5 m apart, so PyElastica skips them too. Listed pairs are kept in
+PyElastica's order, so every pair PyElastica evaluates is evaluated in its order.
 (PyElastica's rod bounding boxes never separate here: the bases are exactly 2(r + l) apart.)
 
 The contact forces are kept in their own node array ``f_contact`` that the kick adds to the
@@ -109,16 +111,6 @@ def _closest_parameters(ax, ay, az, ex, ey, ez, bx, by, bz, fx, fy, fz):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _node_force(f_elem, damp_f, f_contact, weight, gravity, c, k):
-    """Component c of node k's force so far, N: internal Δ(Qᵀn/e), damping, gravity, contact."""
-    internal = f_elem[c, k] - f_elem[c, k - 1] if k > 0 else f_elem[c, 0]
-    external = damp_f[c, k] + damp_f[c, k - 1] if k > 0 else damp_f[c, 0]
-    if c == 1:
-        external += -gravity * weight[k]
-    return internal + (external + f_contact[c, k])
-
-
-@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
 def _reach(volume, inv_lengths, lengths, radius, reach, n_elem, n_pad):
     """radius_k = √(V·(1/l)/π) (m, within an ulp or two of PyElastica's √(V/l/π)) and
     reach_k = r_k + ½l_k + 1e-5 m (m) for real elements, −1 in the padding."""
@@ -129,17 +121,17 @@ def _reach(volume, inv_lengths, lengths, radius, reach, n_elem, n_pad):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _drift_since(pos, anchor, reach, n_pad):
-    """Largest node displacement since ``anchor`` (rows 0–2) plus the largest growth of the
-    reach since then (row 3), m."""
+def _drift_since(pos, anchor, reach, n_elem):
+    """Largest displacement of the real nodes since ``anchor`` (rows 0–2) plus the largest
+    growth of the real elements' reach since then (row 3), m."""
     moved = 0.0
     grown = 0.0
-    for k in range(n_pad + 1):
+    for k in range(n_elem + 1):
         dx = pos[0, k] - anchor[0, k]
         dy = pos[1, k] - anchor[1, k]
         dz = pos[2, k] - anchor[2, k]
         moved = max(moved, dx * dx + dy * dy + dz * dz)
-    for k in range(n_pad):
+    for k in range(n_elem):
         grown = max(grown, reach[k] - anchor[3, k])
     return math.sqrt(moved) + grown
 
@@ -171,8 +163,7 @@ def rod_rod_contact(
     vel_a,
     lengths_a,
     inv_lengths_a,
-    f_elem_a,
-    damp_f_a,
+    node_force_a,
     f_contact_a,
     geometry_a,
     anchor_a,
@@ -180,19 +171,15 @@ def rod_rod_contact(
     vel_b,
     lengths_b,
     inv_lengths_b,
-    f_elem_b,
-    damp_f_b,
+    node_force_b,
     f_contact_b,
     geometry_b,
     anchor_b,
-    weight,
-    gravity,
     volume,
     stiffness,
     damping,
     pairs,
     n_pairs,
-    rebuild,
     n_elem,
     n_pad,
     force_on_b,
@@ -202,16 +189,16 @@ def rod_rod_contact(
     Args (per rod, A shown; arrays padded to ≥ n_pad elements / n_pad+1 nodes):
         pos_a, vel_a: (3, ·) node positions (m) and velocities (m/s).
         lengths_a, inv_lengths_a: (·,) current element lengths (m) and their inverses.
-        f_elem_a: (3, ·) element stress Qᵀn/e (N); damp_f_a: (3, ·) each element's damping
-            force on each of its nodes (N): with gravity, the node forces before contact.
+        node_force_a: (3, ·) each node's internal, damping and gravity force, N (the node
+            forces before contact).
         f_contact_a: (3, ·) output, the contact force on each node, N.
         geometry_a: (2, ·) work array: the element radii r and reaches r + ½l + 1e-5 m, m.
-        anchor_a: (4, ·) the node positions (3 rows) and reaches when the neighbour list was
-            built.
-        weight: (·,) node masses, kg; gravity: m/s² along −y; volume: (·,) element volumes,
-            m³ (0 in the padding); stiffness: k, N/m; damping: ν, N·s/m.
-        pairs: (n_elem², 2) int, the neighbour list; n_pairs: its length.
-        rebuild: build the list anew (the first step of an advance).
+        anchor_a: (4, ≥ n_elem+1) the real node positions (3 rows) and element reaches when
+            the neighbour list was built.
+        volume: (·,) element volumes, m³ (0 in the padding); stiffness: k, N/m;
+            damping: ν, N·s/m.
+        pairs: (n_elem², 2) int, the neighbour list; n_pairs: its length, < 0 when there is
+            none yet (it is built).
         n_elem: real elements per rod; n_pad: padded element count (loop trip count).
         force_on_b: (3,) output, the total contact force on rod B (N); A receives −force_on_b.
 
@@ -229,20 +216,20 @@ def rod_rod_contact(
     reach_b = geometry_b[1]
     _reach(volume, inv_lengths_a, lengths_a, radius_a, reach_a, n_elem, n_pad)
     _reach(volume, inv_lengths_b, lengths_b, radius_b, reach_b, n_elem, n_pad)
-    stale = rebuild
+    stale = n_pairs < 0
     if not stale:
-        moved = _drift_since(pos_a, anchor_a, reach_a, n_pad) + _drift_since(
-            pos_b, anchor_b, reach_b, n_pad
+        moved = _drift_since(pos_a, anchor_a, reach_a, n_elem) + _drift_since(
+            pos_b, anchor_b, reach_b, n_elem
         )
         stale = moved > _LIST_MARGIN - _BROAD_PHASE_MARGIN
     listed = n_pairs
     if stale:
         listed = _build_neighbours(pos_a, reach_a, pos_b, reach_b, _LIST_MARGIN, pairs, n_elem)
         for c in range(3):
-            for k in range(n_pad + 1):
+            for k in range(n_elem + 1):
                 anchor_a[c, k] = pos_a[c, k]
                 anchor_b[c, k] = pos_b[c, k]
-        for k in range(n_pad):
+        for k in range(n_elem):
             anchor_a[3, k] = reach_a[k]
             anchor_b[3, k] = reach_b[k]
     deepest = 0.0
@@ -291,12 +278,12 @@ def rod_rod_contact(
         push = 0.0
         for c in range(3):
             mean_a = 0.5 * (
-                _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i)
-                + _node_force(f_elem_a, damp_f_a, f_contact_a, weight, gravity, c, i + 1)
+                (node_force_a[c, i] + f_contact_a[c, i])
+                + (node_force_a[c, i + 1] + f_contact_a[c, i + 1])
             )
             mean_b = 0.5 * (
-                _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j)
-                + _node_force(f_elem_b, damp_f_b, f_contact_b, weight, gravity, c, j + 1)
+                (node_force_b[c, j] + f_contact_b[c, j])
+                + (node_force_b[c, j + 1] + f_contact_b[c, j + 1])
             )
             push += (mean_b - mean_a) * (nx if c == 0 else (ny if c == 1 else nz))
         magnitude = abs(min(push, 0.0))

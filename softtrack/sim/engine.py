@@ -112,6 +112,11 @@ class RodBatch:
             p.sphere.kernel_params() if p.sphere is not None else np.zeros(7)
         )  # (7,) R, m, J, k, ν, c_v, μ; R = 0: no sphere
         self._sphere_out = np.zeros((n_envs, 6))  # per-arm force, overlap, contact steps
+        # each environment's neighbour list of element pairs for rod–rod contact (kept between
+        # advances; −1: none yet), softtrack.sim.contact
+        self._contact_pairs = np.zeros((n_envs, p.n_elem * p.n_elem, 2), dtype=np.int64)
+        self._contact_listed = np.full(n_envs, -1, dtype=np.int64)
+        self._contact_anchor = np.zeros((n_envs, 2, 4, p.n_nodes))
         self.reset()
 
     @property
@@ -142,6 +147,7 @@ class RodBatch:
         self._penetration[idx] = 0.0
         self._contact_force[idx] = 0.0
         self._sphere_out[idx] = 0.0
+        self._contact_listed[idx] = -1
         if self.params.sphere is not None:
             rest = np.zeros(SPHERE_STATE_SIZE)
             rest[:3] = self.params.sphere.center
@@ -355,6 +361,9 @@ class RodBatch:
             self.sphere,
             self._sphere_params,
             self._sphere_out,
+            self._contact_pairs,
+            self._contact_listed,
+            self._contact_anchor,
         )
         self.time += steps * p.dt
 

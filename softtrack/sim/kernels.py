@@ -757,6 +757,19 @@ def _build_advance(n_pad):
     return advance_padded
 
 
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _node_forces(f_elem, damp_f, weight, gravity, node_force, n_pad):
+    """node_force (3, ·) ← each node's internal Δ(Qᵀn/e) + damping + gravity force, N (the
+    forces before contact; the sum in the contact-free kernel's order)."""
+    for i in range(3):
+        g = -gravity if i == 1 else 0.0
+        node_force[i, 0] = f_elem[i, 0] + damp_f[i, 0] + g * weight[0]
+        for k in range(1, n_pad + 1):
+            node_force[i, k] = (
+                f_elem[i, k] - f_elem[i, k - 1] + damp_f[i, k] + damp_f[i, k - 1] + g * weight[k]
+            )
+
+
 def _build_advance_contact(n_pad):
     """The integrator of two rods in contact (:mod:`softtrack.sim.contact`), padded as
     :func:`_build_advance`: both rods of an environment advance together, step by step, and
@@ -795,6 +808,9 @@ def _build_advance_contact(n_pad):
         sphere,
         sphere_params,
         sphere_out,
+        contact_pairs,
+        contact_listed,
+        contact_anchor,
     ):
         n_env = position.shape[0]
         n_elem = rest_lengths.shape[0]
@@ -822,7 +838,7 @@ def _build_advance_contact(n_pad):
             kxc,
             f_contact_a,
             geometry_a,
-            anchor_a,
+            _,
         ) = _rod_work(width)
         (
             pos_b,
@@ -841,7 +857,7 @@ def _build_advance_contact(n_pad):
             _,
             f_contact_b,
             geometry_b,
-            anchor_b,
+            _,
         ) = _rod_work(width)
         (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k) = (
             _material_work(width)
@@ -850,11 +866,12 @@ def _build_advance_contact(n_pad):
         base_dirs_a = np.empty((3, 3))
         base_pos_b = np.empty(3)
         base_dirs_b = np.empty((3, 3))
-        pairs = np.zeros((n_elem * n_elem, 2), dtype=np.int64)
         force_on_b = np.zeros(3)
         half_dt = 0.5 * dt
         has_sphere = sphere_params[0] > 0.0
         sphere_work = np.zeros((2, 3))
+        node_force_a = np.zeros((3, width))
+        node_force_b = np.zeros((3, width))
         for env in range(n_env):
             _load_material(
                 env,
@@ -916,7 +933,10 @@ def _build_advance_contact(n_pad):
             )
             deepest = 0.0
             force_total = 0.0
-            n_pairs = 0
+            n_pairs = contact_listed[env]
+            pairs = contact_pairs[env]
+            anchor_a = contact_anchor[env, 0]
+            anchor_b = contact_anchor[env, 1]
             body = sphere[env]
             sphere_out[env, :] = 0.0
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
@@ -1010,14 +1030,15 @@ def _build_advance_contact(n_pad):
                     dt,
                     n_pad,
                 )
+                _node_forces(f_elem_a, damp_f_a, weight_m, gravity, node_force_a, n_pad)
+                _node_forces(f_elem_b, damp_f_b, weight_m, gravity, node_force_b, n_pad)
                 if contact_k > 0.0:
                     depth, n_pairs = rod_rod_contact(
                         pos_a,
                         vel_a,
                         lengths_a,
                         inv_lengths_a,
-                        f_elem_a,
-                        damp_f_a,
+                        node_force_a,
                         f_contact_a,
                         geometry_a,
                         anchor_a,
@@ -1025,19 +1046,15 @@ def _build_advance_contact(n_pad):
                         vel_b,
                         lengths_b,
                         inv_lengths_b,
-                        f_elem_b,
-                        damp_f_b,
+                        node_force_b,
                         f_contact_b,
                         geometry_b,
                         anchor_b,
-                        weight_m,
-                        gravity,
                         vol,
                         contact_k,
                         contact_nu,
                         pairs,
                         n_pairs,
-                        step == 0,
                         n_elem,
                         n_pad,
                         force_on_b,
@@ -1073,30 +1090,12 @@ def _build_advance_contact(n_pad):
                         sphere_out[env],
                     )
                 drift_dt = half_dt if step == n_steps - 1 else dt
-                # v += dt·F/m, F = internal + damping + gravity + contact (written out: as an
-                # inlined helper this loop ran 25 % slower); with no contact force the sum is
-                # bit for bit the contact-free kernel's
+                # v += dt·F/m, F = (internal + damping + gravity) + contact; with no contact
+                # force the sum is bit for bit the contact-free kernel's
                 for i in range(3):
-                    g = -gravity if i == 1 else 0.0
                     for k in range(1, n_pad + 1):
-                        f = (
-                            f_elem_a[i, k]
-                            - f_elem_a[i, k - 1]
-                            + damp_f_a[i, k]
-                            + damp_f_a[i, k - 1]
-                            + g * weight_m[k]
-                            + f_contact_a[i, k]
-                        )
-                        vel_a[i, k] += dt * (f * inv_m[k])
-                        f = (
-                            f_elem_b[i, k]
-                            - f_elem_b[i, k - 1]
-                            + damp_f_b[i, k]
-                            + damp_f_b[i, k - 1]
-                            + g * weight_m[k]
-                            + f_contact_b[i, k]
-                        )
-                        vel_b[i, k] += dt * (f * inv_m[k])
+                        vel_a[i, k] += dt * ((node_force_a[i, k] + f_contact_a[i, k]) * inv_m[k])
+                        vel_b[i, k] += dt * ((node_force_b[i, k] + f_contact_b[i, k]) * inv_m[k])
                     vel_a[i, 0] = 0.0
                     vel_b[i, 0] = 0.0
                 _drift(pos_a, vel_a, dirs_a, om_a, drift_dt, base_pos_a, base_dirs_a, n_pad)
@@ -1105,6 +1104,7 @@ def _build_advance_contact(n_pad):
                     sphere_drift(body, drift_dt)
             penetration[env] = deepest
             contact_force[env] = force_total / max(n_steps, 1)
+            contact_listed[env] = n_pairs
             checksum = _store_rod(
                 pos_a, vel_a, dirs_a, om_a, env, 0, position, velocity, directors, omega
             )
@@ -1151,6 +1151,9 @@ def advance(
     sphere,
     sphere_params,
     sphere_out,
+    contact_pairs,
+    contact_listed,
+    contact_anchor,
 ):
     """Integrate every rod of the batch by ``n_steps`` steps of ``dt`` seconds, in place.
 
@@ -1178,6 +1181,10 @@ def advance(
         sphere_out: (E, 6) output with a sphere: per arm the magnitude of its contact force
             on the sphere, mean over the steps (N, columns 0–1), its deepest overlap (m,
             2–3) and its steps with an overlap (4–5).
+        contact_pairs: (E, N², 2) int64, contact_listed: (E,) int64 and contact_anchor:
+            (E, 2, 4, N+1): each environment's neighbour list of element pairs, its length (−1:
+            none, built at the next step) and the nodes and reaches it was built at
+            (:mod:`softtrack.sim.contact`); kept between calls.
     """
     n_pad = (rest_lengths.shape[0] // 8 + 1) * 8  # multiple of 8, > N: room for the tip node
     contact = (contact_k > 0.0 or sphere_params[0] > 0.0) and position.shape[1] == 2
@@ -1216,6 +1223,9 @@ def advance(
             sphere,
             sphere_params,
             sphere_out,
+            contact_pairs,
+            contact_listed,
+            contact_anchor,
         )
     else:
         kernel(
