@@ -150,8 +150,13 @@ def test_every_field_has_a_description_with_a_unit() -> None:
     def walk(props: dict, where: str) -> None:
         for name, prop in props.items():
             desc = prop.get("description", "")
-            if "$ref" in prop or "allOf" in prop:
-                ref = prop.get("$ref") or prop["allOf"][0]["$ref"]
+            optional_section = [a for a in prop.get("anyOf", []) if "$ref" in a]
+            if "$ref" in prop or "allOf" in prop or optional_section:
+                ref = (
+                    prop.get("$ref")
+                    or (optional_section[0]["$ref"] if optional_section else None)
+                    or prop["allOf"][0]["$ref"]
+                )
                 walk(schema["$defs"][ref.split("/")[-1]]["properties"], f"{where}{name}.")
                 if not desc:
                     missing.append(where + name)

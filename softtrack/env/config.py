@@ -79,11 +79,26 @@ class TrackingConfig:
             )
         if self.max_episode_steps < 1:
             raise InvalidParameterError("episode_duration is shorter than one control step")
+        self._validate_object()
+
+    def _validate_object(self) -> None:
+        """The transport task and the sphere go together, in the two-arm scene."""
+        if self.task.carries_object and self.sim.sphere is None:
+            raise InvalidParameterError(
+                "task transport needs a sphere to carry: set sphere (e.g. sphere: {} for the "
+                "default 0.05-m ball between the tips)"
+            )
+        if self.sim.sphere is not None and not self.task.carries_object:
+            raise InvalidParameterError(
+                f"a sphere belongs to the transport task, but the task is {self.task.name!r}; "
+                "set task: transport or remove the sphere"
+            )
 
 
 _SIM_FIELDS = {f.name for f in dataclasses.fields(SimParams)}
 _TARGET_FIELDS = {f.name for f in dataclasses.fields(TargetConfig)} - {"name"}
 _REWARD_FIELDS = {f.name for f in dataclasses.fields(RewardConfig)}
+_TASK_FIELDS = {f.name for f in dataclasses.fields(TaskConfig)} - {"name"}
 
 
 def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> TrackingConfig:
@@ -92,8 +107,11 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     Any field of :class:`SimParams`, :class:`TargetConfig` or :class:`RewardConfig` may be
     given by name, plus ``target`` (a mode name or a ``TargetConfig``), ``reward`` (a
     ``RewardConfig``), ``episode_duration``, ``realism`` (a ``RealismConfig`` or a mapping
-    of its fields; default all off), ``task`` (a task name or a ``TaskConfig``) and
-    ``standoff`` (m, the viewpoints task's distance of each arm's point from the target).
+    of its fields; default all off), ``task`` (a task name or a ``TaskConfig``) and any
+    field of :class:`TaskConfig` (``standoff``, m, the viewpoints task's distance of each
+    arm's point from the target; the transport task's ``approach``, ``drop_grace``,
+    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``). In the
+    transport task ``episode_duration`` defaults to the approach plus 10 s (one lap).
 
     Args:
         n_arms: 2 for the dual-arm scene, 1 for a single arm.
@@ -105,11 +123,15 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     kwargs = dict(kwargs)
     target = kwargs.pop("target", "random")
     reward = kwargs.pop("reward", None)
-    episode_duration = float(kwargs.pop("episode_duration", 10.0))
+    duration = kwargs.pop("episode_duration", None)
     task = kwargs.pop("task", "shared")
     task_config = task if isinstance(task, TaskConfig) else TaskConfig(name=str(task))
-    if "standoff" in kwargs:
-        task_config = dataclasses.replace(task_config, standoff=kwargs.pop("standoff"))
+    task_kw = {k: kwargs.pop(k) for k in list(kwargs) if k in _TASK_FIELDS}
+    if task_kw:
+        task_config = dataclasses.replace(task_config, **_tuples(task_kw))
+    if duration is None:
+        duration = 10.0 + (task_config.approach if task_config.carries_object else 0.0)
+    episode_duration = float(duration)
     try:
         realism = RealismConfig.from_value(kwargs.pop("realism", None))
     except ValueError as err:
@@ -122,7 +144,8 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
             _SIM_FIELDS
             | _TARGET_FIELDS
             | _REWARD_FIELDS
-            | {"target", "reward", "episode_duration", "realism", "task", "standoff"}
+            | _TASK_FIELDS
+            | {"target", "reward", "episode_duration", "realism", "task"}
         )
         raise InvalidParameterError(
             f"unknown environment parameter {min(kwargs)!r}; valid names: {', '.join(valid)}"

@@ -19,6 +19,7 @@ from softtrack.env.observation import build_observation, observation_size
 from softtrack.env.realism import RealismModel
 from softtrack.env.reward import action_penalty, collision_penalty, tracking_reward
 from softtrack.env.targets import BatchedTargets
+from softtrack.env.transport import TransportModel
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
 from softtrack.sim.params import MODEL_PARAMETERS
@@ -40,7 +41,10 @@ class StepResult:
         terminated: (n,) bool, the state became non-finite.
         truncated: (n,) bool, the episode reached its duration (and did not terminate).
         distances: (n, A) distances of each tip from its arm's point (the target centre in
-            the shared task), m.
+            the shared task, the goal in the transport task), m.
+        object_distance: (n,) transport: the sphere's distance from the goal, m; else None.
+        touching: (n, A) transport: bool, each arm touched the sphere during the step.
+        dropped: (n,) transport: bool, the sphere was dropped (the episode terminated).
     """
 
     observation: np.ndarray
@@ -48,6 +52,9 @@ class StepResult:
     terminated: np.ndarray
     truncated: np.ndarray
     distances: np.ndarray
+    object_distance: np.ndarray | None = None
+    touching: np.ndarray | None = None
+    dropped: np.ndarray | None = None
 
 
 class TrackingCore:
@@ -70,7 +77,15 @@ class TrackingCore:
         self.step_count = np.zeros(self.n_envs, dtype=np.int64)
         self.max_steps = config.max_episode_steps
         self.action_dim = self.n_arms * 2 * N_CONTROL_POINTS
-        self.obs_dim = observation_size(self.n_arms, config.sim.n_nodes)
+        # the transport task (softtrack.env.transport): goal, observation, reward and drops
+        self.transport: TransportModel | None = (
+            TransportModel(self.n_envs, config) if config.task.carries_object else None
+        )
+        self.obs_dim = (
+            self.transport.observation_size
+            if self.transport is not None
+            else observation_size(self.n_arms, config.sim.n_nodes)
+        )
         self._obs = np.zeros((self.n_envs, self.obs_dim), dtype=np.float32)
         self._control_dt = config.sim.control_dt
         # the previous clipped action of each environment, for reward.action_rate_penalty
@@ -102,9 +117,16 @@ class TrackingCore:
         (without the realism's delay, noise and drops, which :meth:`reset` and :meth:`step`
         apply)."""
         engine, targets = self.engine, self.targets
-        build_observation(
-            engine.position, engine.tip_velocity, targets.position, targets.velocity, out=self._obs
-        )
+        if self.transport is not None:
+            self.transport.observation(engine, self._obs)
+        else:
+            build_observation(
+                engine.position,
+                engine.tip_velocity,
+                targets.position,
+                targets.velocity,
+                out=self._obs,
+            )
         obs = self._obs[env_indices]
         if not np.isfinite(obs).all():
             obs = np.nan_to_num(obs, nan=0.0, posinf=0.0, neginf=0.0)
@@ -130,6 +152,8 @@ class TrackingCore:
         self.targets.reset(idx, list(rngs))
         self.step_count[idx] = 0
         self._previous_action[idx] = 0.0
+        if self.transport is not None:
+            self.transport.reset(idx, self.targets)
         obs = self.observe(idx)
         if self.realism is not None:
             obs = self.realism.reset(idx, list(rngs), obs)
@@ -164,13 +188,23 @@ class TrackingCore:
         if realism is not None:
             realism.saturate_torques(engine.torques)
         engine.advance()
-        self.targets.step(self._control_dt)
         self.step_count += 1
+        transport = self.transport
+        if transport is None:
+            self.targets.step(self._control_dt)
+        else:
+            self.targets.step(self._control_dt, transport.target_active(self.step_count))
+            transport.update_goal(self.step_count, self.targets)
 
         finite = engine.finite()
         diff = engine.tip_position - self.goal_positions()
         distances = np.sqrt(np.einsum("nai,nai->na", diff, diff))
-        reward = tracking_reward(distances, self.config.reward)
+        object_distance = touching = dropped = None
+        if transport is None:
+            reward = tracking_reward(distances, self.config.reward)
+        else:
+            object_distance = transport.object_distance(engine)
+            reward, touching, dropped = transport.step_reward(engine, object_distance)
         if self.config.reward.collision_penalty:
             reward = reward + collision_penalty(engine.position, self.config.reward)
         if self.config.reward.penalises_actions:
@@ -181,14 +215,28 @@ class TrackingCore:
         terminated = ~finite
         if terminated.any():
             reward[terminated] = self.config.reward.nonfinite_reward
-        truncated = (self.step_count >= self.max_steps) & finite
+        if dropped is not None:
+            terminated = terminated | dropped
+        truncated = (self.step_count >= self.max_steps) & ~terminated
         observation = self.observe()
         if realism is not None:
             observation = realism.filter_obs(observation)
-        return StepResult(observation, reward, terminated, truncated, distances)
+        return StepResult(
+            observation,
+            reward,
+            terminated,
+            truncated,
+            distances,
+            object_distance,
+            touching,
+            dropped,
+        )
 
     def goal_positions(self) -> np.ndarray:
-        """(n, A, 3) the point each arm tracks (the target centre plus the task's offset), m."""
+        """(n, A, 3) the point each arm tracks (the target centre plus the task's offset; in
+        the transport task the goal of the sphere), m."""
+        if self.transport is not None:
+            return np.repeat(self.transport.goal_position[:, None, :], self.n_arms, axis=1)
         return self.targets.position[:, None, :] + self.goal_offsets[None]
 
     def info(self, i: int, distances: np.ndarray) -> dict[str, Any]:
@@ -204,6 +252,14 @@ class TrackingCore:
             penetration, force = self.engine.contact_state()
             info["penetration"] = float(penetration[i])
             info["contact_force"] = float(force[i])
+        if self.transport is not None:
+            object_force, object_overlap, object_steps = self.engine.sphere_contact_state()
+            info["object_position"] = self.engine.sphere_position[i].copy()
+            info["goal_position"] = self.transport.goal_position[i].copy()
+            info["object_force"] = object_force[i]
+            info["object_overlap"] = object_overlap[i]
+            info["touching"] = object_steps[i] > 0
+            info["dropped"] = bool(self.transport.dropped()[i])
         if self.model_error:
             info["parameters"] = self.parameters(i)
         return info

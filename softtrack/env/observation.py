@@ -38,23 +38,26 @@ def observation_size(n_arms: int, n_nodes: int = 21) -> int:
 
 
 def arm_view_columns(arm: int, n_arms: int, observation_dim: int) -> np.ndarray:
-    """Indices of what one arm sees on its own: its 37-value block, then the target's 7.
+    """Indices of what one arm sees on its own: its 37-value block, then the points' blocks
+    (the target's 7; in the transport task the sphere's and the goal's, 14).
 
     That is the single-arm observation (44 values for 21 nodes) inside the A-arm one.
 
     Args:
         arm: the arm, 0 … n_arms − 1.
         n_arms: A, arms in the observation.
-        observation_dim: length of the A-arm observation (81 for two arms).
+        observation_dim: length of the A-arm observation (81 for two arms, 88 in transport).
 
     Returns:
         (observation_dim − (A − 1)·block,) int64 column indices, block = the per-arm length.
     """
-    block, rest = divmod(observation_dim - _TARGET_SIZE, n_arms)
-    if rest or block < 1 or not 0 <= arm < n_arms:
-        raise ValueError(f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms")
-    target = np.arange(observation_dim - _TARGET_SIZE, observation_dim)
-    return np.concatenate([np.arange(block * arm, block * (arm + 1)), target])
+    for points in (1, 2):  # an arm block is 3·m + 4 ≡ 1 (mod 3): one count fits (A ≤ 2)
+        tail = points * _TARGET_SIZE
+        block, rest = divmod(observation_dim - tail, n_arms)
+        if not rest and block > 4 and block % 3 == 1 and 0 <= arm < n_arms:
+            points_columns = np.arange(observation_dim - tail, observation_dim)
+            return np.concatenate([np.arange(block * arm, block * (arm + 1)), points_columns])
+    raise ValueError(f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms")
 
 
 def observation_labels(n_arms: int, n_nodes: int = 21) -> list[str]:

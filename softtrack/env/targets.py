@@ -349,10 +349,14 @@ class BatchedTargets:
             speed = float(rng.uniform(self.config.speed_min, speed))
         self.velocity[i] = (speed / norm) * g
 
-    def step(self, dt: float) -> None:
-        """Advance every environment by ``dt`` seconds."""
+    def step(self, dt: float, active: np.ndarray | None = None) -> None:
+        """Advance every environment (or the ``active`` ones, a (n,) bool mask; the others keep
+        their time, place and velocity) by ``dt`` seconds."""
         if not (_is_finite_number(dt) and dt > 0):
             raise ValueError(f"dt={dt!r} must be a finite number > 0")
+        if active is not None:
+            self._step_some(dt, np.asarray(active, dtype=bool))
+            return
         self.time += dt
         if not self._random:
             self.position[:], self.velocity[:] = _closed_form(self.config, self.time)
@@ -384,3 +388,28 @@ class BatchedTargets:
         for i in due.tolist():
             self._draw_direction(i)
             self._since_redirect[i] -= self.config.redirect_interval
+
+    def _step_some(self, dt: float, active: np.ndarray) -> None:
+        """:meth:`step` for the environments where ``active`` is true, the others untouched."""
+        if active.shape != (self.n_envs,):
+            raise ValueError(f"active must be a ({self.n_envs},) bool mask, got {active.shape}")
+        if active.all():
+            self.step(dt)
+            return
+        if not active.any():
+            return
+        saved = (
+            self.time.copy(),
+            self.position.copy(),
+            self.velocity.copy(),
+            self._since_redirect.copy(),
+        )
+        resting = np.flatnonzero(~active)
+        if self._random:  # a resting environment must not draw: hold it off its redirect
+            self._since_redirect[resting] = -np.inf
+        self.step(dt)
+        time, position, velocity, since_redirect = saved
+        self.time[resting] = time[resting]
+        self.position[resting] = position[resting]
+        self.velocity[resting] = velocity[resting]
+        self._since_redirect[resting] = since_redirect[resting]

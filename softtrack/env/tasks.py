@@ -10,9 +10,16 @@
   opposite sides. The trajectories, metrics, reward terms and cooperative bonus are those of
   the shared task, measured against each arm's own point.
 
-The observation keeps the study's 81 values in both tasks: the target block (indices 74–80)
-holds the target centre, its speed and direction; an arm's point is that centre plus the
-task's fixed offset, so the policy needs nothing more.
+* ``transport`` (cooperative transport, :mod:`softtrack.env.transport`): the two arms hold
+  a rigid sphere (``SimParams.sphere``) between their tips, and the sphere's centre must
+  follow the target. The goal starts at the sphere's centre and moves to the path's start
+  over ``approach`` seconds (a smoothstep), then follows the path from its t = 0; the episode
+  ends early when no arm has touched the sphere for ``drop_grace`` seconds (a drop).
+
+The observation keeps the study's 81 values in the shared and viewpoints tasks: the target
+block (indices 74–80) holds the target centre, its speed and direction; an arm's point is that
+centre plus the task's fixed offset, so the policy needs nothing more. The transport task's
+layout is in :mod:`softtrack.env.transport` (88 values).
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ __all__ = ["N_ARMS", "TASKS", "TaskConfig"]
 #: spec's ``training.total_timesteps`` (run.json ``arm_total_timesteps``; ``total_timesteps``
 #: is their sum).
 N_ARMS = 2
-TASKS = ("shared", "viewpoints")
+TASKS = ("shared", "viewpoints", "transport")
 
 
 @dataclass(frozen=True)
@@ -36,13 +43,34 @@ class TaskConfig:
     """Which point each arm tracks.
 
     Attributes:
-        name: ``shared`` or ``viewpoints`` (module docstring).
+        name: ``shared``, ``viewpoints`` or ``transport`` (module docstring).
         standoff: d, the distance of each arm's point from the target centre along x in the
-            ``viewpoints`` task, m (ignored by ``shared``).
+            ``viewpoints`` task, m (ignored by the others).
+        approach: transport: seconds over which the goal moves from the sphere's start to
+            the path's start.
+        drop_grace: transport: seconds without contact between the sphere and either arm
+            after which the sphere counts as dropped and the episode ends.
+        hold_bonus: transport: reward per arm touching the sphere on a control step.
+        squeeze_band: transport: (low, high) band of each arm's mean contact force on the
+            sphere, N; (0, 0) = no force regulation.
+        squeeze_penalty: transport: weight c_f of −c_f·(e/high)² per arm, e the force's
+            distance from the band, N.
+        drop_penalty: transport: subtracted on the step of a drop.
     """
 
     name: str = "shared"
     standoff: float = 0.1
+    approach: float = 2.0
+    drop_grace: float = 0.5
+    hold_bonus: float = 0.25
+    squeeze_band: tuple[float, float] = (0.0, 0.0)
+    squeeze_penalty: float = 0.0
+    drop_penalty: float = 100.0
+
+    @property
+    def carries_object(self) -> bool:
+        """True for the transport task."""
+        return self.name == "transport"
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the invalid field and the fix."""
@@ -54,6 +82,31 @@ class TaskConfig:
             and self.standoff >= 0
         ):
             raise ValueError(f"standoff={self.standoff!r} must be a finite number ≥ 0 m")
+        for name, unit in (
+            ("approach", "s"),
+            ("drop_grace", "s"),
+            ("hold_bonus", "reward units"),
+            ("squeeze_penalty", "reward units"),
+            ("drop_penalty", "reward units"),
+        ):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}={value!r} must be a finite number ≥ 0 {unit}")
+        band = self.squeeze_band
+        if (
+            len(band) != 2
+            or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in band)
+            or not 0 <= band[0] <= band[1]
+        ):
+            raise ValueError(
+                f"squeeze_band={band!r} must be (low, high) with 0 ≤ low ≤ high N; "
+                "(0, 0) switches force regulation off"
+            )
+        if self.squeeze_penalty > 0 and band[1] == 0:
+            raise ValueError(
+                f"squeeze_penalty={self.squeeze_penalty!r} needs a squeeze_band (low, high) "
+                "with high > 0 N, e.g. (5, 40)"
+            )
 
     def goal_offsets(self, arms: tuple[int, ...] = (0, 1)) -> np.ndarray:
         """(len(arms), 3) offset of each listed arm's point from the target centre, m.

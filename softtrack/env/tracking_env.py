@@ -9,8 +9,9 @@ import numpy as np
 
 from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
+from softtrack.sim.params import CONTACT_ON
 
-__all__ = ["DualArmTrackingEnv", "SingleArmTrackingEnv"]
+__all__ = ["DualArmTrackingEnv", "DualArmTransportEnv", "SingleArmTrackingEnv"]
 
 
 class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -162,3 +163,55 @@ class SingleArmTrackingEnv(_TrackingEnv):
     def __init__(self, arm: int = 0, **kwargs: Any) -> None:
         self.arm = arm
         super().__init__(make_config(n_arms=1, arm=arm, **kwargs))
+
+
+class DualArmTransportEnv(_TrackingEnv):
+    """Two soft arms carry a rigid sphere held between their tips along the target's path.
+
+    ## Description
+    The dual-arm scene of :class:`DualArmTrackingEnv` with contact between the arms
+    (``contact_k`` = 1e6 N/m, ``contact_nu`` = 600 N·s/m by default) and a rigid sphere
+    (``SimParams.sphere``; default radius 0.05 m, 500 kg/m³, centred between the straight
+    arms' tips, touching both, with friction μ = 0.5). Its centre must follow the goal: from
+    its start to the path's start over ``approach`` seconds, then the target's path
+    (``softtrack.env.transport``).
+
+    ## Action Space
+    ``Box(-1, 1, (24,), float32)``, as :class:`DualArmTrackingEnv`.
+
+    ## Observation Space
+    ``Box(-inf, inf, (88,), float32)``: the arms (0–73), the sphere's centre, speed and
+    direction (74–80), the goal's centre, speed and direction (81–87); SI units.
+
+    ## Rewards
+    −w̄·d² + the study's bonuses on the sphere's distance d from the goal, the cooperative
+    bonus while both arms touch it, ``hold_bonus`` per arm touching it, an optional squeeze
+    band penalty, −``drop_penalty`` on a drop (``softtrack.env.transport``).
+
+    ## Starting State
+    Both arms straight and at rest, the sphere at rest at its centre, the goal there.
+
+    ## Episode End
+    ``terminated`` on a non-finite state or when no arm has touched the sphere for
+    ``drop_grace`` (0.5 s); ``truncated`` after ``episode_duration`` (the approach + 10 s).
+
+    ## Info
+    As :class:`DualArmTrackingEnv`, plus ``object_position``, ``goal_position`` (3,) m,
+    ``object_force`` (2,) N (each arm's mean contact force on the sphere over the step),
+    ``object_overlap`` (2,) m, ``touching`` (2,) bool, ``dropped`` bool.
+
+    ## Arguments
+    Those of :class:`DualArmTrackingEnv`, ``sphere`` (a mapping of ``SphereParams``
+    fields: ``radius``, ``density``, ``center``, ``contact_k``, ``contact_nu``,
+    ``velocity_damping``, ``friction``) and the task's ``approach``, ``drop_grace``,
+    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``::
+
+        gymnasium.make("softtrack/DualArmTransport-v0", target="circle", gravity=True)
+
+    ## Version History
+    * v0: first version (docs/environment.md, "Transport").
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        settings: dict[str, Any] = {**CONTACT_ON, "sphere": {}, **kwargs, "task": "transport"}
+        super().__init__(make_config(n_arms=2, **settings))

@@ -33,8 +33,10 @@ def env_kwargs(spec: ExperimentSpec, arm: int | None = None) -> dict[str, Any]:
     sim = env.sim_kwargs()
     target = env.target_kwargs()
     common = {"target": target.pop("name"), "episode_duration": env.episode_duration, **target}
-    if env.task.name != "shared":  # only then, so the kwargs of a default spec stay as they were
+    if env.task.name == "viewpoints":  # only then, so a default spec's kwargs stay as they were
         common.update(task=env.task.name, standoff=env.task.standoff)
+    elif env.task.name == "transport":
+        common.update(task=env.task.name, **env.task.model_dump(exclude={"name", "standoff"}))
     if env.realism.active:  # only then, so the kwargs of a default spec stay as they were
         common["realism"] = env.realism.realism_kwargs()
     if arm is None:

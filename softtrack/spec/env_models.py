@@ -6,9 +6,10 @@ from __future__ import annotations
 import re
 from typing import Any, Literal
 
-from pydantic import field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from softtrack.env.targets import TargetMode
+from softtrack.env.tasks import TaskConfig
 from softtrack.sim.params import (
     CONTACT_ON,
     MODEL_PARAMETERS,
@@ -17,6 +18,7 @@ from softtrack.sim.params import (
     SimParams,
     model_error_stability,
 )
+from softtrack.sim.sphere import SphereParams
 from softtrack.spec.fields import (
     Factor,
     Float,
@@ -28,6 +30,44 @@ from softtrack.spec.fields import (
     section_field,
     unit_field,
 )
+
+_SPHERE = SphereParams()
+_TASK = TaskConfig()
+
+
+class SphereSpec(SpecModel):
+    """A rigid sphere held by the arms: the transport task's object
+    (:class:`softtrack.sim.sphere.SphereParams`, docs/physics.md "A rigid object")."""
+
+    radius: Float = unit_field(_SPHERE.radius, "radius R", "m", gt=0)
+    density: Float = unit_field(_SPHERE.density, "density (mass 4/3·pi·R³·density)", "kg/m³", gt=0)
+    center: Vec3 = unit_field(
+        _SPHERE.center,
+        "centre at every reset; the default lies between the straight arms' tips, touching both",
+        "m",
+    )
+    contact_k: Float = unit_field(
+        _SPHERE.contact_k,
+        "stiffness of the contact with each arm (PyElastica RodSphereContact k)",
+        "N/m",
+        ge=0,
+    )
+    contact_nu: Float = unit_field(
+        _SPHERE.contact_nu, "damping of that contact (RodSphereContact nu)", "N·s/m", ge=0
+    )
+    velocity_damping: Float = unit_field(
+        _SPHERE.velocity_damping,
+        "friction's slip damping (RodSphereContact velocity_damping_coefficient): below the "
+        "Coulomb limit the friction force is this times the slip speed",
+        "N·s/m",
+        ge=0,
+    )
+    friction: Float = unit_field(
+        _SPHERE.friction,
+        "Coulomb friction coefficient (RodSphereContact friction_coefficient)",
+        "-",
+        ge=0,
+    )
 
 
 class PhysicsSpec(SpecModel):
@@ -90,6 +130,11 @@ class PhysicsSpec(SpecModel):
         "N·s/m",
         ge=0,
     )
+    sphere: SphereSpec | None = Field(
+        None,
+        description="a rigid sphere between the arms, the transport task's object; null (the "
+        "default) = none; {} = the default 0.05-m, 500-kg/m³ ball between the tips",
+    )
 
     @field_validator("gravity", mode="before")
     @classmethod
@@ -122,8 +167,12 @@ class PhysicsSpec(SpecModel):
         return self
 
     def sim_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :class:`SimParams` (tuples, SI units)."""
-        return self.model_dump()
+        """Keyword arguments of :class:`SimParams` (tuples, SI units; ``sphere`` a
+        :class:`SphereParams` or None)."""
+        kwargs = self.model_dump()
+        if kwargs["sphere"] is not None:
+            kwargs["sphere"] = SphereParams.from_mapping(kwargs["sphere"])
+        return kwargs
 
     def sim_params(self) -> SimParams:
         """The validated :class:`SimParams` (direction/normal keep their defaults)."""
@@ -423,12 +472,14 @@ class RealismSpec(SpecModel):
 
 
 class TaskSpec(SpecModel):
-    """Which point each arm tracks (:mod:`softtrack.env.tasks`, docs/environment.md)."""
+    """What the arms do (:mod:`softtrack.env.tasks`, docs/environment.md): track the shared
+    target, track two viewpoints beside it, or carry a sphere along its path."""
 
-    name: Literal["shared", "viewpoints"] = unit_field(
+    name: Literal["shared", "viewpoints", "transport"] = unit_field(
         "shared",
         "shared: both tips track the target centre (the study); viewpoints: each tip tracks "
-        "its own point at the standoff from the centre along x (arm 1 at -x, arm 2 at +x)",
+        "its own point at the standoff from the centre along x (arm 1 at -x, arm 2 at +x); "
+        "transport: the arms carry env.physics.sphere and its centre tracks the target",
         "-",
     )
     standoff: Float = unit_field(
@@ -437,6 +488,52 @@ class TaskSpec(SpecModel):
         "m",
         ge=0,
     )
+    approach: Float = unit_field(
+        _TASK.approach,
+        "transport: the goal moves from the sphere's start to the path's start in this time "
+        "(a smoothstep), then follows the path",
+        "s",
+        ge=0,
+    )
+    drop_grace: Float = unit_field(
+        _TASK.drop_grace,
+        "transport: the sphere counts as dropped (the episode ends) after this long without "
+        "contact with either arm",
+        "s",
+        ge=0,
+    )
+    hold_bonus: Float = unit_field(
+        _TASK.hold_bonus, "transport: reward per arm touching the sphere", "reward units", ge=0
+    )
+    squeeze_band: Pair = unit_field(
+        _TASK.squeeze_band,
+        "transport: band [low, high] of each arm's contact force on the sphere; [0, 0] = no "
+        "force regulation",
+        "N",
+    )
+    squeeze_penalty: Float = unit_field(
+        _TASK.squeeze_penalty,
+        "transport: weight c_f of -c_f·(e/high)² per arm, e the force's distance from the band",
+        "reward units",
+        ge=0,
+    )
+    drop_penalty: Float = unit_field(
+        _TASK.drop_penalty, "transport: subtracted on the step of a drop", "reward units", ge=0
+    )
+
+    @model_validator(mode="after")
+    def _check_task(self) -> TaskSpec:
+        try:
+            self.task_config().validate()
+        except ValueError as err:
+            message = str(err)
+            field = message.split("=", 1)[0] if "=" in message else ""
+            raise custom_error(message, field if field in type(self).model_fields else "") from None
+        return self
+
+    def task_config(self) -> TaskConfig:
+        """The environment's :class:`TaskConfig`."""
+        return TaskConfig(**self.model_dump())
 
 
 class EnvSpec(SpecModel):
@@ -451,7 +548,9 @@ class EnvSpec(SpecModel):
         10.0, "simulated length of a training episode (then truncated)", "s", gt=0
     )
     task: TaskSpec = section_field(
-        TaskSpec, "which point each arm tracks: the shared target (the study) or viewpoints"
+        TaskSpec,
+        "what the arms do: track the shared target (the study), two viewpoints, or carry a "
+        "sphere (transport)",
     )
     realism: RealismSpec = section_field(
         RealismSpec,
@@ -460,6 +559,23 @@ class EnvSpec(SpecModel):
         "per-episode random factors on Young's modulus, density, radius, damping and torque "
         "scale; all off by default (docs/environment.md)",
     )
+
+    @model_validator(mode="after")
+    def _check_object(self) -> EnvSpec:
+        carries = self.task.name == "transport"
+        if carries and self.physics.sphere is None:
+            raise custom_error(
+                "task transport needs a sphere to carry: set env.physics.sphere (e.g. {} for "
+                "the default 0.05-m ball between the tips)",
+                "task",
+            )
+        if self.physics.sphere is not None and not carries:
+            raise custom_error(
+                f"env.physics.sphere belongs to the transport task, but env.task.name is "
+                f"{self.task.name!r}; set env.task.name: transport or remove the sphere",
+                "physics",
+            )
+        return self
 
     @model_validator(mode="after")
     def _check_duration(self) -> EnvSpec:

@@ -392,6 +392,15 @@ class ExperimentSpec(SpecModel):
             _check_actor_preactivation_penalty(self)
         if t.randomisation_warmup_steps > 0:
             _check_randomisation_warmup(self)
+        if self.env.task.name == "transport" and self.controller == "independent":
+            raise custom_error(
+                "controller: independent trains each arm's policy alone, in a one-arm scene "
+                "that cannot hold the sphere; for the transport task's independent baseline "
+                "use controller: centralized with algo.critic: per_arm, "
+                "per_arm_networks: true and actor_observation: own_arm (each arm's actor "
+                "sees its own state, the sphere and the goal)",
+                "controller",
+            )
         if t.final_policy == "best_validated":
             check_validated_checkpoints(
                 t,

@@ -22,33 +22,39 @@ from stable_baselines3.common.buffers import ReplayBuffer
 __all__ = ["MirrorReplayBuffer", "mirror_action", "mirror_observation"]
 
 ARM_OBS = 37  # per arm: x, y, z of 11 nodes, tip speed, tip velocity direction (3)
-TARGET_OBS = 7  # target position (3), speed, velocity direction (3)
-OBS_DIM = 2 * ARM_OBS + TARGET_OBS
+POINT_OBS = 7  # a point's position (3), speed, velocity direction (3): target, sphere, goal
+OBS_DIM = 2 * ARM_OBS + POINT_OBS  # 81; the transport task's 88 holds two points
 ACTION_DIM = 24
 _ARM_X = np.r_[0:11, 34]  # node x coordinates and the x of the tip velocity direction
-_TARGET_X = np.array([0, 4])  # target x and the x of its velocity direction
+_POINT_X = np.array([0, 4])  # a point's x and the x of its velocity direction
 
 
 def mirror_observation(obs: np.ndarray) -> np.ndarray:
     """The observation of the mirror-image scene (x → −x, arms swapped).
 
     Args:
-        obs: (..., 81) dual-arm observations (docs/environment.md layout).
+        obs: (..., 81) dual-arm observations (docs/environment.md layout), or (..., 88) of
+            the transport task (the sphere's block, then the goal's).
 
     Returns:
-        (..., 81) array of the same dtype: arm 2's block mirrored in arm 1's place, arm 1's
-        in arm 2's, and the target's x position and x velocity direction negated.
+        An array of the same shape and dtype: arm 2's block mirrored in arm 1's place, arm
+        1's in arm 2's, and each point's x position and x velocity direction negated.
     """
     obs = np.asarray(obs)
-    if obs.shape[-1] != OBS_DIM:
-        raise ValueError(f"expected dual-arm observations of {OBS_DIM} values, got {obs.shape}")
+    points, rest = divmod(obs.shape[-1] - 2 * ARM_OBS, POINT_OBS)
+    if rest or points not in (1, 2):
+        raise ValueError(
+            f"expected dual-arm observations of {OBS_DIM} (or, transport, "
+            f"{OBS_DIM + POINT_OBS}) values, got {obs.shape}"
+        )
     arm1 = obs[..., :ARM_OBS].copy()
     arm2 = obs[..., ARM_OBS : 2 * ARM_OBS].copy()
-    target = obs[..., 2 * ARM_OBS :].copy()
+    tail = obs[..., 2 * ARM_OBS :].copy()
     for block in (arm1, arm2):
         block[..., _ARM_X] *= -1
-    target[..., _TARGET_X] *= -1
-    return np.concatenate([arm2, arm1, target], axis=-1)
+    for point in range(points):
+        tail[..., POINT_OBS * point + _POINT_X] *= -1
+    return np.concatenate([arm2, arm1, tail], axis=-1)
 
 
 def mirror_action(action: np.ndarray) -> np.ndarray:

@@ -1,0 +1,181 @@
+"""The cooperative transport task (softtrack.env.transport, docs/environment.md "Transport")."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import softtrack.env  # noqa: F401  (registers the environments)
+from softtrack.env.config import make_config
+from softtrack.env.core import TrackingCore
+from softtrack.env.targets import BatchedTargets, TargetConfig, trajectory_position
+from softtrack.sim.params import InvalidParameterError
+from softtrack.spec.api import parse_spec, spec_hash
+from softtrack.spec.fields import SpecError
+from softtrack.spec.models import ExperimentSpec
+
+SQUEEZE = np.zeros(24)
+SQUEEZE[0:6] = -0.03  # arm 1's normal values: negative curls toward +x, onto the sphere
+SQUEEZE[12:18] = 0.03  # arm 2's: positive curls toward −x
+
+
+def _transport_env(**kwargs: object) -> gym.Env:
+    return gym.make("softtrack/DualArmTransport-v0", **kwargs)
+
+
+def test_spaces_and_defaults() -> None:
+    env = _transport_env()
+    core = env.unwrapped.core
+    assert env.observation_space.shape == (88,)
+    assert env.action_space.shape == (24,)
+    assert core.config.sim.contact_k == 1e6 and core.config.sim.sphere is not None
+    assert core.max_steps == 6000  # 2 s of approach + one 10-s lap
+    obs, info = env.reset(seed=0)
+    np.testing.assert_allclose(obs[74:77], core.config.sim.sphere.center, atol=1e-6)
+    np.testing.assert_allclose(obs[81:84], core.config.sim.sphere.center, atol=1e-6)
+    np.testing.assert_array_equal(info["goal_position"], info["object_position"])
+
+
+def test_goal_approaches_then_follows_the_path() -> None:
+    """The goal leaves the sphere's start with zero speed, reaches the path's start after
+    ``approach`` seconds (smoothstep: halfway at half the time) and then follows the path from
+    its t = 0 point."""
+    env = _transport_env(target="circle", approach=1.0)
+    core = env.unwrapped.core
+    env.reset(seed=0)
+    start = np.asarray(core.config.sim.sphere.center)
+    path = TargetConfig(name="circle")
+    path_start = trajectory_position(path, np.zeros(1))[0]
+    control_dt = core.config.sim.control_dt
+    goals = []
+    for _ in range(750):
+        goals.append(env.step(SQUEEZE)[4]["goal_position"])
+    goals_array = np.array(goals)  # goal after 1, 2, … control steps
+    np.testing.assert_allclose(goals_array[249], 0.5 * (start + path_start), atol=1e-12)
+    np.testing.assert_allclose(goals_array[499], path_start, atol=1e-12)
+    later = trajectory_position(path, np.array([250 * control_dt]))[0]
+    np.testing.assert_allclose(goals_array[749], later, atol=1e-9)
+    assert np.linalg.norm(goals_array[0] - start) < 1e-4  # leaves slowly
+
+
+def test_a_squeezing_policy_carries_and_an_idle_one_drops() -> None:
+    held = _transport_env(gravity=True)
+    held.reset(seed=0)
+    for _ in range(500):
+        _, reward, terminated, _, info = held.step(SQUEEZE)
+        assert not terminated
+    assert info["touching"].all() and not info["dropped"]
+    assert reward > 2 * 0.25 - 1.0  # the hold bonus of both arms, a bounded distance term
+    assert (info["object_force"] > 1.0).all()
+
+    idle = _transport_env()
+    idle.reset(seed=0)
+    grace_steps = round(0.5 / 0.002)
+    steps = 0
+    for _ in range(grace_steps + 10):
+        _, reward, terminated, truncated, info = idle.step(np.zeros(24))
+        steps += 1
+        if terminated:
+            break
+    assert steps == grace_steps and terminated and not truncated and info["dropped"]
+    assert reward < -99.0  # the drop penalty
+
+
+def test_batched_transport_equals_single_environments() -> None:
+    """Two environments of one core, reset at different times (one in its approach while the
+    other follows the path), compute the transitions of two single ones."""
+    config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
+    batched = TrackingCore(2, config)
+    singles = [TrackingCore(1, config), TrackingCore(1, config)]
+    rng = [np.random.default_rng(s) for s in (1, 2, 1, 2)]
+    batched.reset([0, 1], rng[:2])
+    singles[0].reset([0], [rng[2]])
+    singles[1].reset([0], [rng[3]])
+    actions = np.tile(SQUEEZE, (2, 1))
+    for step in range(1200):
+        if step == 700:  # environment 1 restarts: it approaches while environment 0 tracks
+            batched.reset([1], [np.random.default_rng(5)])
+            singles[1].reset([0], [np.random.default_rng(5)])
+        result = batched.step(actions)
+        for k, single in enumerate(singles):
+            alone = single.step(actions[k : k + 1])
+            np.testing.assert_array_equal(result.observation[k], alone.observation[0])
+            np.testing.assert_array_equal(result.reward[k], alone.reward[0])
+
+
+def test_resting_random_target_draws_nothing() -> None:
+    targets = BatchedTargets(TargetConfig(name="random"), 2)
+    targets.reset([0, 1], [np.random.default_rng(0), np.random.default_rng(1)])
+    before = targets.position[1].copy(), targets.velocity[1].copy()
+    for _ in range(1000):  # 2 s: two redirects are due for a moving target
+        targets.step(0.002, np.array([True, False]))
+    np.testing.assert_array_equal(targets.position[1], before[0])
+    np.testing.assert_array_equal(targets.velocity[1], before[1])
+    assert targets.time[1] == 0.0 and targets.time[0] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"task": "transport"}, "task transport needs a sphere"),
+        ({"sphere": {}}, "a sphere belongs to the transport task"),
+        (
+            {"task": "transport", "sphere": {}, "squeeze_penalty": 1.0},
+            "squeeze_penalty=1.0 needs a squeeze_band",
+        ),
+        ({"task": "transport", "sphere": {"radius": -1.0}}, "sphere radius=-1.0 must be > 0 m"),
+        ({"task": "transport", "sphere": {}, "drop_grace": -1.0}, "drop_grace=-1.0 must be"),
+    ],
+)
+def test_bad_transport_settings_are_rejected(kwargs: dict, message: str) -> None:
+    with pytest.raises(InvalidParameterError, match=message):
+        make_config(**kwargs)
+
+
+_TRANSPORT_SPEC = """
+name: transport-test
+algo: {name: td3}
+env:
+  physics: {contact_k: 1.0e6, contact_nu: 600.0, sphere: {}}
+  task: {name: transport}
+"""
+
+
+def load_spec_text(text: str) -> ExperimentSpec:
+    return parse_spec(yaml.safe_load(text))
+
+
+def test_transport_spec_validates_and_old_specs_keep_their_hash() -> None:
+    spec = load_spec_text(_TRANSPORT_SPEC)
+    assert spec.env.physics.sim_params().sphere is not None
+    plain = load_spec_text("name: transport-test\nalgo: {name: td3}\n")
+    explicit = load_spec_text(
+        "name: transport-test\nalgo: {name: td3}\n"
+        "env: {physics: {sphere: null}, task: {approach: 2.0, drop_penalty: 100.0}}\n"
+    )
+    assert spec_hash(plain) == spec_hash(explicit) != spec_hash(spec)
+    with pytest.raises(SpecError, match="task transport needs a sphere"):
+        load_spec_text(_TRANSPORT_SPEC.replace(", sphere: {}", ""))
+    with pytest.raises(SpecError, match="belongs to the transport task"):
+        load_spec_text(_TRANSPORT_SPEC.replace("{name: transport}", "{name: shared}"))
+
+
+def test_mirror_and_arm_views_cover_the_transport_observation() -> None:
+    from softtrack.env.observation import arm_view_columns
+    from softtrack.rl.variants.mirror import mirror_observation
+
+    obs = np.arange(88, dtype=np.float64)
+    mirrored = mirror_observation(obs)
+    np.testing.assert_array_equal(mirror_observation(mirrored), obs)
+    np.testing.assert_array_equal(mirrored[[74, 78, 81, 85]], -obs[[74, 78, 81, 85]])
+    np.testing.assert_array_equal(mirrored[[75, 82]], obs[[75, 82]])
+    arm2 = arm_view_columns(1, 2, 88)
+    np.testing.assert_array_equal(arm2, np.r_[37:74, 74:88])
+    np.testing.assert_array_equal(arm_view_columns(0, 2, 81), np.r_[0:37, 74:81])
+
+
+def test_independent_controller_cannot_carry() -> None:
+    with pytest.raises(SpecError, match="cannot hold the sphere"):
+        load_spec_text(_TRANSPORT_SPEC + "controller: independent\n")
