@@ -888,6 +888,15 @@ def _print_created(record: RunRecord) -> None:
 
 def _print_episode(record: RunRecord, episode: Episode, metrics: pd.DataFrame) -> None:
     rows = metrics.sort_values("arm")
+    if "object_rmse_3d" in rows:  # transport: the sphere's error, the drop, the hold
+        first = rows.iloc[0]
+        dropped = f", dropped at {first['drop_time']:.2f} s" if bool(first["dropped"]) else ""
+        typer.echo(
+            f"{record.run_id}  {episode.trajectory:9s}  sphere 3-D RMSE "
+            f"{first['object_rmse_3d']:.4f} m, held by both arms "
+            f"{100 * first['two_arm_contact']:.0f} % of the steps{dropped}"
+        )
+        return
     rmse = " / ".join(f"{v:.4f}" for v in rows["rmse_3d"])
     steady = " / ".join("n/a" if math.isnan(v) else f"{v:.4f}" for v in rows["rmse_3d_steady"])
     note = "  (diverged: episode ended early)" if bool(rows["terminated"].any()) else ""
@@ -898,6 +907,15 @@ def _print_episode(record: RunRecord, episode: Episode, metrics: pd.DataFrame) -
 
 
 def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
+    if "object_rmse_3d" in rows:  # transport: one sphere per episode
+        episodes = rows.drop_duplicates("episode")
+        n = len(episodes)
+        drops = int(episodes["dropped"].astype(bool).sum())
+        typer.echo(
+            f"{record.run_id}  random     sphere 3-D RMSE {episodes['object_rmse_3d'].mean():.4f}"
+            f" m (mean over {n} episode{'s' if n != 1 else ''}), {drops} dropped"
+        )
+        return
     per_arm = rows.groupby("arm")["rmse_3d"]
     means, stds = per_arm.mean(), per_arm.std()
     cells = " / ".join(

@@ -179,3 +179,42 @@ def test_mirror_and_arm_views_cover_the_transport_observation() -> None:
 def test_independent_controller_cannot_carry() -> None:
     with pytest.raises(SpecError, match="cannot hold the sphere"):
         load_spec_text(_TRANSPORT_SPEC + "controller: independent\n")
+
+
+def test_transport_statistics_hand_computed() -> None:
+    from softtrack.evaluation.transport_metrics import transport_statistics
+
+    position = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    goal = np.array([[0.3, 0.0, 0.0], [0.0, 0.4, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    force = np.array([[10.0, 0.0], [20.0, 5.0], [30.0, 5.0], [40.0, 0.0]])
+    touching = force > 0
+    t = np.array([0.002, 0.004, 0.006, 0.008])
+    scene, arms = transport_statistics(position, goal, force, touching, True, t)
+    assert scene["object_rmse_3d"] == pytest.approx(np.sqrt((0.09 + 0.16) / 4))
+    assert scene["object_max_error"] == pytest.approx(0.4)
+    assert scene["object_rmse_x"] == pytest.approx(np.sqrt(0.09 / 4))
+    assert scene["dropped"] is True and scene["drop_time"] == pytest.approx(0.008)
+    assert scene["two_arm_contact"] == pytest.approx(0.5)
+    assert arms[0] == {"object_contact": 1.0, "object_force_mean": 25.0, "object_force_max": 40.0}
+    assert arms[1]["object_contact"] == pytest.approx(0.5)
+
+
+def test_evaluation_rows_measure_the_sphere() -> None:
+    """An evaluation episode of the transport task stores the sphere's metrics (against the
+    goal the episode recorded as its target), the hold and no drop for a squeezing policy;
+    the validation score is the sphere's 3-D RMSE."""
+    from softtrack.evaluation.episodes import run_episode
+    from softtrack.evaluation.tables import metrics_table, trajectory_table, validation_score
+
+    config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
+    episode = run_episode(lambda obs: SQUEEZE, config, "circle", duration=1.0)
+    rows = metrics_table("run", episode)
+    assert not episode.dropped and not rows["dropped"].any()
+    errors = np.linalg.norm(episode.object_position - episode.target, axis=1)
+    assert rows["object_rmse_3d"].iloc[0] == pytest.approx(np.sqrt(np.mean(errors**2)))
+    assert (rows["object_contact"] > 0.9).all() and rows["two_arm_contact"].iloc[0] > 0.9
+    assert (rows["object_force_mean"] > 1.0).all()
+    positions = trajectory_table("run", episode)
+    assert {"object_x", "object_y", "object_z"} <= set(positions)
+    random_rows = rows.assign(trajectory="random")
+    assert validation_score(random_rows) == pytest.approx(rows["object_rmse_3d"].iloc[0])

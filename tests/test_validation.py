@@ -347,3 +347,39 @@ def test_training_clock_leaves_paused_time_out() -> None:
     with clock.paused():
         time.sleep(0.2)
     assert 10.0 <= before <= clock.elapsed() < before + 0.1
+
+
+def test_a_checkpoint_whose_episodes_all_fail_is_stored_as_infinite(tmp_path: Path) -> None:
+    """Every validation episode of an untrained transport policy drops the sphere (a score of
+    ∞): training completes, ``state.json`` holds a null score and it reads back as ∞."""
+    from softtrack.rl.validation import best_model
+
+    spec = (
+        Path(__file__).parents[1]
+        / "experiments/variants/td3-sbx-128-1e6-mirror-fast-transport.yaml"
+    )
+    settings = {
+        "training.total_timesteps": 300,
+        "algo.learning_starts": 100,
+        "algo.batch_size": 32,
+        "training.checkpoint_interval": 150,
+        "training.validation_episodes": 1,
+        "training.validation_trajectories": "false",
+        "training.eval_duration": 0.6,
+        "training.n_envs": 1,
+    }
+    overrides = [arg for key, value in settings.items() for arg in ("--set", f"{key}={value}")]
+    result = runner.invoke(
+        app,
+        ["train", str(spec), "--runs-dir", str(tmp_path), "--seed", "0", *overrides],
+        env={"CI": "1"},
+    )
+    assert result.exit_code == 0, result.output
+    record = RunStore(tmp_path).get_run(result.stdout.strip())
+    rows = _validation(record)
+    assert rows["terminated"].all() and rows["dropped"].all()
+    policy = PolicyDir.of_run(record.path, None)
+    state = json.loads((policy.list_best()[-1] / "state.json").read_text(encoding="utf-8"))
+    assert state["score"] is None
+    best = best_model(policy)
+    assert best is not None and best.score == float("inf")

@@ -82,6 +82,12 @@ class Episode:
             thread's CPU time: the cost on one core, unaffected by other processes sharing
             the machine), for a controller that plans on the episode's state
             (``start_episode``, e.g. MPC); ``None`` for a policy.
+        object_position: transport task: (N, 3) the sphere's centre after each step, m
+            (``target`` then holds its goal); ``None`` in the other tasks.
+        object_force: transport: (N, A) each arm's contact force on the sphere, mean over
+            the control step, N.
+        object_touching: transport: (N, A) bool, each arm touched the sphere in the step.
+        dropped: transport: the episode ended because the sphere was dropped.
     """
 
     trajectory: str
@@ -99,6 +105,10 @@ class Episode:
     snapshots: np.ndarray | None = None
     snapshot_steps: np.ndarray | None = None
     goal_offsets: np.ndarray | None = None
+    object_position: np.ndarray | None = None
+    object_force: np.ndarray | None = None
+    object_touching: np.ndarray | None = None
+    dropped: bool = False
 
     def goals(self, arm: int) -> np.ndarray:
         """(N, 3) the point arm ``arm`` tracked at each step: the target centre plus its
@@ -168,6 +178,15 @@ def run_episode(
     if start_episode is not None:
         start_episode(core)
         planning = np.full(n_steps, np.nan)
+    transport = core.transport
+    carried = None
+    if transport is not None:
+        carried = (
+            np.full((n_steps, 3), np.nan),
+            np.zeros((n_steps, core.n_arms)),
+            np.zeros((n_steps, core.n_arms), dtype=bool),
+        )
+    dropped = False
     terminated = False
     done_steps = n_steps
     for k in range(n_steps):
@@ -180,6 +199,13 @@ def run_episode(
         tips[k] = core.engine.tip_position[0]
         target[k] = core.targets.position[0]
         torques[k] = core.engine.torques[0]
+        if transport is not None and carried is not None:
+            target[k] = transport.goal_position[0]
+            force, _, steps = core.engine.sphere_contact_state()
+            carried[0][k] = core.engine.sphere_position[0]
+            carried[1][k] = force[0]
+            carried[2][k] = steps[0] > 0
+            dropped = bool(result.dropped is not None and result.dropped[0])
         if two_arms:
             clearance[k] = arm_clearance(core.engine.position[0], radius)
             if contact_on:
@@ -210,6 +236,10 @@ def run_episode(
         snapshots[kept],
         snapshot_at[kept],
         core.goal_offsets.copy(),
+        None if carried is None else carried[0][:done_steps],
+        None if carried is None else carried[1][:done_steps],
+        None if carried is None else carried[2][:done_steps],
+        dropped,
     )
 
 

@@ -25,6 +25,7 @@ from softtrack.evaluation.metrics import (
     torque_statistics,
     tracking_metrics,
 )
+from softtrack.evaluation.transport_metrics import transport_statistics
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.store.tables import element_peaks_frame
 
@@ -71,6 +72,11 @@ def trajectory_table(run_id: str, episode: Episode) -> pd.DataFrame:
         values = getattr(episode, name)
         values = np.full(n, np.nan) if values is None else values
         data[name] = np.repeat(values, n_arms).astype(np.float32)
+    if episode.object_position is not None:  # transport: the sphere's centre (target: its goal)
+        for i, axis in enumerate(AXES):
+            data[f"object_{axis}"] = np.repeat(episode.object_position[:, i], n_arms).astype(
+                np.float32
+            )
     return pd.DataFrame(data)
 
 
@@ -127,9 +133,24 @@ def metrics_table(
     clearance = (
         episode.clearance if episode.clearance is not None else np.full(len(episode.t), np.nan)
     )
-    safety = safety_statistics(clearance, episode.collision_margin)
+    safety: dict[str, object] = dict(safety_statistics(clearance, episode.collision_margin))
     if n_arms >= 2 and episode.penetration is not None and episode.contact_force is not None:
         safety.update(contact_statistics(episode.penetration, episode.contact_force))
+    per_arm: list[dict[str, float]] = [{} for _ in range(n_arms)]
+    if (
+        episode.object_position is not None
+        and episode.object_force is not None
+        and episode.object_touching is not None
+    ):
+        scene, per_arm = transport_statistics(
+            episode.object_position,
+            episode.target,
+            episode.object_force,
+            episode.object_touching,
+            episode.dropped,
+            episode.t,
+        )
+        safety.update(scene)
     for arm in range(n_arms):
         row: dict[str, object] = {"run_id": run_id, "trajectory": episode.trajectory, "arm": arm}
         goals = episode.goals(arm)
@@ -147,6 +168,7 @@ def metrics_table(
         row["duration"] = float(episode.t[-1]) if len(episode.t) else 0.0
         row.update(torque_statistics(episode.element_torques[:, arm], episode.t))
         row.update(safety)
+        row.update(per_arm[arm])
         if episode.planning_time is not None and len(episode.planning_time):
             row["planning_time"] = float(np.mean(episode.planning_time))
             row["planning_time_max"] = float(np.max(episode.planning_time))
@@ -193,12 +215,14 @@ def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
 
 def validation_score(rows: pd.DataFrame) -> float:
     """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
-    (one per episode and arm): the mean ``rmse_3d`` (m) of its random-target episodes, or ∞
-    if one terminated. Rows of the evaluation trajectories
-    (``training.validation_trajectories``) are left out: models are selected on held-out
-    random targets only."""
+    (one per episode and arm): the mean ``rmse_3d`` (m) of its random-target episodes (in
+    the transport task the sphere's, ``object_rmse_3d``), or ∞ if one terminated (a drop
+    terminates). Rows of the evaluation trajectories (``training.validation_trajectories``)
+    are left out: models are selected on held-out random targets only."""
     if "trajectory" in rows:
         rows = rows[rows["trajectory"] == "random"]
     if len(rows) == 0 or rows["terminated"].astype(bool).any():
         return math.inf
+    if "object_rmse_3d" in rows and rows["object_rmse_3d"].notna().all():
+        return float(rows["object_rmse_3d"].mean())
     return float(rows["rmse_3d"].mean())

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import shutil
 import sys
 import time
@@ -99,7 +100,10 @@ def best_model(policy: PolicyDir) -> BestModel | None:
         with contextlib.suppress(OSError, ValueError, KeyError, TypeError):
             state = json.loads((directory / "state.json").read_text(encoding="utf-8"))
             if (directory / "model.zip").is_file():
-                return BestModel(int(state["global_step"]), float(state["score"]))
+                score = state["score"]  # null: every episode failed (a score of ∞)
+                return BestModel(
+                    int(state["global_step"]), math.inf if score is None else float(score)
+                )
     return None
 
 
@@ -279,15 +283,19 @@ class Validator:
         assert self.best is not None
         name = f"{self.record.run_id[-8:]} {self.policy.label}".rstrip()
         tracking = ""
+        carried = "object_rmse_3d" in rows  # transport: the sphere's error, once per episode
         if tracked is not None:
-            cells = tracked.groupby("trajectory", sort=False)["rmse_3d"]
+            column = "object_rmse_3d" if carried else "rmse_3d"
+            per_trajectory = tracked.drop_duplicates("trajectory") if carried else tracked
+            cells = per_trajectory.groupby("trajectory", sort=False)[column]
             tracking = (
                 "; "
                 + ", ".join(f"{t} {'/'.join(f'{v:.3f}' for v in part)}" for t, part in cells)
                 + " m"
             )
+        what = "the sphere's 3-D RMSE" if carried else "3-D RMSE"
         self.log(
-            f"{name} validation at {step:,} steps: 3-D RMSE {score:.4f} m over {self.episodes} "
+            f"{name} validation at {step:,} steps: {what} {score:.4f} m over {self.episodes} "
             f"episode{'s' if self.episodes != 1 else ''} in {time.monotonic() - started:.0f} s"
             f"{' (new best)' if improved else ''}; "
             f"best {self.best.score:.4f} m at {self.best.step:,}{tracking}"
@@ -308,7 +316,7 @@ class Validator:
                 tmp / "state.json",
                 {
                     "global_step": step,
-                    "score": score,
+                    "score": score if math.isfinite(score) else None,
                     "episodes": self.episodes,
                     "saved": utc_now(),
                 },
