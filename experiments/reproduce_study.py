@@ -82,6 +82,7 @@ KEEP_STEPS = (
     "td3-sbx-128-mirror-fast-viewpoints",
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
+    "td3-sbx-128-mirror-fast-transport",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
@@ -233,6 +234,15 @@ JOBS: tuple[Job, ...] = (
     ),
     Job(V + "mpc-mppi-64x50-contact.yaml", 0, "mpc-mppi-64x50-contact-seed0"),
     Job(V + "mpc-mppi-64x50-viewpoints.yaml", 0, "mpc-mppi-64x50-viewpoints-seed0"),
+    # two arms carry a sphere (issue 41): the fast recipe on the transport task
+    *(
+        Job(
+            V + "td3-sbx-128-1e6-mirror-fast-transport.yaml",
+            s,
+            f"td3-sbx-128-mirror-fast-transport-1e6-seed{s}",
+        )
+        for s in (0, 1, 2)
+    ),
     # derived from shipped runs (after all trainings):
     *(
         Job(
