@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -218,3 +220,42 @@ def test_evaluation_rows_measure_the_sphere() -> None:
     assert {"object_x", "object_y", "object_z"} <= set(positions)
     random_rows = rows.assign(trajectory="random")
     assert validation_score(random_rows) == pytest.approx(rows["object_rmse_3d"].iloc[0])
+
+
+def test_train_evaluate_and_report_a_transport_run(tmp_path: Path) -> None:
+    """The command line end to end on the transport task: a tiny training, an evaluation that
+    prints the sphere's error and the drop, and a report with the transport section."""
+    from typer.testing import CliRunner
+
+    from softtrack.cli import app
+
+    runner = CliRunner()
+    spec = (
+        Path(__file__).parents[1]
+        / "experiments/variants/td3-sbx-128-1e6-mirror-fast-transport.yaml"
+    )
+    settings = {
+        "training.total_timesteps": 200,
+        "algo.learning_starts": 100,
+        "algo.batch_size": 32,
+        "training.checkpoint_interval": 200,
+        "training.validation_episodes": 0,
+        "training.validation_trajectories": "false",
+        "training.final_policy": "last",
+        "training.confirm_episodes": 0,
+        "training.n_envs": 1,
+    }
+    overrides = [arg for key, value in settings.items() for arg in ("--set", f"{key}={value}")]
+    runs = ["--runs-dir", str(tmp_path / "runs")]
+    trained = runner.invoke(app, ["train", str(spec), "--seed", "0", *runs, *overrides])
+    assert trained.exit_code == 0, trained.output
+    run_id = trained.stdout.strip()
+    evaluated = runner.invoke(app, ["evaluate", run_id, *runs])
+    assert evaluated.exit_code == 0, evaluated.output
+    assert "sphere 3-D RMSE" in evaluated.output and "circle" in evaluated.output
+    out = tmp_path / "report"
+    reported = runner.invoke(app, ["report", run_id, *runs, "--out", str(out)])
+    assert reported.exit_code == 0, reported.output
+    text = (out / "index.md").read_text(encoding="utf-8")
+    assert "### Cooperative transport" in text and "seeds that dropped it" in text
+    assert (out / "figures" / "transport.png").read_bytes()[:4] == b"\x89PNG"

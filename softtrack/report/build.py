@@ -60,6 +60,7 @@ from softtrack.report.training_sections import (
     training_section,
     validation_section,
 )
+from softtrack.report.transport import transport_section
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 
@@ -146,6 +147,7 @@ def build_report(
     random_targets_section(doc, ctx)
     robustness_section(doc, ctx)
     contact_section(doc, ctx)
+    transport_section(doc, ctx)
     planning_section(doc, ctx)
     actions_section(doc, ctx, summary, trajectories)
     trajectories_section(doc, ctx, trajectories, featured)

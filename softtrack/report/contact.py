@@ -34,6 +34,7 @@ __all__ = [
     "contact_section",
     "contact_summary",
     "contact_timeline_figure",
+    "draw_arm",
 ]
 
 _MAX_FIGURE_GROUPS = 4  # controllers drawn in the contact figures (the rest: the table)
@@ -279,13 +280,16 @@ def contact_timeline_figure(
     return fg.save_figure(fig, path, footer)
 
 
-def _draw_arm(ax: Axes, x: np.ndarray, y: np.ndarray, radius: float, color: str) -> None:
-    """The arm's tube in projection: circles of ``radius`` along its centreline (m)."""
+def draw_arm(
+    ax: Axes, x: np.ndarray, y: np.ndarray, radius: float, color: str, shade: float = 1.0
+) -> None:
+    """The arm's tube in projection: circles of ``radius`` along its centreline (m);
+    ``shade`` in (0, 1] scales its opacity (lighter for earlier instants)."""
     s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
     dense = np.linspace(0.0, s[-1], max(2, int(s[-1] / (radius / 3)) + 1))
     for px, py in zip(np.interp(dense, s, x), np.interp(dense, s, y), strict=True):
-        ax.add_patch(Circle((px, py), radius, color=color, alpha=0.18, lw=0))
-    ax.plot(x, y, color=color, lw=1.2)
+        ax.add_patch(Circle((px, py), radius, color=color, alpha=0.18 * shade, lw=0))
+    ax.plot(x, y, color=color, lw=1.2, alpha=shade)
 
 
 def arms_figure(
@@ -327,7 +331,7 @@ def arms_figure(
                 for arm, color in zip((0, 1), fg.ARM_COLORS, strict=True):
                     nodes = part[part["arm"] == arm].sort_values("node")
                     coords = nodes[["x", "y", "z"]].to_numpy()
-                    _draw_arm(ax, coords[:, a], coords[:, b], radius, color)
+                    draw_arm(ax, coords[:, a], coords[:, b], radius, color)
                     if targets is not None:
                         hit = targets[
                             (targets["trajectory"] == trajectory)
