@@ -259,3 +259,45 @@ def test_train_evaluate_and_report_a_transport_run(tmp_path: Path) -> None:
     text = (out / "index.md").read_text(encoding="utf-8")
     assert "### Cooperative transport" in text and "seeds that dropped it" in text
     assert (out / "figures" / "transport.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_goal_ahead_is_the_goal_the_episode_reaches() -> None:
+    """The MPC's look-ahead goal (TransportModel.goal_ahead) equals the goal the environment
+    reaches, across the end of the approach, for a closed-form path and a random target."""
+    for target in ("circle", "random"):
+        config = make_config(
+            task="transport",
+            sphere={},
+            target=target,
+            approach=0.5,
+            contact_k=1e6,
+            contact_nu=600.0,
+        )
+        core = TrackingCore(1, config)
+        core.reset([0], [np.random.default_rng(3)])
+        for _ in range(200):
+            core.step(SQUEEZE[None])
+        assert core.transport is not None
+        ahead = core.transport.goal_ahead(
+            int(core.step_count[0]), core.targets, 0, np.arange(1, 101)
+        )
+        reached = []
+        for _ in range(100):
+            core.step(SQUEEZE[None])
+            reached.append(core.transport.goal_position[0].copy())
+        tolerance = 1e-12 if target == "circle" else 1e-9  # random: until its next redirect
+        np.testing.assert_allclose(ahead[:50], np.array(reached)[:50], atol=tolerance)
+
+
+def test_mpc_with_the_sphere_in_its_model_holds_it() -> None:
+    """The sampling planner scores plans by the sphere's distance and the hold it would lose:
+    from the start it squeezes, and the sphere is held by both arms without a drop."""
+    from softtrack.evaluation.episodes import run_episode
+    from softtrack.mpc.config import PlannerConfig
+    from softtrack.mpc.controller import MpcController
+
+    config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
+    controller = MpcController(PlannerConfig(samples=32, horizon=30, knots=3, replan_interval=5))
+    episode = run_episode(controller, config, "circle", duration=0.6)
+    assert not episode.dropped and episode.object_touching is not None
+    assert episode.object_touching[-100:].all()

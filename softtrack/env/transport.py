@@ -118,6 +118,31 @@ class TransportModel:
         self.goal_position[idx] = np.where(approaching, self.start + blend * leg, path_position)
         self.goal_velocity[idx] = np.where(approaching, rate * leg, path_velocity)
 
+    def goal_ahead(
+        self, step_count: int, targets: BatchedTargets, env: int, steps: np.ndarray
+    ) -> np.ndarray:
+        """(H, 3) environment ``env``'s goal after each of the next ``steps`` (H,) control
+        steps (1, 2, …) from ``step_count``, m: the approach, then the path (closed forms
+        exactly; a random target extrapolated at its velocity inside its box)."""
+        from softtrack.env.targets import trajectory_position
+
+        count = step_count + np.asarray(steps, dtype=float)
+        path_time = np.maximum(count - self.approach_steps, 0.0) * self.control_dt
+        config = targets.config
+        if config.name != "random":
+            path = trajectory_position(config, path_time)
+            path_start = trajectory_position(config, np.zeros(1))[0]
+        else:
+            low, high = targets.shrunk_box
+            moved = (path_time - targets.time[env])[:, None] * targets.velocity[env]
+            path = np.clip(targets.position[env] + moved, low, high)
+            path_start = targets.position[env] if targets.time[env] == 0.0 else path[0]
+        if self.approach_steps == 0:
+            return path
+        tau = np.minimum(count / self.approach_steps, 1.0)[:, None]
+        blend = tau * tau * (3.0 - 2.0 * tau)
+        return np.where(tau < 1.0, self.start + blend * (path_start - self.start), path)
+
     def observation(self, engine: RodBatch, out: np.ndarray) -> np.ndarray:
         """(n, 88) float32 observations (module docstring) written into ``out``."""
         study = self._study

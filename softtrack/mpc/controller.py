@@ -5,7 +5,8 @@
 episode's :class:`~softtrack.env.core.TrackingCore`, and at every replanning step it reads the
 true state of the arms (full-state feedback: the realism's sensing noise and delays do not
 reach it) and the target's path over the horizon (the closed form of a circle, rectangle,
-figure-eight or fixed target; a random target extrapolated at its current velocity), plans
+figure-eight or fixed target; a random target extrapolated at its current velocity; in the
+transport task the sphere's goal, :meth:`~softtrack.env.transport.TransportModel.goal_ahead`), plans
 with a :class:`~softtrack.mpc.planner.SamplingPlanner` and returns the plan's control values
 one step after the other (:func:`~softtrack.evaluation.episodes.run_episode` times each call).
 
@@ -76,7 +77,11 @@ class MpcController:
         model_factors = {n: f for n, f in factors.items() if f != 1.0}
         self._core = core
         self._planner = SamplingPlanner(
-            self.config, core.config.sim, np.random.default_rng(self.seed), model_factors
+            self.config,
+            core.config.sim,
+            np.random.default_rng(self.seed),
+            model_factors,
+            hold_weight=core.config.task.hold_bonus,
         )
         self._plan = np.zeros((0, core.action_dim))
         self._next = 0
@@ -100,8 +105,11 @@ class MpcController:
 
     def _target_path(self, core: TrackingCore) -> np.ndarray:
         """(H, A, 3) each arm's point (target centre plus the task's offset) after each of
-        the next H control steps, m."""
+        the next H control steps, m; in the transport task (H, 3) the sphere's goal."""
         targets = core.targets
+        if core.transport is not None:
+            steps = np.arange(1, self.config.horizon + 1)
+            return core.transport.goal_ahead(int(core.step_count[0]), targets, 0, steps)
         ahead = np.arange(1, self.config.horizon + 1) * core.config.sim.control_dt
         if targets.config.name != "random":
             centre = trajectory_position(targets.config, targets.time[0] + ahead)

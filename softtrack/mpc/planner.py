@@ -19,7 +19,9 @@ steps executed (warm start) and the tail holds its last value.
 Cost of a plan, summed over its H steps after each control step (m² and unitless penalties):
 Σᵢ wᵢ·dᵢ² + c_rate·mean((aₜ − aₜ₋₁)²) + c_act·mean(aₜ²), with dᵢ the distance from tip i to
 where the target will be, wᵢ the reward's arm weights; a plan whose state becomes non-finite
-costs +inf.
+costs +inf. With a sphere in the model (the transport task) the tracking term is the sphere's,
+w̄·d² (d: its centre's distance from its goal, w̄ the mean arm weight), plus the reward's hold
+bonus b_hold for each arm not touching the sphere in the step.
 """
 
 from __future__ import annotations
@@ -60,6 +62,8 @@ class SamplingPlanner:
         rng: the generator of the sampling noise (a seeded one makes plans reproducible).
         model_factors: model-error factors of the model (name → factor,
             :meth:`~softtrack.sim.engine.RodBatch.set_parameters`); ``None``: nominal.
+        hold_weight: with a sphere in ``sim``, the cost of each arm not touching it in a
+            step (the transport task's ``hold_bonus``).
     """
 
     def __init__(
@@ -68,6 +72,7 @@ class SamplingPlanner:
         sim: SimParams,
         rng: np.random.Generator,
         model_factors: dict[str, float] | None = None,
+        hold_weight: float = 0.0,
     ) -> None:
         config.validate()
         self.config = config
@@ -85,6 +90,7 @@ class SamplingPlanner:
         self.mean = np.zeros((m, self.action_dim))
         self.std = np.full((m, self.action_dim), config.noise_std)
         self.weights = np.asarray(config.arm_weights, dtype=float)
+        self.hold_weight = float(hold_weight)
 
     def reset(self) -> None:
         """Forget the previous plan (a new episode)."""
@@ -98,8 +104,8 @@ class SamplingPlanner:
 
         Args:
             state: the system's current state (one environment).
-            target_path: (H, A, 3) each arm's point (or (H, 3) one point for all arms) after
-                each of the next H control steps, m.
+            target_path: (H, A, 3) each arm's point (or (H, 3) one point for all arms; with
+                a sphere, its goal) after each of the next H control steps, m.
             previous_action: (24,) the control values applied in the last step.
 
         Returns:
@@ -140,8 +146,14 @@ class SamplingPlanner:
             u = controls[:, step]
             model.set_actions(u.reshape(k, self.n_arms, 2, N_CONTROL_POINTS))
             model.advance()
-            diff = model.tip_position - target_path[step]
-            cost += np.einsum("kai,kai->ka", diff, diff) @ self.weights
+            if model.has_sphere:
+                diff = model.sphere_position - target_path[step]
+                cost += float(np.mean(self.weights)) * np.einsum("ki,ki->k", diff, diff)
+                untouched = model.sphere_contact_state()[2] == 0
+                cost += self.hold_weight * untouched.sum(axis=1)
+            else:
+                diff = model.tip_position - target_path[step]
+                cost += np.einsum("kai,kai->ka", diff, diff) @ self.weights
             if c.action_rate_weight:
                 cost += c.action_rate_weight * np.mean((u - last) ** 2, axis=1)
             if c.action_weight:
