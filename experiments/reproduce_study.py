@@ -83,6 +83,7 @@ KEEP_STEPS = (
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
     "td3-sbx-128-mirror-fast-transport",
+    "mpc-mppi-64x50-transport",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
@@ -243,6 +244,7 @@ JOBS: tuple[Job, ...] = (
         )
         for s in (0, 1, 2)
     ),
+    Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     # derived from shipped runs (after all trainings):
     *(
         Job(
