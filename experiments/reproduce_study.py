@@ -244,6 +244,22 @@ JOBS: tuple[Job, ...] = (
         )
         for s in (0, 1, 2)
     ),
+    *(
+        job
+        for s in (0, 1, 2)
+        for job in (
+            Job(
+                V + "td3-sbx-128-1e6-fast-transport-own-arm-actors.yaml",
+                s,
+                f"td3-sbx-128-fast-transport-own-arm-actors-1e6-seed{s}",
+            ),
+            Job(
+                V + "td3-sbx-128-1e6-mirror-fast-transport-gravity.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-transport-gravity-1e6-seed{s}",
+            ),
+        )
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     # derived from shipped runs (after all trainings):
     *(

@@ -301,3 +301,20 @@ def test_mpc_with_the_sphere_in_its_model_holds_it() -> None:
     episode = run_episode(controller, config, "circle", duration=0.6)
     assert not episode.dropped and episode.object_touching is not None
     assert episode.object_touching[-100:].all()
+
+
+def test_per_arm_reward_shares_credit_each_arm_its_hold() -> None:
+    from softtrack.env.vec_env import REWARD_SHARES_KEY, TrackingVecEnv
+
+    env = TrackingVecEnv(
+        2, reward_shares=True, task="transport", sphere={}, contact_k=1e6, contact_nu=600.0
+    )
+    env.seed(0)
+    env.reset()
+    one_arm = SQUEEZE.copy()
+    one_arm[12:18] = 0.0  # arm 2 does not squeeze
+    for _ in range(30):
+        _, rewards, _, infos = env.step(np.stack([SQUEEZE, one_arm]))
+    shares = np.stack([info[REWARD_SHARES_KEY] for info in infos])
+    np.testing.assert_allclose(shares.sum(axis=1), rewards, rtol=1e-6)
+    assert shares[0, 0] == pytest.approx(shares[0, 1], abs=1e-6)  # both hold: equal shares

@@ -196,6 +196,19 @@ class TransportModel:
         r = np.where(dropped, r - task.drop_penalty, r)
         return r, touching, dropped
 
+    def reward_shares(self, reward: np.ndarray, touching: np.ndarray) -> np.ndarray:
+        """(n, 2) each arm's share of the step's reward, for per-arm critics: its own hold
+        bonus plus half of the rest (the sphere's terms, which both arms make together), so
+        the shares sum to the reward.
+
+        Args:
+            reward: (n,) the rewards of the step.
+            touching: (n, 2) bool, each arm touched the sphere in the step.
+        """
+        own = self.task.hold_bonus * np.asarray(touching, dtype=float)
+        rest = np.asarray(reward, dtype=float) - own.sum(axis=1)
+        return own + 0.5 * rest[:, None]
+
     def dropped(self) -> np.ndarray:
         """(n,) bool: no arm has touched the sphere for ``drop_grace`` seconds (a control
         step's rounding below it counts)."""

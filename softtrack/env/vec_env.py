@@ -41,7 +41,8 @@ class TrackingVecEnv(VecEnv):
             error (``env.realism``), ``parameters`` (the episode's factors) is in the reset
             infos and in the info of every finished episode either way.
         reward_shares: add ``info["reward_shares"]``, the (A,) float32 per-arm split of the
-            reward (:func:`softtrack.env.reward.reward_shares`), for per-arm critics.
+            reward (:func:`softtrack.env.reward.reward_shares`; in the transport task
+            :meth:`softtrack.env.transport.TransportModel.reward_shares`), for per-arm critics.
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
     """
 
@@ -97,7 +98,10 @@ class TrackingVecEnv(VecEnv):
         else:
             infos = [{} for _ in range(self.num_envs)]
         if self.with_reward_shares:
-            shares = reward_shares(result.distances, result.reward, self.config.reward)
+            if result.touching is not None and self.core.transport is not None:
+                shares = self.core.transport.reward_shares(result.reward, result.touching)
+            else:
+                shares = reward_shares(result.distances, result.reward, self.config.reward)
             for info, share in zip(infos, shares.astype(np.float32), strict=True):
                 info[REWARD_SHARES_KEY] = share
         finished = np.flatnonzero(dones)
