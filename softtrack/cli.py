@@ -834,10 +834,12 @@ def evaluate(
 ) -> None:
     """Evaluate runs on the circle, rectangle and figure-eight targets.
 
-    Runs each run's deterministic policy for 10 s per trajectory from the straight initial
-    state and stores the tables eval_trajectories, eval_metrics, eval_moments (spatial RMS of
-    the element torques per step) and eval_moment_peaks (each element's peak). Prints the
-    3-D RMSE of each arm per run and trajectory (m). With --random N, also N episodes on the
+    Runs each run's deterministic policy for its training.eval_duration (10 s by default) per
+    trajectory from the straight initial state and stores the tables eval_trajectories,
+    eval_metrics, eval_moments (spatial RMS of the element torques per step) and
+    eval_moment_peaks (each element's peak). Prints the 3-D RMSE of each arm per run and
+    trajectory (m); in the transport task the sphere's 3-D RMSE, the time both arms held it
+    and any drop. With --random N, also N episodes on the
     random target the run was trained on (seeds 1,000,000 + k, the same for every run), and
     their mean 3-D RMSE per arm (--trajectory none --random N: only those).
 
