@@ -212,6 +212,56 @@ def main() -> None:
         object_rows(args, steps, batch_control_steps)
 
 
+def side_by_side(
+    args: argparse.Namespace,
+    steps: int,
+    batch_control_steps: int,
+    scene: SimParams,
+    torques: np.ndarray,
+) -> dict[str, list[float]]:
+    """Steps/s of PyElastica and of softtrack (1 env, ``args.batch`` envs) in ``scene``, and of
+    softtrack in the contact-free scene with the same torques, interleaved."""
+    free = SimParams()
+    runners = {
+        "pyelastica": (
+            make_pyelastica_runner(scene, torques, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "single-free": (
+            make_softtrack_runner(free, torques, 1, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "single": (
+            make_softtrack_runner(scene, torques, 1, args.control_steps),
+            args.control_steps * steps,
+        ),
+        "batch-free": (
+            make_softtrack_runner(free, torques, args.batch, batch_control_steps),
+            batch_control_steps * steps * args.batch,
+        ),
+        "batch": (
+            make_softtrack_runner(scene, torques, args.batch, batch_control_steps),
+            batch_control_steps * steps * args.batch,
+        ),
+    }
+    return interleaved_rates(runners, args.repeats)
+
+
+def print_rows(rates: dict[str, list[float]], pyelastica_label: str, batch: int) -> None:
+    """PyElastica's line, then softtrack's for 1 and ``batch`` envs with their speed-up and
+    their cost against the contact-free step."""
+    pyelastica = statistics.median(rates["pyelastica"])
+    print(f"  {pyelastica_label:30s} {pyelastica:8,.0f}   ({1e6 / pyelastica:6.2f} µs/step)")
+    for name, label in (("single", "1 env"), ("batch", f"{batch} envs, per env")):
+        rate = statistics.median(rates[name])
+        cost = median_ratio(rates[f"{name}-free"], rates[name])
+        speedup = median_ratio(rates[name], rates["pyelastica"])
+        print(
+            f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
+            f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
+        )
+
+
 def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) -> None:
     """The contact-on measurements (module docstring), one block per scene."""
     free = SimParams()
@@ -222,29 +272,7 @@ def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int)
     )
     for scene in ("random", "pressed"):
         torques = scene_torques(scene, free, np.random.default_rng(0))
-        runners = {
-            "pyelastica": (
-                make_pyelastica_runner(touching, torques, args.control_steps),
-                args.control_steps * steps,
-            ),
-            "single-free": (
-                make_softtrack_runner(free, torques, 1, args.control_steps),
-                args.control_steps * steps,
-            ),
-            "single": (
-                make_softtrack_runner(touching, torques, 1, args.control_steps),
-                args.control_steps * steps,
-            ),
-            "batch-free": (
-                make_softtrack_runner(free, torques, args.batch, batch_control_steps),
-                batch_control_steps * steps * args.batch,
-            ),
-            "batch": (
-                make_softtrack_runner(touching, torques, args.batch, batch_control_steps),
-                batch_control_steps * steps * args.batch,
-            ),
-        }
-        rates = interleaved_rates(runners, args.repeats)
+        rates = side_by_side(args, steps, batch_control_steps, touching, torques)
         probe = RodBatch(args.batch, touching)
         tiled = np.broadcast_to(torques[:, None], (50, args.batch, *torques.shape[1:]))
         touched = []
@@ -253,49 +281,14 @@ def contact_rows(args: argparse.Namespace, steps: int, batch_control_steps: int)
             probe.advance()
             touched.append(probe.contact_state()[1] > 0)
         share = float(np.mean(touched[30:]))
-        pyelastica = statistics.median(rates["pyelastica"])
         print(f" scene '{scene}' (arms touching in {100 * share:.0f} % of control steps):")
-        print(
-            f"  PyElastica + RodRodContact {pyelastica:11,.0f}   ({1e6 / pyelastica:6.2f} µs/step)"
-        )
-        for name, label in (("single", "1 env"), ("batch", f"{args.batch} envs, per env")):
-            rate = statistics.median(rates[name])
-            cost = median_ratio(rates[f"{name}-free"], rates[name])
-            speedup = median_ratio(rates[name], rates["pyelastica"])
-            print(
-                f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
-                f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
-            )
+        print_rows(rates, "PyElastica + RodRodContact", args.batch)
 
 
 def object_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) -> None:
     """The scene with the sphere (module docstring)."""
-    free = SimParams()
     held = SimParams(**CONTACT_ON, gravity=9.81, sphere=SphereParams())
-    torques = holding_torques(free)
-    runners = {
-        "pyelastica": (
-            make_pyelastica_runner(held, torques, args.control_steps),
-            args.control_steps * steps,
-        ),
-        "single-free": (
-            make_softtrack_runner(free, torques, 1, args.control_steps),
-            args.control_steps * steps,
-        ),
-        "single": (
-            make_softtrack_runner(held, torques, 1, args.control_steps),
-            args.control_steps * steps,
-        ),
-        "batch-free": (
-            make_softtrack_runner(free, torques, args.batch, batch_control_steps),
-            batch_control_steps * steps * args.batch,
-        ),
-        "batch": (
-            make_softtrack_runner(held, torques, args.batch, batch_control_steps),
-            batch_control_steps * steps * args.batch,
-        ),
-    }
-    rates = interleaved_rates(runners, args.repeats)
+    rates = side_by_side(args, steps, batch_control_steps, held, holding_torques(SimParams()))
     sphere = held.sphere
     assert sphere is not None
     print(
@@ -303,18 +296,7 @@ def object_rows(args: argparse.Namespace, steps: int, batch_control_steps: int) 
         f"contact_k = {sphere.contact_k:g} N/m, friction {sphere.friction:g}; gravity and "
         "rod–rod contact on):"
     )
-    pyelastica = statistics.median(rates["pyelastica"])
-    print(
-        f"  PyElastica + Sphere + contacts {pyelastica:7,.0f}   ({1e6 / pyelastica:6.2f} µs/step)"
-    )
-    for name, label in (("single", "1 env"), ("batch", f"{args.batch} envs, per env")):
-        rate = statistics.median(rates[name])
-        cost = median_ratio(rates[f"{name}-free"], rates[name])
-        speedup = median_ratio(rates[name], rates["pyelastica"])
-        print(
-            f"  softtrack, {label:17s}{rate:10,.0f}   ({1e6 / rate:6.2f} µs/step)"
-            f"   {speedup:5.1f}× PyElastica   cost {cost:4.2f}× contact-free"
-        )
+    print_rows(rates, "PyElastica + Sphere + contacts", args.batch)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from softtrack.numbers import is_finite_number
+
 __all__ = [
     "RewardConfig",
     "action_penalty",
@@ -26,14 +28,6 @@ __all__ = [
     "tip_distances",
     "tracking_reward",
 ]
-
-
-def _finite(value: object) -> bool:
-    return (
-        isinstance(value, (int, float, np.integer, np.floating))
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 @dataclass(frozen=True)
@@ -88,7 +82,7 @@ class RewardConfig:
             raise ValueError("reward arm_weights must hold one weight per arm (e.g. (1.0, 1.0))")
         for name in ("arm_weights", "bonus_thresholds", "bonus_values"):
             values = getattr(self, name)
-            if not all(_finite(v) for v in values):
+            if not all(is_finite_number(v) for v in values):
                 raise ValueError(f"reward {name}={values!r} must be finite numbers")
         if any(w < 0 for w in self.arm_weights):
             raise ValueError(f"reward arm_weights={self.arm_weights!r} must be ≥ 0")
@@ -109,7 +103,7 @@ class RewardConfig:
             "action_rate_penalty",
             "action_penalty",
         ):
-            if not _finite(getattr(self, name)):
+            if not is_finite_number(getattr(self, name)):
                 raise ValueError(f"reward {name}={getattr(self, name)!r} must be a finite number")
         if self.cooperative_threshold <= 0:
             raise ValueError(

@@ -25,6 +25,8 @@ from typing import Literal, get_args
 
 import numpy as np
 
+from softtrack.numbers import is_finite_number
+
 __all__ = [
     "CLOSED_FORM_MODES",
     "EVAL_TRAJECTORIES",
@@ -49,14 +51,6 @@ CLOSED_FORM_MODES: tuple[str, ...] = (*EVAL_TRAJECTORIES, "fixed")
 # A redirect that is due at t = k·interval still happens on the step that ends at
 # k·interval even when the summed time steps fall short of it by rounding (s).
 _REDIRECT_TOLERANCE = 1e-9
-
-
-def _is_finite_number(value: object) -> bool:
-    return (
-        isinstance(value, (int, float, np.integer, np.floating))
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 def _finite_vector(value: object, length: int) -> np.ndarray | None:
@@ -119,10 +113,10 @@ class TargetConfig:
         positive = ("sphere_radius", "speed", "redirect_interval", "circle_radius", "period")
         for field_name in positive:
             value = getattr(self, field_name)
-            if not (_is_finite_number(value) and value > 0):
+            if not (is_finite_number(value) and value > 0):
                 raise ValueError(f"target {field_name}={value!r} must be a finite number > 0")
         if self.speed_min is not None and not (
-            _is_finite_number(self.speed_min) and 0 <= self.speed_min <= self.speed
+            is_finite_number(self.speed_min) and 0 <= self.speed_min <= self.speed
         ):
             raise ValueError(
                 f"target speed_min={self.speed_min!r} must be a finite number in [0, speed="
@@ -352,7 +346,7 @@ class BatchedTargets:
     def step(self, dt: float, active: np.ndarray | None = None) -> None:
         """Advance every environment (or the ``active`` ones, a (n,) bool mask; the others keep
         their time, place and velocity) by ``dt`` seconds."""
-        if not (_is_finite_number(dt) and dt > 0):
+        if not (is_finite_number(dt) and dt > 0):
             raise ValueError(f"dt={dt!r} must be a finite number > 0")
         if active is not None:
             self._step_some(dt, np.asarray(active, dtype=bool))

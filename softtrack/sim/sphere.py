@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from softtrack.numbers import is_finite_number
+
 if TYPE_CHECKING:
     from softtrack.sim.params import SimParams
 
@@ -21,14 +23,6 @@ __all__ = ["SphereParams"]
 
 #: Largest overlap of the sphere with an arm at rest that counts as "touching", m.
 _REST_OVERLAP_TOLERANCE = 1e-9
-
-
-def _number(value: object) -> bool:
-    return (
-        isinstance(value, (int, float, np.integer, np.floating))
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 @dataclass(frozen=True)
@@ -122,7 +116,7 @@ class SphereParams:
             "velocity_damping",
             "friction",
         ):
-            if not _number(getattr(self, name)):
+            if not is_finite_number(getattr(self, name)):
                 return f"sphere {name}={getattr(self, name)!r} must be a finite number"
         if self.radius <= 0:
             return f"sphere radius={self.radius!r} must be > 0 m"
@@ -131,7 +125,7 @@ class SphereParams:
         for name in ("contact_k", "contact_nu", "velocity_damping", "friction"):
             if getattr(self, name) < 0:
                 return f"sphere {name}={getattr(self, name)!r} must be ≥ 0"
-        if len(self.center) != 3 or not all(_number(c) for c in self.center):
+        if len(self.center) != 3 or not all(is_finite_number(c) for c in self.center):
             return f"sphere center={self.center!r} must be a finite (x, y, z) point"
         if self.contact_k == 0.0:
             for name in ("contact_nu", "velocity_damping", "friction"):
