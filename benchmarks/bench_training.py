@@ -222,6 +222,13 @@ VARIANTS: tuple[Variant, ...] = (
         "[128, 128] with mirror replay (td3-sbx-128-mirror-val)",
         algo={"mirror_replay": True, "policy_kwargs": {"net_arch": [128, 128]}},
     ),
+    Variant(
+        "128-mirror-2-cores",
+        "[128, 128] with mirror replay, XLA intra-op threads on 2 cores",
+        algo={"mirror_replay": True, "policy_kwargs": {"net_arch": [128, 128]}},
+        cores=2,
+        env={"XLA_FLAGS": "--xla_cpu_multi_thread_eigen=true"},
+    ),
 )
 VARIANT_NAMES = {variant.name: variant for variant in VARIANTS}
 
@@ -299,14 +306,14 @@ def compare_variants(variants: list[Variant], steps: int, repeats: int) -> None:
     }
     reference = medians.get("today", float("nan"))
     print(
-        f"\n  {'variant':<14} {'grad/call':>9} {'UTD':>5} {'samples/step':>12} {'cores':>5} "
+        f"\n  {'variant':<18} {'grad/call':>9} {'UTD':>5} {'samples/step':>12} {'cores':>5} "
         f"{'env steps/s':>11} {'× today':>8}  setting"
     )
     for variant in variants:
         spec = variant.spec()
         utd = spec.algo.gradient_steps / (spec.algo.train_freq * spec.training.n_envs)
         print(
-            f"  {variant.name:<14} {spec.algo.gradient_steps:>9} {utd:>5.2f} "
+            f"  {variant.name:<18} {spec.algo.gradient_steps:>9} {utd:>5.2f} "
             f"{utd * spec.algo.batch_size:>12.0f} {variant.cores:>5} "
             f"{medians[variant.name]:>11,.0f} {medians[variant.name] / reference:>8.2f}  "
             f"{variant.about}"
