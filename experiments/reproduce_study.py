@@ -83,6 +83,7 @@ KEEP_STEPS = (
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
     "td3-sbx-128-mirror-fast-transport",
+    "td3-sbx-128-mirror-fast-transport-calm",
     "mpc-mppi-64x50-transport",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
@@ -252,6 +253,11 @@ JOBS: tuple[Job, ...] = (
                 V + "td3-sbx-128-1e6-fast-transport-own-arm-actors.yaml",
                 s,
                 f"td3-sbx-128-fast-transport-own-arm-actors-1e6-seed{s}",
+            ),
+            Job(
+                V + "td3-sbx-128-1e6-mirror-fast-transport-calm.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-transport-calm-1e6-seed{s}",
             ),
             Job(
                 V + "td3-sbx-128-1e6-mirror-fast-transport-gravity.yaml",
