@@ -318,3 +318,47 @@ def test_per_arm_reward_shares_credit_each_arm_its_hold() -> None:
     shares = np.stack([info[REWARD_SHARES_KEY] for info in infos])
     np.testing.assert_allclose(shares.sum(axis=1), rewards, rtol=1e-6)
     assert shares[0, 0] == pytest.approx(shares[0, 1], abs=1e-6)  # both hold: equal shares
+
+
+def _episode_return(action: np.ndarray, steps: int, **kwargs: object) -> tuple[float, int]:
+    env = _transport_env(**kwargs)
+    env.reset(seed=0)
+    total = 0.0
+    for step in range(1, steps + 1):
+        _, reward, terminated, _, _ = env.step(action)
+        total += float(reward)
+        if terminated:
+            return total, step
+    return total, steps
+
+
+def test_letting_go_earns_less_than_holding() -> None:
+    """With the default reward (distance bonuses only while both arms grip, the reach term),
+    a policy that lets the sphere go at once loses reward on every step, while a squeeze earns
+    it; without them letting go earned the distance bonuses of a sphere left at the goal's
+    start (docs/results.md, "Cooperative transport")."""
+    steps = 400
+    idle, idle_steps = _episode_return(np.zeros(24), steps)
+    held, held_steps = _episode_return(SQUEEZE, steps)
+    assert idle_steps == 250 and held_steps == steps  # the idle arms drop it after 0.5 s
+    assert idle < -100.0 < 0.0 < held
+    old_idle, _ = _episode_return(
+        np.zeros(24), steps, reach_penalty=0.0, bonus_needs_grip=False
+    )
+    assert old_idle > 0.0  # the bonuses of the untouched sphere outweigh the drop penalty
+
+
+def test_reach_term_measures_each_arms_gap() -> None:
+    from softtrack.env.transport import TransportModel
+
+    config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
+    core = TrackingCore(1, config)
+    core.reset(np.array([0]), [np.random.default_rng(0)])
+    model = core.transport
+    assert isinstance(model, TransportModel)
+    engine = core.engine
+    assert (model.arm_gaps(engine) < 0.005).all()  # the tips' elements touch it at rest
+    engine.sphere[:, 0:3] += np.array([0.0, 0.3, 0.0])  # lift it 0.3 m above the tips
+    tips = engine.tip_position[0]  # (2, 3)
+    expected = np.linalg.norm(tips - engine.sphere_position[0], axis=1) - 0.1
+    np.testing.assert_allclose(model.arm_gaps(engine)[0], expected, rtol=1e-12)

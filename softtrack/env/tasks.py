@@ -56,6 +56,11 @@ class TaskConfig:
         squeeze_penalty: transport: weight c_f of −c_f·(e/high)² per arm, e the force's
             distance from the band, N.
         drop_penalty: transport: subtracted on the step of a drop.
+        reach_penalty: transport: c_reach, the weight of −c_reach·Σᵢ gᵢ with gᵢ the gap
+            between arm i's nearest node's surface and the sphere's, m (0 while it touches):
+            leads the arms to the sphere.
+        bonus_needs_grip: transport: the study's distance bonuses count only on steps when
+            both arms touch the sphere (a sphere left where the goal starts earns nothing).
     """
 
     name: str = "shared"
@@ -66,6 +71,8 @@ class TaskConfig:
     squeeze_band: tuple[float, float] = (0.0, 0.0)
     squeeze_penalty: float = 0.0
     drop_penalty: float = 100.0
+    reach_penalty: float = 2.0
+    bonus_needs_grip: bool = True
 
     @property
     def carries_object(self) -> bool:
@@ -88,6 +95,7 @@ class TaskConfig:
             ("hold_bonus", "reward units"),
             ("squeeze_penalty", "reward units"),
             ("drop_penalty", "reward units"),
+            ("reach_penalty", "reward units per m"),
         ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

@@ -25,12 +25,17 @@ sphere, then the goal:
 hᵢ = 1 when arm i touched the sphere during the step, Fᵢ arm i's contact force on it (N, mean
 over the step) and eᵢ its distance from the squeeze band [F_lo, F_hi]:
 
-    r = −w̄·d² + Σ_k b_k·1(d ≤ θ_k) + b_coop·1(d ≤ θ_coop and h₁h₂) + b_hold·(h₁ + h₂)
-        − c_f·Σᵢ(eᵢ/F_hi)² − c_drop·1(dropped)
+    r = −w̄·d² + G·[Σ_k b_k·1(d ≤ θ_k) + b_coop·1(d ≤ θ_coop)] + b_hold·(h₁ + h₂)
+        − c_reach·(g₁ + g₂) − c_f·Σᵢ(eᵢ/F_hi)² − c_drop·1(dropped)
 
-w̄ the mean arm weight, θ_k, b_k, θ_coop, b_coop the study's bonus settings (env.reward),
-b_hold, c_f, [F_lo, F_hi] and c_drop the task's; the action penalties of env.reward apply as
-in the other tasks. **Drop**: when neither arm has touched the sphere for ``drop_grace``
+w̄ the mean arm weight, θ_k, b_k, θ_coop, b_coop the study's bonus settings (env.reward);
+G = h₁h₂ with ``bonus_needs_grip`` (the default), else 1 for the individual bonuses and h₁h₂ for
+the cooperative one; gᵢ = 0 when arm i touched the sphere during the step, else
+max(0, min_n ‖xᵢₙ − c‖ − R − r), the gap between its nearest node's surface and the sphere's
+(c its centre, R its radius, r the arm radius); b_hold, c_reach, c_f,
+[F_lo, F_hi] and c_drop the task's; the action penalties of env.reward apply as in the other
+tasks. Without the grip condition and the reach term a policy that lets go at once earns more
+than one that tries to hold (docs/results.md, "Cooperative transport"). **Drop**: when neither arm has touched the sphere for ``drop_grace``
 seconds the episode terminates (the reward of that step includes −c_drop).
 """
 
@@ -78,8 +83,10 @@ class TransportModel:
         self.reward_config = config.reward
         self.control_dt = config.sim.control_dt
         self.start = np.asarray(sphere.center, dtype=float)
+        self.contact_distance = sphere.radius + config.sim.radius  # m, centre to node at touch
         self.approach_steps = max(round(self.task.approach / self.control_dt), 0)
         self.untouched = np.zeros(n_envs)  # s since either arm last touched the sphere
+        self.reach_cost = np.zeros((n_envs, 2))  # each arm's reach term of the last step
         self.goal_position = np.zeros((n_envs, 3))
         self.goal_velocity = np.zeros((n_envs, 3))
         study_size = observation_size(2, config.sim.n_nodes)  # 81: arms, then the sphere
@@ -180,13 +187,17 @@ class TransportModel:
         touching = steps > 0
         task, reward = self.task, self.reward_config
         weight = float(np.mean(reward.arm_weights))
+        both = touching.all(axis=1)
         with np.errstate(invalid="ignore"):
             r = -weight * distance * distance
+            bonus = np.zeros_like(r)
             for threshold, value in zip(reward.bonus_thresholds, reward.bonus_values, strict=True):
-                r += value * (distance <= threshold)
-            both = touching.all(axis=1)
+                bonus += value * (distance <= threshold)
+            r += np.where(both, bonus, 0.0) if task.bonus_needs_grip else bonus
             r += reward.cooperative_bonus * ((distance <= reward.cooperative_threshold) & both)
         r += task.hold_bonus * touching.sum(axis=1)
+        self.reach_cost = task.reach_penalty * np.where(touching, 0.0, self.arm_gaps(engine))
+        r -= self.reach_cost.sum(axis=1)
         low, high = task.squeeze_band
         if task.squeeze_penalty and high > 0:
             excess = np.maximum(force - high, 0.0) + np.maximum(low - force, 0.0)
@@ -196,16 +207,23 @@ class TransportModel:
         r = np.where(dropped, r - task.drop_penalty, r)
         return r, touching, dropped
 
+    def arm_gaps(self, engine: RodBatch) -> np.ndarray:
+        """(n, 2) gap between the surface around each arm's nearest node and the sphere's
+        surface, m (0 when they overlap; a few mm while an element's side touches it)."""
+        offset = engine.position - engine.sphere_position[:, None, :, None]  # (n, 2, 3, N+1)
+        nearest = np.sqrt(np.einsum("najk,najk->nak", offset, offset).min(axis=2))
+        return np.maximum(nearest - self.contact_distance, 0.0)
+
     def reward_shares(self, reward: np.ndarray, touching: np.ndarray) -> np.ndarray:
         """(n, 2) each arm's share of the step's reward, for per-arm critics: its own hold
-        bonus plus half of the rest (the sphere's terms, which both arms make together), so
-        the shares sum to the reward.
+        bonus and reach term plus half of the rest (the sphere's terms, which both arms make
+        together), so the shares sum to the reward.
 
         Args:
             reward: (n,) the rewards of the step.
             touching: (n, 2) bool, each arm touched the sphere in the step.
         """
-        own = self.task.hold_bonus * np.asarray(touching, dtype=float)
+        own = self.task.hold_bonus * np.asarray(touching, dtype=float) - self.reach_cost
         rest = np.asarray(reward, dtype=float) - own.sum(axis=1)
         return own + 0.5 * rest[:, None]
 

@@ -203,6 +203,8 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "task", "squeeze_band"): [0.0, 0.0],
     ("env", "task", "squeeze_penalty"): 0.0,
     ("env", "task", "drop_penalty"): 100.0,
+    ("env", "task", "reach_penalty"): 2.0,
+    ("env", "task", "bonus_needs_grip"): True,
     ("env", "task"): {},
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,

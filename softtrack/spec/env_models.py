@@ -520,6 +520,18 @@ class TaskSpec(SpecModel):
     drop_penalty: Float = unit_field(
         _TASK.drop_penalty, "transport: subtracted on the step of a drop", "reward units", ge=0
     )
+    reach_penalty: Float = unit_field(
+        _TASK.reach_penalty,
+        "transport: weight c_reach of -c_reach·(g1 + g2), gi the gap between arm i's nearest "
+        "node's surface and the sphere's (0 while it touches); leads the arms to the sphere",
+        "reward units per m",
+        ge=0,
+    )
+    bonus_needs_grip: bool = unit_field(
+        _TASK.bonus_needs_grip,
+        "transport: the distance bonuses count only on steps when both arms touch the sphere",
+        "-",
+    )
 
     @model_validator(mode="after")
     def _check_task(self) -> TaskSpec:
