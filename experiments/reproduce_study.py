@@ -84,6 +84,7 @@ KEEP_STEPS = (
     "mpc-mppi-64x50-viewpoints",
     "td3-sbx-128-mirror-fast-transport",
     "td3-sbx-128-mirror-fast-transport-calm",
+    "td3-sbx-128-mirror-fast-transport-grip",
     "mpc-mppi-64x50-transport",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
@@ -258,6 +259,11 @@ JOBS: tuple[Job, ...] = (
                 V + "td3-sbx-128-1e6-mirror-fast-transport-calm.yaml",
                 s,
                 f"td3-sbx-128-mirror-fast-transport-calm-1e6-seed{s}",
+            ),
+            Job(
+                V + "td3-sbx-128-1e6-mirror-fast-transport-grip.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-transport-grip-1e6-seed{s}",
             ),
             Job(
                 V + "td3-sbx-128-1e6-mirror-fast-transport-gravity.yaml",

@@ -362,3 +362,41 @@ def test_reach_term_measures_each_arms_gap() -> None:
     tips = engine.tip_position[0]  # (2, 3)
     expected = np.linalg.norm(tips - engine.sphere_position[0], axis=1) - 0.1
     np.testing.assert_allclose(model.arm_gaps(engine)[0], expected, rtol=1e-12)
+
+
+def test_grip_makes_the_zero_action_hold() -> None:
+    from softtrack.env.tasks import TaskConfig
+
+    offset = TaskConfig(name="transport", grip=0.03).action_offset()
+    np.testing.assert_array_equal(offset, SQUEEZE)  # arm 1 −grip, arm 2 +grip on the normals
+    steps = 400
+    gripped, gripped_steps = _episode_return(np.zeros(24), steps, grip=0.03)
+    squeezed, _ = _episode_return(SQUEEZE, steps)
+    assert gripped_steps == steps and gripped == pytest.approx(squeezed, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"task": "shared", "grip": 0.03}, "only the transport task"),
+        ({"task": "transport", "sphere": {}, "contact_k": 1e6, "grip": 1.5}, "grip=1.5"),
+    ],
+)
+def test_bad_grip_is_rejected(kwargs: dict, message: str) -> None:
+    with pytest.raises((InvalidParameterError, ValueError), match=message):
+        make_config(**kwargs)
+
+
+def test_mpc_plans_with_the_grip_the_environment_adds() -> None:
+    from softtrack.mpc.controller import MpcController
+    from softtrack.mpc.planner import PlannerConfig
+
+    config = make_config(
+        task="transport", sphere={}, contact_k=1e6, contact_nu=600.0, grip=0.03, target="circle"
+    )
+    core = TrackingCore(1, config)
+    core.reset(np.array([0]), [np.random.default_rng(0)])
+    controller = MpcController(PlannerConfig(samples=8, horizon=5, knots=2, replan_interval=5))
+    controller.start_episode(core)
+    assert controller._planner is not None
+    np.testing.assert_array_equal(controller._planner.action_offset, SQUEEZE)

@@ -110,7 +110,8 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     of its fields; default all off), ``task`` (a task name or a ``TaskConfig``) and any
     field of :class:`TaskConfig` (``standoff``, m, the viewpoints task's distance of each
     arm's point from the target; the transport task's ``approach``, ``drop_grace``,
-    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``). In the
+    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``, ``reach_penalty``,
+    ``bonus_needs_grip``, ``grip``). In the
     transport task ``episode_duration`` defaults to the approach plus 10 s (one lap).
 
     Args:

@@ -77,6 +77,8 @@ class TrackingCore:
         self.step_count = np.zeros(self.n_envs, dtype=np.int64)
         self.max_steps = config.max_episode_steps
         self.action_dim = self.n_arms * 2 * N_CONTROL_POINTS
+        grip = config.task.action_offset() if config.task.grip else None
+        self._action_offset = grip  # (24,) added to every action before clipping, or None
         # the transport task (softtrack.env.transport): goal, observation, reward and drops
         self.transport: TransportModel | None = (
             TransportModel(self.n_envs, config) if config.task.carries_object else None
@@ -182,7 +184,10 @@ class TrackingCore:
             raise NonFiniteActionError(f"action of environment {row} contains NaN or inf")
         realism = self.realism
         policy_actions = np.clip(actions, -1.0, 1.0)
-        clipped = policy_actions if realism is None else realism.filter_actions(policy_actions)
+        commanded = policy_actions
+        if self._action_offset is not None:  # the transport task's grip
+            commanded = np.clip(policy_actions + self._action_offset, -1.0, 1.0)
+        clipped = commanded if realism is None else realism.filter_actions(commanded)
         engine = self.engine
         engine.set_actions(clipped.reshape(self.n_envs, self.n_arms, 2, N_CONTROL_POINTS))
         if realism is not None:

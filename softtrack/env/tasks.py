@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from softtrack.sim.actuation import N_CONTROL_POINTS
+
 __all__ = ["N_ARMS", "TASKS", "TaskConfig"]
 
 #: Arms of the dual-arm scene. An independent run trains one policy per arm, each to the
@@ -61,6 +63,9 @@ class TaskConfig:
             leads the arms to the sphere.
         bonus_needs_grip: transport: the study's distance bonuses count only on steps when
             both arms touch the sphere (a sphere left where the goal starts earns nothing).
+        grip: transport: a constant squeeze added to the normal control values (arm 1 −grip,
+            arm 2 +grip: both curl onto the sphere) before they are clipped to [−1, 1], so a
+            zero action holds the sphere and a policy learns what to add to the squeeze.
     """
 
     name: str = "shared"
@@ -73,6 +78,7 @@ class TaskConfig:
     drop_penalty: float = 100.0
     reach_penalty: float = 2.0
     bonus_needs_grip: bool = True
+    grip: float = 0.0
 
     @property
     def carries_object(self) -> bool:
@@ -110,11 +116,26 @@ class TaskConfig:
                 f"squeeze_band={band!r} must be (low, high) with 0 ≤ low ≤ high N; "
                 "(0, 0) switches force regulation off"
             )
+        if not (isinstance(self.grip, (int, float)) and -1.0 <= self.grip <= 1.0):
+            raise ValueError(f"grip={self.grip!r} must be a control value in [-1, 1], e.g. 0.03")
+        if self.grip and not self.carries_object:
+            raise ValueError(
+                f"grip={self.grip!r} squeezes a sphere, which only the transport task has; "
+                "set task name: transport or grip: 0"
+            )
         if self.squeeze_penalty > 0 and band[1] == 0:
             raise ValueError(
                 f"squeeze_penalty={self.squeeze_penalty!r} needs a squeeze_band (low, high) "
                 "with high > 0 N, e.g. (5, 40)"
             )
+
+    def action_offset(self) -> np.ndarray:
+        """(24,) what is added to the dual-arm action before clipping: −grip on arm 1's six
+        normal control values, +grip on arm 2's (zeros without a grip)."""
+        offset = np.zeros(N_ARMS * 2 * N_CONTROL_POINTS)
+        offset[0:N_CONTROL_POINTS] = -self.grip
+        offset[2 * N_CONTROL_POINTS : 3 * N_CONTROL_POINTS] = self.grip
+        return offset
 
     def goal_offsets(self, arms: tuple[int, ...] = (0, 1)) -> np.ndarray:
         """(len(arms), 3) offset of each listed arm's point from the target centre, m.

@@ -184,9 +184,10 @@ class DualArmTransportEnv(_TrackingEnv):
     direction (74–80), the goal's centre, speed and direction (81–87); SI units.
 
     ## Rewards
-    −w̄·d² + the study's bonuses on the sphere's distance d from the goal, the cooperative
-    bonus while both arms touch it, ``hold_bonus`` per arm touching it, an optional squeeze
-    band penalty, −``drop_penalty`` on a drop (``softtrack.env.transport``).
+    −w̄·d² + the study's bonuses on the sphere's distance d from the goal while both arms
+    touch it, ``hold_bonus`` per arm touching it, −``reach_penalty`` × each other arm's gap to
+    the sphere, an optional squeeze band penalty, −``drop_penalty`` on a drop
+    (``softtrack.env.transport``).
 
     ## Starting State
     Both arms straight and at rest, the sphere at rest at its centre, the goal there.
@@ -204,7 +205,9 @@ class DualArmTransportEnv(_TrackingEnv):
     Those of :class:`DualArmTrackingEnv`, ``sphere`` (a mapping of ``SphereParams``
     fields: ``radius``, ``density``, ``center``, ``contact_k``, ``contact_nu``,
     ``velocity_damping``, ``friction``) and the task's ``approach``, ``drop_grace``,
-    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``::
+    ``hold_bonus``, ``squeeze_band``, ``squeeze_penalty``, ``drop_penalty``,
+    ``reach_penalty``, ``bonus_needs_grip`` and ``grip`` (a squeeze added to the normal control
+    values, so a zero action holds the sphere)::
 
         gymnasium.make("softtrack/DualArmTransport-v0", target="circle", gravity=True)
 

@@ -35,8 +35,13 @@ max(0, min_n ‖xᵢₙ − c‖ − R − r), the gap between its nearest node'
 (c its centre, R its radius, r the arm radius); b_hold, c_reach, c_f,
 [F_lo, F_hi] and c_drop the task's; the action penalties of env.reward apply as in the other
 tasks. Without the grip condition and the reach term a policy that lets go at once earns more
-than one that tries to hold (docs/results.md, "Cooperative transport"). **Drop**: when neither arm has touched the sphere for ``drop_grace``
-seconds the episode terminates (the reward of that step includes −c_drop).
+than one that tries to hold (docs/results.md, "Cooperative transport").
+
+**Drop**: when neither arm has touched the sphere for ``drop_grace`` seconds the episode
+terminates (the reward of that step includes −c_drop).
+
+**Grip**: with ``grip`` g the environment adds −g to arm 1's six normal control values and +g
+to arm 2's before clipping (both curl onto the sphere), so a zero action holds it.
 """
 
 from __future__ import annotations

@@ -82,6 +82,7 @@ class MpcController:
             np.random.default_rng(self.seed),
             model_factors,
             hold_weight=core.config.task.hold_bonus,
+            action_offset=core.config.task.action_offset() if core.config.task.grip else None,
         )
         self._plan = np.zeros((0, core.action_dim))
         self._next = 0

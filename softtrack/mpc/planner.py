@@ -64,6 +64,8 @@ class SamplingPlanner:
             :meth:`~softtrack.sim.engine.RodBatch.set_parameters`); ``None``: nominal.
         hold_weight: with a sphere in ``sim``, the cost of each arm not touching it in a
             step (the transport task's ``hold_bonus``).
+        action_offset: (24,) added to every sampled control before clipping, as the
+            environment adds it (the transport task's grip); ``None``: zeros.
     """
 
     def __init__(
@@ -73,6 +75,7 @@ class SamplingPlanner:
         rng: np.random.Generator,
         model_factors: dict[str, float] | None = None,
         hold_weight: float = 0.0,
+        action_offset: np.ndarray | None = None,
     ) -> None:
         config.validate()
         self.config = config
@@ -91,6 +94,7 @@ class SamplingPlanner:
         self.std = np.full((m, self.action_dim), config.noise_std)
         self.weights = np.asarray(config.arm_weights, dtype=float)
         self.hold_weight = float(hold_weight)
+        self.action_offset = action_offset
 
     def reset(self) -> None:
         """Forget the previous plan (a new episode)."""
@@ -144,7 +148,8 @@ class SamplingPlanner:
         last = np.broadcast_to(previous_action, (k, self.action_dim))
         for step in range(c.horizon):
             u = controls[:, step]
-            model.set_actions(u.reshape(k, self.n_arms, 2, N_CONTROL_POINTS))
+            commanded = u if self.action_offset is None else np.clip(u + self.action_offset, -1, 1)
+            model.set_actions(commanded.reshape(k, self.n_arms, 2, N_CONTROL_POINTS))
             model.advance()
             if model.has_sphere:
                 diff = model.sphere_position - target_path[step]

@@ -205,6 +205,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("env", "task", "drop_penalty"): 100.0,
     ("env", "task", "reach_penalty"): 2.0,
     ("env", "task", "bonus_needs_grip"): True,
+    ("env", "task", "grip"): 0.0,
     ("env", "task"): {},
     ("algo", "critic"): "joint",
     ("algo", "per_arm_networks"): False,

@@ -532,6 +532,14 @@ class TaskSpec(SpecModel):
         "transport: the distance bonuses count only on steps when both arms touch the sphere",
         "-",
     )
+    grip: Float = unit_field(
+        _TASK.grip,
+        "transport: a constant squeeze added to the normal control values before clipping "
+        "(arm 1 -grip, arm 2 +grip), so a zero action holds the sphere; e.g. 0.03",
+        "-",
+        ge=-1,
+        le=1,
+    )
 
     @model_validator(mode="after")
     def _check_task(self) -> TaskSpec:
