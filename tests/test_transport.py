@@ -342,9 +342,7 @@ def test_letting_go_earns_less_than_holding() -> None:
     held, held_steps = _episode_return(SQUEEZE, steps)
     assert idle_steps == 250 and held_steps == steps  # the idle arms drop it after 0.5 s
     assert idle < -100.0 < 0.0 < held
-    old_idle, _ = _episode_return(
-        np.zeros(24), steps, reach_penalty=0.0, bonus_needs_grip=False
-    )
+    old_idle, _ = _episode_return(np.zeros(24), steps, reach_penalty=0.0, bonus_needs_grip=False)
     assert old_idle > 0.0  # the bonuses of the untouched sphere outweigh the drop penalty
 
 
