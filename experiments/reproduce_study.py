@@ -86,6 +86,7 @@ KEEP_STEPS = (
     "td3-sbx-128-mirror-fast-transport-calm",
     "td3-sbx-128-mirror-fast-transport-grip",
     "mpc-mppi-64x50-transport",
+    "mpc-mppi-64x50-transport-grip",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
@@ -273,6 +274,7 @@ JOBS: tuple[Job, ...] = (
         )
     ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
+    Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     # derived from shipped runs (after all trainings):
     *(
         Job(
