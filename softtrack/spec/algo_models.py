@@ -58,6 +58,11 @@ class PolicyKwargsSpec(SpecModel):
         "critics",
         ge=1,
     )
+    layer_norm: bool = unit_field(
+        False,
+        "layer normalisation in the critics' hidden layers (off-policy, backend sbx)",
+        "-",
+    )
     # crossq (sbx only)
     batch_norm: bool = unit_field(
         True,
@@ -172,6 +177,14 @@ class AlgoSpec(SpecModel):
         "gradient steps",
         ge=-1,
     )
+    n_step_returns: Int = unit_field(
+        1,
+        "n of the n-step returns the critics learn from (off-policy; SB3's n_steps with its "
+        "NStepReplayBuffer): rewards of n transitions, then the discounted bootstrap; 1 = "
+        "one-step TD, the study",
+        "env steps",
+        ge=1,
+    )
     tau: Float = unit_field(
         0.005,
         "soft target-update coefficient (td3, ddpg, sac, tqc; crossq has no target networks)",
@@ -280,6 +293,20 @@ class AlgoSpec(SpecModel):
                 "CrossQ); set algo.backend: sbx",
                 "backend",
             )
+        if self.policy_kwargs.layer_norm and (self.backend != "sbx" or not self.is_off_policy):
+            raise custom_error(
+                "policy_kwargs.layer_norm is implemented for the off-policy algorithms of "
+                f"backend sbx, not {self.name} with backend {self.backend}; set "
+                "algo.backend: sbx or policy_kwargs.layer_norm: false",
+                "policy_kwargs.layer_norm",
+            )
+        if self.n_step_returns > 1 and not self.is_off_policy:
+            raise custom_error(
+                f"n_step_returns {self.n_step_returns} applies to the off-policy algorithms; "
+                "ppo has its own n_steps (rollout length) and gae_lambda: set "
+                "algo.n_step_returns: 1",
+                "n_step_returns",
+            )
         if self.name == "tqc":
             kwargs = self.policy_kwargs
             if self.backend == "sbx" and kwargs.n_critics != 2:
@@ -348,9 +375,13 @@ class AlgoSpec(SpecModel):
             if self.ent_coef is not None:
                 keys.append("ent_coef")
         kwargs: dict[str, Any] = {key: getattr(self, key) for key in keys}
+        if self.is_off_policy and self.n_step_returns > 1:
+            kwargs["n_steps"] = self.n_step_returns
         if self.backend == "sb3":
             kwargs["device"] = self.device
         policy_keys = ("net_arch", "activation_fn", *_POLICY_KWARGS_OF.get(self.name, ()))
+        if self.policy_kwargs.layer_norm:
+            policy_keys = (*policy_keys, "layer_norm")
         policy_kwargs: dict[str, Any] = copy.deepcopy(
             self.policy_kwargs.model_dump(include=set(policy_keys))
         )

@@ -1,0 +1,65 @@
+"""Learner options for the time-to-accuracy search (issue 40): n-step returns
+(``algo.n_step_returns``) and layer-normalised critics (``algo.policy_kwargs.layer_norm``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from stable_baselines3.common.buffers import NStepReplayBuffer
+
+from softtrack.rl.factory import build_model, make_vec_env
+from softtrack.spec.api import parse_spec, spec_hash
+from softtrack.spec.fields import SpecError
+
+_SMALL = {
+    "training": {"n_envs": 2, "total_timesteps": 200},
+    "algo": {"backend": "sbx", "learning_starts": 20, "buffer_size": 1000, "batch_size": 8},
+}
+
+
+def _spec(**algo: object):  # type: ignore[no-untyped-def]
+    return parse_spec({**_SMALL, "algo": {**_SMALL["algo"], **algo}})
+
+
+def test_defaults_keep_every_hash_and_pass_nothing_new() -> None:
+    plain = _spec()
+    explicit = _spec(n_step_returns=1, policy_kwargs={"layer_norm": False})
+    assert spec_hash(plain) == spec_hash(explicit)
+    kwargs = plain.algo.sb3_kwargs(resolve_activation=False)
+    assert "n_steps" not in kwargs and "layer_norm" not in kwargs["policy_kwargs"]
+    assert spec_hash(_spec(n_step_returns=3)) != spec_hash(plain)
+
+
+def test_n_step_returns_build_sb3s_n_step_buffer() -> None:
+    spec = _spec(n_step_returns=3, policy_kwargs={"layer_norm": True})
+    kwargs = spec.algo.sb3_kwargs(resolve_activation=False)
+    assert kwargs["n_steps"] == 3 and kwargs["policy_kwargs"]["layer_norm"] is True
+    env = make_vec_env(spec, seed=0)
+    model = build_model(spec, env, seed=0)
+    assert isinstance(model.replay_buffer, NStepReplayBuffer)
+    assert model.replay_buffer.n_steps == 3
+    critic_params = model.policy.qf_state.params["params"]
+    assert any("LayerNorm" in name for name in _names(critic_params))
+    model.learn(64)  # trains through the n-step samples
+    actions, _ = model.predict(env.reset(), deterministic=True)
+    assert np.isfinite(actions).all()
+
+
+def _names(tree: object, prefix: str = "") -> list[str]:
+    if not isinstance(tree, dict):
+        return [prefix]
+    return [n for key, value in tree.items() for n in _names(value, f"{prefix}/{key}")]
+
+
+@pytest.mark.parametrize(
+    ("algo", "message"),
+    [
+        ({"name": "ppo", "n_step_returns": 3}, "n_step_returns 3 applies to the off-policy"),
+        ({"backend": "sb3", "policy_kwargs": {"layer_norm": True}}, "layer_norm is implemented"),
+        ({"n_step_returns": 2, "mirror_replay": True}, "n-step replay buffer"),
+        ({"n_step_returns": 0}, "n_step_returns"),
+    ],
+)
+def test_unsupported_settings_are_rejected(algo: dict, message: str) -> None:
+    with pytest.raises(SpecError, match=message):
+        _spec(**algo)
