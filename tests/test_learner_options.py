@@ -63,3 +63,17 @@ def _names(tree: object, prefix: str = "") -> list[str]:
 def test_unsupported_settings_are_rejected(algo: dict, message: str) -> None:
     with pytest.raises(SpecError, match=message):
         _spec(**algo)
+
+
+def _ppo(log_std_init: float):  # type: ignore[no-untyped-def]
+    algo = {"name": "ppo", "device": "cpu", "n_steps": 16, "batch_size": 16}
+    algo["policy_kwargs"] = {"log_std_init": log_std_init}
+    return parse_spec({"training": {"n_envs": 2, "total_timesteps": 200}, "algo": algo})
+
+
+def test_ppo_log_std_init_reaches_the_policy() -> None:
+    spec = _ppo(-4.0)
+    assert spec.algo.sb3_kwargs(resolve_activation=False)["policy_kwargs"]["log_std_init"] == -4.0
+    assert spec_hash(spec) != spec_hash(_ppo(0.0))
+    model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
+    np.testing.assert_allclose(model.policy.log_std.detach().numpy(), -4.0)

@@ -17,6 +17,7 @@ OFF_POLICY_ALGOS = frozenset({"td3", "ddpg", "sac", "tqc", "crossq"})
 ENTROPY_ALGOS = frozenset({"sac", "tqc", "crossq"})
 # policy_kwargs keys beyond net_arch and activation_fn, by the algorithm that takes them.
 _POLICY_KWARGS_OF = {
+    "ppo": ("log_std_init",),
     "tqc": ("n_quantiles", "n_critics"),
     "crossq": ("batch_norm", "batch_norm_actor", "batch_norm_momentum", "renorm_warmup_steps"),
 }
@@ -57,6 +58,12 @@ class PolicyKwargsSpec(SpecModel):
         "critic networks (tqc); backend sbx implements exactly 2",
         "critics",
         ge=1,
+    )
+    log_std_init: Float = unit_field(
+        0.0,
+        "initial log standard deviation of the Gaussian policy (ppo): -4 explores with std "
+        "0.018 where a fine grip needs it",
+        "log action units",
     )
     layer_norm: bool = unit_field(
         False,
