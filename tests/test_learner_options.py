@@ -56,7 +56,7 @@ def _names(tree: object, prefix: str = "") -> list[str]:
     [
         ({"name": "ppo", "n_step_returns": 3}, "n_step_returns 3 applies to the off-policy"),
         ({"backend": "sb3", "policy_kwargs": {"layer_norm": True}}, "layer_norm is implemented"),
-        ({"n_step_returns": 2, "mirror_replay": True}, "n-step replay buffer"),
+        ({"n_step_returns": 2, "critic": "per_arm"}, "n-step replay buffer"),
         ({"n_step_returns": 0}, "n_step_returns"),
     ],
 )
@@ -77,3 +77,27 @@ def test_ppo_log_std_init_reaches_the_policy() -> None:
     assert spec_hash(spec) != spec_hash(_ppo(0.0))
     model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
     np.testing.assert_allclose(model.policy.log_std.detach().numpy(), -4.0)
+
+
+def test_mirror_images_are_n_step_columns_of_their_own() -> None:
+    """With mirror replay, n-step returns run along each environment's episode and, in their
+    own columns, along its mirror image: the sampled n-step rewards of a mirrored column equal
+    the real column's, and its observations are the mirror images."""
+    from softtrack.rl.variants.mirror import MirrorNStepReplayBuffer, mirror_observation
+
+    spec = _spec(n_step_returns=3, mirror_replay=True)
+    env = make_vec_env(spec, seed=0)
+    model = build_model(spec, env, seed=0)
+    buffer = model.replay_buffer
+    assert isinstance(buffer, MirrorNStepReplayBuffer)
+    assert buffer.n_envs == 4 and buffer.n_steps == 3
+    model.learn(60)
+    stored = buffer.pos
+    np.testing.assert_array_equal(buffer.rewards[:stored, :2], buffer.rewards[:stored, 2:])
+    np.testing.assert_allclose(
+        buffer.observations[:stored, 2:], mirror_observation(buffer.observations[:stored, :2])
+    )
+    np.random.seed(0)
+    samples = buffer.sample(32)
+    assert samples.discounts is not None
+    assert np.isfinite(samples.rewards.numpy()).all()

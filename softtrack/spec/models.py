@@ -390,11 +390,11 @@ class ExperimentSpec(SpecModel):
             _check_mirror_replay(self)
         if a.actor_preactivation_penalty > 0:
             _check_actor_preactivation_penalty(self)
-        if a.n_step_returns > 1 and (a.mirror_replay or a.critic != "joint"):
+        if a.n_step_returns > 1 and a.critic != "joint":
             raise custom_error(
                 f"n_step_returns {a.n_step_returns} needs SB3's n-step replay buffer, which "
-                "mirror_replay and critic: per_arm replace with their own; set "
-                "algo.mirror_replay: false and critic: joint, or n_step_returns: 1",
+                "critic: per_arm replaces with its own; set algo.critic: joint or "
+                "n_step_returns: 1",
                 "algo.n_step_returns",
             )
         if t.randomisation_warmup_steps > 0:

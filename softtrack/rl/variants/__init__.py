@@ -9,7 +9,8 @@ idea touches this folder (and its spec fields), not the factory:
   whose critics learn each arm's share of the reward (optionally one network per arm, and
   actors that see only their arm); its environment reports the reward shares.
 * ``mirror_replay`` (``algo.mirror_replay``, :mod:`~softtrack.rl.variants.mirror`): a replay
-  buffer that also stores every transition's mirror image.
+  buffer that also stores every transition's mirror image (with ``algo.n_step_returns`` > 1,
+  ``mirror_replay_n_step``: SB3's n-step buffer with the mirror images as more columns).
 * ``actor_preactivation_penalty`` (``algo.actor_preactivation_penalty``,
   :mod:`~softtrack.rl.variants.bounded_actor`): TD3 whose actor loss also penalises the
   actor's pre-tanh activations, keeping its actions off ±1.
@@ -90,8 +91,16 @@ VARIANTS: tuple[Variant, ...] = (
     ),
     Variant(
         name="mirror_replay",
-        enabled=lambda spec: bool(spec.algo.mirror_replay),
+        enabled=lambda spec: bool(spec.algo.mirror_replay) and spec.algo.n_step_returns == 1,
         replay_buffer_class="softtrack.rl.variants.mirror:MirrorReplayBuffer",
+    ),
+    Variant(
+        name="mirror_replay_n_step",
+        enabled=lambda spec: bool(spec.algo.mirror_replay) and spec.algo.n_step_returns > 1,
+        replay_buffer_class="softtrack.rl.variants.mirror:MirrorNStepReplayBuffer",
+        model_kwargs=lambda spec: {
+            "replay_buffer_kwargs": {"n_steps": spec.algo.n_step_returns, "gamma": spec.algo.gamma}
+        },
     ),
     Variant(
         name="actor_preactivation_penalty",

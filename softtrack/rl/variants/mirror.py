@@ -17,9 +17,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.buffers import NStepReplayBuffer, ReplayBuffer
 
-__all__ = ["MirrorReplayBuffer", "mirror_action", "mirror_observation"]
+__all__ = ["MirrorNStepReplayBuffer", "MirrorReplayBuffer", "mirror_action", "mirror_observation"]
 
 ARM_OBS = 37  # per arm: x, y, z of 11 nodes, tip speed, tip velocity direction (3)
 POINT_OBS = 7  # a point's position (3), speed, velocity direction (3): target, sphere, goal
@@ -102,4 +102,51 @@ class MirrorReplayBuffer(ReplayBuffer):
             reward,
             done,
             infos,
+        )
+
+
+class MirrorNStepReplayBuffer(NStepReplayBuffer):
+    """SB3's n-step replay buffer (``algo.n_step_returns``) that also stores every
+    transition's mirror image: the mirror images of the n_envs environments are n_envs more
+    columns, so each column holds one (real or mirrored) episode in order, as n-step returns
+    need. Capacity: ``buffer_size`` transitions, i.e. the last ``buffer_size / 2`` environment
+    steps, as :class:`MirrorReplayBuffer`.
+
+    Args:
+        buffer_size, observation_space, action_space, device: as SB3's buffers.
+        n_envs: the training environments (the buffer keeps 2·n_envs columns).
+        **kwargs: ``n_steps``, ``gamma`` and the rest of SB3's ``NStepReplayBuffer``.
+    """
+
+    def __init__(
+        self,
+        buffer_size: int,
+        observation_space: Any,
+        action_space: Any,
+        device: Any = "auto",
+        n_envs: int = 1,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(
+            buffer_size, observation_space, action_space, device, n_envs=2 * n_envs, **kwargs
+        )
+
+    def add(
+        self,
+        obs: np.ndarray,
+        next_obs: np.ndarray,
+        action: np.ndarray,
+        reward: np.ndarray,
+        done: np.ndarray,
+        infos: list[dict[str, Any]],
+    ) -> None:
+        """Store the (n_envs, ...) transitions in the first n_envs columns and their mirror
+        images in the others, at one position."""
+        super().add(
+            np.concatenate([obs, mirror_observation(obs)]),
+            np.concatenate([next_obs, mirror_observation(next_obs)]),
+            np.concatenate([action, mirror_action(action)]),
+            np.concatenate([reward, reward]),
+            np.concatenate([done, done]),
+            [*infos, *infos],
         )
