@@ -167,6 +167,9 @@ JOBS: tuple[Job, ...] = (
     ),
     # time to accuracy (1e6 steps, checkpoints tracking the trajectories):
     Job(V + "td3-sbx-64-1e6-mirror-fast.yaml", 0, "td3-sbx-64-mirror-fast-1e6-seed0"),
+    Job(
+        V + "td3-sbx-128-1e6-mirror-fast-nstep3.yaml", 0, "td3-sbx-128-mirror-fast-nstep3-1e6-seed0"
+    ),
     *(
         Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
         for s in (0, 1, 2)
