@@ -333,6 +333,8 @@ REPORTED = (
     "independent-td3-sbx-128-fast-viewpoints",
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
+    "mpc-mppi-64x50-transport",
+    "mpc-mppi-64x50-transport-grip",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
