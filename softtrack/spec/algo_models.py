@@ -17,7 +17,6 @@ OFF_POLICY_ALGOS = frozenset({"td3", "ddpg", "sac", "tqc", "crossq"})
 ENTROPY_ALGOS = frozenset({"sac", "tqc", "crossq"})
 # policy_kwargs keys beyond net_arch and activation_fn, by the algorithm that takes them.
 _POLICY_KWARGS_OF = {
-    "ppo": ("log_std_init",),
     "tqc": ("n_quantiles", "n_critics"),
     "crossq": ("batch_norm", "batch_norm_actor", "batch_norm_momentum", "renorm_warmup_steps"),
 }
@@ -389,6 +388,8 @@ class AlgoSpec(SpecModel):
         policy_keys = ("net_arch", "activation_fn", *_POLICY_KWARGS_OF.get(self.name, ()))
         if self.policy_kwargs.layer_norm:
             policy_keys = (*policy_keys, "layer_norm")
+        if self.name == "ppo" and self.policy_kwargs.log_std_init != 0.0:
+            policy_keys = (*policy_keys, "log_std_init")
         policy_kwargs: dict[str, Any] = copy.deepcopy(
             self.policy_kwargs.model_dump(include=set(policy_keys))
         )
