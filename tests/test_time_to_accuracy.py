@@ -150,6 +150,27 @@ def test_steps_to_accuracy_is_the_first_checkpoint_with_all_six_cells_at_the_stu
     assert tta.first_at_study(_curve(_rows(STEPS[0], [0.1] * 4, partial)), study) is None
 
 
+def test_worst_cell_ratio_and_validation_cadence() -> None:
+    study = tta.study_cells()
+    rows = (
+        _rows(STEPS[0], [0.2] * 4, _cells(2.0), 30.0)
+        + _rows(STEPS[1], [0.1] * 4, _cells(0.9, bump=("figure8", 1)), 90.0)
+        + _rows(STEPS[2], [0.08] * 4, _cells(0.5), 150.0)
+    )
+    curve = _curve(rows)
+    ratio = tta.worst_cell_ratio(curve, study)
+    assert ratio.tolist() == pytest.approx([2.0, (0.053 + 1e-4) / 0.053, 0.5])
+    # gaps from the start of training: 30, 60, 60 s → median 1 min
+    assert tta.validation_cadence_min(curve) == pytest.approx(1.0)
+    missing = _cells(0.5)
+    del missing[("circle", 1)]
+    with_gap = _curve(_rows(STEPS[0], [0.1] * 4, _cells(0.5)) + _rows(STEPS[1], [0.1] * 4, missing))
+    assert tta.worst_cell_ratio(with_gap, study).tolist() == [0.5, math.inf]
+    assert math.isnan(tta.validation_cadence_min(with_gap))  # no stored clock
+    with pytest.raises(ValueError, match="no trajectory cells"):
+        tta.worst_cell_ratio(_curve(_rows(STEPS[0], [0.1] * 4, None)), study)
+
+
 def test_not_reached_and_no_trajectory_rows() -> None:
     study = tta.study_cells()
     bumps = [("circle", 0), ("rectangle", 1)]
@@ -281,7 +302,7 @@ def test_main_prints_tables_and_writes_the_figure_and_csv(
     )
     out = capsys.readouterr().out
     lines = [line.split() for line in out.splitlines()]
-    assert any(w[:3] == ["fast", "0", "500,000"] for w in lines)
+    assert any(w[:3] == ["fast", "0", "500,000"] and "2.0" in w for w in lines)  # min stored
     assert any(w[:3] == ["fast", "1", "750,000"] for w in lines)
     assert any(w[:4] == ["slow", "0", "not", "reached"] for w in lines)
     assert any(w[:4] == ["fast", "2/2", "625,000", "±"] for w in lines)  # mean over both seeds
