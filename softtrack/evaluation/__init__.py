@@ -22,8 +22,11 @@ from softtrack.evaluation.episodes import (
     VALIDATION_SEED,
     Episode,
     Policy,
+    accepts_batches,
     independent_policy,
+    iter_episodes,
     run_episode,
+    run_episodes,
 )
 from softtrack.evaluation.tables import (
     STEADY_START,
@@ -44,13 +47,16 @@ __all__ = [
     "VALIDATION_SEED",
     "Episode",
     "Policy",
+    "accepts_batches",
     "element_moments_table",
     "element_peaks_frame",
     "independent_policy",
+    "iter_episodes",
     "metrics_table",
     "moment_peaks_table",
     "moments_table",
     "run_episode",
+    "run_episodes",
     "trajectory_table",
     "validation_score",
 ]

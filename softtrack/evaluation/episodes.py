@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,8 +30,11 @@ __all__ = [
     "VALIDATION_SEED",
     "Episode",
     "Policy",
+    "accepts_batches",
     "independent_policy",
+    "iter_episodes",
     "run_episode",
+    "run_episodes",
 ]
 
 # Random-target evaluation episode k draws its target path from seed RANDOM_TARGET_SEED + k.
@@ -122,16 +125,20 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
     """One dual-arm policy from one single-arm policy per arm.
 
     Arm k's policy sees the dual-arm observation's arm-k block (37 values) followed by the
-    target block (7 values), the single-arm environment's layout, and returns 12 actions.
+    target block (7 values), the single-arm environment's layout, and returns 12 actions. It
+    accepts batches (:func:`accepts_batches`) when every arm's policy does.
     """
 
     def act(observation: np.ndarray) -> np.ndarray:
+        batch = observation.shape[:-1]
         actions = []
         for k, policy in enumerate(arm_policies):
-            arm_obs = observation[arm_view_columns(k, len(arm_policies), len(observation))]
-            actions.append(np.asarray(policy(arm_obs), dtype=np.float64).reshape(-1))
-        return np.concatenate(actions)
+            columns = arm_view_columns(k, len(arm_policies), observation.shape[-1])
+            arm_actions = np.asarray(policy(observation[..., columns]), dtype=np.float64)
+            actions.append(arm_actions.reshape(*batch, -1))
+        return np.concatenate(actions, axis=-1)
 
+    act.accepts_batches = all(accepts_batches(p) for p in arm_policies)  # type: ignore[attr-defined]
     return act
 
 
@@ -152,28 +159,70 @@ def run_episode(
         duration: episode length, s.
         seed: seed of the episode's random numbers (only the ``random`` target uses them).
     """
+    return run_episodes(policy, config, trajectory, duration, [seed])[0]
+
+
+def accepts_batches(policy: Policy) -> bool:
+    """Whether ``policy`` maps a batch of observations (n, obs_dim) to (n, act_dim) with the
+    same numbers, row by row, as one observation at a time (its ``accepts_batches``
+    attribute; :func:`independent_policy` passes it on)."""
+    return bool(getattr(policy, "accepts_batches", False))
+
+
+def run_episodes(
+    policy: Policy,
+    config: TrackingConfig,
+    trajectory: str,
+    duration: float = 10.0,
+    seeds: Sequence[int] = (0,),
+) -> list[Episode]:
+    """Run one episode per seed of ``seeds`` together, in one batch of environments: the
+    episodes of :func:`run_episode` with those seeds, number for number.
+
+    Each environment draws from its own generator and the engine integrates each environment
+    alone, so batching changes nothing in an episode. The policy is called with one
+    observation at a time (a network's matrix product may round a batch differently from one
+    row, and the closed loop would amplify that), or once per control step with every
+    episode's observation (n, obs_dim) when it :func:`accepts_batches`. An episode that ends
+    early (non-finite state, a dropped object) stops recording; the batch steps on until
+    every episode has ended.
+
+    Raises:
+        ValueError: ``seeds`` is empty, or several seeds with a controller that plans on the
+            episode's state (``start_episode``).
+    """
+    n = len(seeds)
+    start_episode = getattr(policy, "start_episode", None)
+    if n == 0:
+        raise ValueError("run_episodes needs at least one seed")
+    if n > 1 and start_episode is not None:
+        raise ValueError(
+            "a controller that plans on the episode's state (start_episode) runs one "
+            "episode at a time"
+        )
+    batched = n > 1 and accepts_batches(policy)
     eval_config = dataclasses.replace(
         config,
         target=dataclasses.replace(config.target, name=trajectory),
         episode_duration=float(duration),
     )
-    core = TrackingCore(1, eval_config)
-    obs = core.reset([0], [np.random.default_rng(seed)])[0]
+    core = TrackingCore(n, eval_config)
+    obs = core.reset(list(range(n)), [np.random.default_rng(seed) for seed in seeds])
     n_steps = eval_config.max_episode_steps
-    tips = np.full((n_steps, core.n_arms, 3), np.nan)
-    target = np.full((n_steps, 3), np.nan)
-    torques = np.full((n_steps, core.n_arms, 2, eval_config.sim.n_elem), np.nan)
-    actions = np.full((n_steps, core.action_dim), np.nan)
-    clearance = np.full(n_steps, np.nan)  # stays NaN with one arm: no other arm to clear
-    two_arms = core.n_arms >= 2
-    # the rods' radius in this episode: the nominal one, times its model-error factor if any
-    radius = float(eval_config.sim.radius) * core.parameters(0)["radius_scale"]
-    penetration = np.full(n_steps, np.nan)
-    contact_force = np.zeros(n_steps)
+    n_arms, n_elem = core.n_arms, eval_config.sim.n_elem
+    tips = np.full((n, n_steps, n_arms, 3), np.nan)
+    target = np.full((n, n_steps, 3), np.nan)
+    torques = np.full((n, n_steps, n_arms, 2, n_elem), np.nan)
+    actions = np.full((n, n_steps, core.action_dim), np.nan)
+    clearance = np.full((n, n_steps), np.nan)  # stays NaN with one arm: no other arm to clear
+    two_arms = n_arms >= 2
+    # each episode's rod radius: the nominal one, times its model-error factor if any
+    radius = [float(eval_config.sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
+    penetration = np.full((n, n_steps), np.nan)
+    contact_force = np.zeros((n, n_steps))
     snapshot_at = _snapshot_steps(n_steps)
-    snapshots = np.full((len(snapshot_at), core.n_arms, 3, eval_config.sim.n_nodes), np.nan)
+    snapshots = np.full((n, len(snapshot_at), n_arms, 3, eval_config.sim.n_nodes), np.nan)
     contact_on = core.engine.contact_on
-    start_episode = getattr(policy, "start_episode", None)
     planning = None
     if start_episode is not None:
         start_episode(core)
@@ -182,65 +231,107 @@ def run_episode(
     carried = None
     if transport is not None:
         carried = (
-            np.full((n_steps, 3), np.nan),
-            np.zeros((n_steps, core.n_arms)),
-            np.zeros((n_steps, core.n_arms), dtype=bool),
+            np.full((n, n_steps, 3), np.nan),
+            np.zeros((n, n_steps, n_arms)),
+            np.zeros((n, n_steps, n_arms), dtype=bool),
         )
-    dropped = False
-    terminated = False
-    done_steps = n_steps
+    dropped = np.zeros(n, dtype=bool)
+    terminated = np.zeros(n, dtype=bool)
+    done_steps = np.full(n, n_steps)
+    active = np.ones(n, dtype=bool)
     for k in range(n_steps):
         started = time.thread_time()
-        action = np.asarray(policy(obs), dtype=np.float64).reshape(-1)
+        if batched:
+            action = np.asarray(policy(obs), dtype=np.float64).reshape(n, -1)
+        else:  # one observation at a time: each episode's actions as when it runs alone
+            action = np.zeros((n, core.action_dim))
+            for i in np.flatnonzero(active).tolist():
+                action[i] = np.asarray(policy(obs[i]), dtype=np.float64).reshape(-1)
+        action[~active] = 0.0  # ended episodes: the batch steps on without them
         if planning is not None:
             planning[k] = time.thread_time() - started
-        result = core.step(action[None])
-        actions[k] = action
-        tips[k] = core.engine.tip_position[0]
-        target[k] = core.targets.position[0]
-        torques[k] = core.engine.torques[0]
+        result = core.step(action)
+        live = np.flatnonzero(active)
+        actions[live, k] = action[live]
+        tips[live, k] = core.engine.tip_position[live]
+        target[live, k] = core.targets.position[live]
+        torques[live, k] = core.engine.torques[live]
         if transport is not None and carried is not None:
-            target[k] = transport.goal_position[0]
+            target[live, k] = transport.goal_position[live]
             force, _, steps = core.engine.sphere_contact_state()
-            carried[0][k] = core.engine.sphere_position[0]
-            carried[1][k] = force[0]
-            carried[2][k] = steps[0] > 0
-            dropped = bool(result.dropped is not None and result.dropped[0])
+            carried[0][live, k] = core.engine.sphere_position[live]
+            carried[1][live, k] = force[live]
+            carried[2][live, k] = steps[live] > 0
+            if result.dropped is not None:
+                dropped[live] = result.dropped[live]
         if two_arms:
-            clearance[k] = arm_clearance(core.engine.position[0], radius)
+            for i in live.tolist():
+                clearance[i, k] = arm_clearance(core.engine.position[i], radius[i])
             if contact_on:
-                depth, force = core.engine.contact_state()
-                penetration[k], contact_force[k] = depth[0], force[0]
+                depth, total_force = core.engine.contact_state()
+                penetration[live, k], contact_force[live, k] = depth[live], total_force[live]
             else:
-                penetration[k] = max(0.0, -clearance[k])
-        snapshots[snapshot_at == k] = core.engine.position[0]
-        obs = result.observation[0]
-        if result.terminated[0]:
-            terminated, done_steps = True, k + 1
+                penetration[live, k] = np.fmax(0.0, -clearance[live, k])  # NaN clearance: 0
+        at_snapshot = snapshot_at == k
+        if at_snapshot.any():
+            snapshots[live[:, None], at_snapshot] = core.engine.position[live][:, None]
+        obs = result.observation
+        ended = live[result.terminated[live]]
+        terminated[ended] = True
+        done_steps[ended] = k + 1
+        active[ended] = False
+        if not active.any():
             break
-    t = np.arange(1, done_steps + 1) * eval_config.sim.control_dt
-    kept = snapshot_at < done_steps
-    return Episode(
-        trajectory,
-        t,
-        tips[:done_steps],
-        target[:done_steps],
-        torques[:done_steps],
-        actions[:done_steps],
-        terminated,
-        clearance[:done_steps],
-        float(eval_config.reward.collision_margin),
-        None if planning is None else planning[:done_steps],
-        penetration[:done_steps],
-        contact_force[:done_steps],
-        snapshots[kept],
-        snapshot_at[kept],
-        core.goal_offsets.copy(),
-        None if carried is None else carried[0][:done_steps],
-        None if carried is None else carried[1][:done_steps],
-        None if carried is None else carried[2][:done_steps],
-        dropped,
-    )
+    episodes = []
+    for i in range(n):
+        done = int(done_steps[i])
+        kept = snapshot_at < done
+        episodes.append(
+            Episode(
+                trajectory,
+                np.arange(1, done + 1) * eval_config.sim.control_dt,
+                tips[i, :done],
+                target[i, :done],
+                torques[i, :done],
+                actions[i, :done],
+                bool(terminated[i]),
+                clearance[i, :done],
+                float(eval_config.reward.collision_margin),
+                None if planning is None else planning[:done],
+                penetration[i, :done],
+                contact_force[i, :done],
+                snapshots[i, kept],
+                snapshot_at[kept],
+                core.goal_offsets.copy(),
+                None if carried is None else carried[0][i, :done],
+                None if carried is None else carried[1][i, :done],
+                None if carried is None else carried[2][i, :done],
+                bool(dropped[i]),
+            )
+        )
+    return episodes
+
+
+#: Episodes run together by :func:`iter_episodes`: the environments' step is shared, the
+#: policy still sees one observation at a time.
+EPISODE_BATCH = 16
+
+
+def iter_episodes(
+    policy: Policy,
+    config: TrackingConfig,
+    trajectory: str,
+    duration: float,
+    seeds: Sequence[int],
+    batch: int = EPISODE_BATCH,
+) -> Iterator[Episode]:
+    """The episodes of :func:`run_episode` for each seed of ``seeds``, in order: ``batch`` at
+    a time (:func:`run_episodes`), one by one for a controller that plans on the episode's
+    state (``start_episode``)."""
+    size = 1 if hasattr(policy, "start_episode") else max(1, int(batch))
+    seeds = list(seeds)
+    for first in range(0, len(seeds), size):
+        yield from run_episodes(policy, config, trajectory, duration, seeds[first : first + size])
 
 
 SNAPSHOTS = 4  # arm shapes kept per episode, evenly spaced, the last at the episode's end

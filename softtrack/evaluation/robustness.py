@@ -40,7 +40,7 @@ from typing import Any
 import pandas as pd
 import yaml
 
-from softtrack.evaluation.episodes import Policy, run_episode
+from softtrack.evaluation.episodes import Policy, iter_episodes
 from softtrack.evaluation.tables import metrics_table
 from softtrack.sim.params import CONTACT_ON
 from softtrack.spec import ExperimentSpec, SpecError
@@ -266,9 +266,9 @@ def evaluate_setting(
     }
     cpu = cpu_kind()
     parts = []
+    seeds = [ROBUSTNESS_SEED + k for k in range(episodes)]
     for trajectory in trajectories:
-        for k in range(episodes):
-            episode = run_episode(policy, config, trajectory, duration, seed=ROBUSTNESS_SEED + k)
+        for k, episode in enumerate(iter_episodes(policy, config, trajectory, duration, seeds)):
             rows = metrics_table(run_id, episode)
             for i, (name, value) in enumerate(
                 {**front, "episode": k, "seed": ROBUSTNESS_SEED + k}.items()

@@ -47,6 +47,7 @@ from softtrack.evaluation.episodes import (
     RANDOM_TARGET_SEED,
     Episode,
     Policy,
+    iter_episodes,
     run_episode,
 )
 from softtrack.evaluation.tables import (
@@ -238,9 +239,9 @@ def evaluate_random_targets(
     policy, config, duration = _episode_setup(record, load, model)
     cpu = cpu_kind()
     parts = []
-    for k in range(episodes):
-        seed = RANDOM_TARGET_SEED + k
-        episode = run_episode(policy, config, "random", duration, seed=seed)
+    seeds = [RANDOM_TARGET_SEED + k for k in range(episodes)]
+    for k, episode in enumerate(iter_episodes(policy, config, "random", duration, seeds)):
+        seed = seeds[k]
         metrics = metrics_table(record.run_id, episode)
         metrics.insert(2, "episode", k)
         metrics.insert(3, "seed", seed)

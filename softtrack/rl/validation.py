@@ -51,11 +51,14 @@ import pandas as pd
 from softtrack.env.config import TrackingConfig
 from softtrack.evaluation import (
     VALIDATION_SEED,
+    Episode,
     Policy,
     metrics_table,
     run_episode,
+    run_episodes,
     validation_score,
 )
+from softtrack.evaluation.episodes import EPISODE_BATCH
 from softtrack.rl.callbacks import TrainingClock
 from softtrack.rl.policy import deterministic_policy
 from softtrack.spec import ExperimentSpec
@@ -152,18 +155,32 @@ def held_out_rows(
     and arm, the columns of :func:`softtrack.evaluation.metrics_table` plus ``episode`` and
     ``seed`` (``arm`` set to ``arm`` for an independent run's arm policy). ``None`` if
     ``stop_requested`` turned true between two episodes."""
-    parts = []
-    for k in range(episodes):
+    parts: list[pd.DataFrame] = []
+    seeds = [first_seed + k for k in range(episodes)]
+    for first in range(0, episodes, EPISODE_BATCH):
         if stop_requested():
             return None
-        seed = first_seed + k
-        metrics = metrics_table(run_id, run_episode(act, config, "random", duration, seed))
-        if arm is not None:
-            metrics["arm"] = arm
-        metrics.insert(2, "episode", k)
-        metrics.insert(3, "seed", seed)
-        parts.append(metrics)
+        chunk = seeds[first : first + EPISODE_BATCH]
+        parts.extend(
+            _episode_rows(run_id, episode, first + j, seed, arm)
+            for j, (seed, episode) in enumerate(
+                zip(chunk, run_episodes(act, config, "random", duration, chunk), strict=True)
+            )
+        )
     return pd.concat(parts, ignore_index=True)
+
+
+def _episode_rows(
+    run_id: str, episode: Episode, index: int, seed: int, arm: int | None
+) -> pd.DataFrame:
+    """One validation episode's metrics rows with ``episode`` ``index``, its ``seed`` and, for
+    an independent run's arm policy, that ``arm``."""
+    metrics = metrics_table(run_id, episode)
+    if arm is not None:
+        metrics["arm"] = arm
+    metrics.insert(2, "episode", index)
+    metrics.insert(3, "seed", seed)
+    return metrics
 
 
 def trajectory_rows(
@@ -182,12 +199,8 @@ def trajectory_rows(
     for trajectory in trajectories:
         if stop_requested():
             return None
-        metrics = metrics_table(run_id, run_episode(act, config, trajectory, duration))
-        if arm is not None:
-            metrics["arm"] = arm
-        metrics.insert(2, "episode", 0)
-        metrics.insert(3, "seed", 0)
-        parts.append(metrics)
+        episode = run_episode(act, config, trajectory, duration)
+        parts.append(_episode_rows(run_id, episode, 0, 0, arm))
     return pd.concat(parts, ignore_index=True)
 
 
