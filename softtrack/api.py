@@ -382,14 +382,18 @@ def _mpc_spec(path: str) -> ExperimentSpec:
 
 
 def export(
-    reference: str, dest: str | os.PathLike[str], *, runs_dir: str | os.PathLike[str] | None = None
+    reference: str,
+    dest: str | os.PathLike[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    policy_only: bool = False,
 ) -> Path:
     """Copy a finished run (id, id prefix or run directory) to ``dest`` without its checkpoints
     and replay buffers: spec, run.json, tables, log, and its policy as ``model.zip`` beside
-    ``policy.json`` (other models under ``other_models/``), inference-only (see
-    :mod:`softtrack.rl.export`). Returns ``dest``."""
+    ``policy.json`` (other models under ``other_models/`` unless ``policy_only``),
+    inference-only (see :mod:`softtrack.rl.export`). Returns ``dest``."""
 
-    return export_policy_run(resolve_run(reference, runs_dir), dest)
+    return export_policy_run(resolve_run(reference, runs_dir), dest, policy_only)
 
 
 def upgrade(

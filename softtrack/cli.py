@@ -1097,6 +1097,14 @@ def export(
         str, typer.Argument(metavar="DEST", help="New directory to create.", show_default=False)
     ],
     runs_dir: RunsDirOption = None,
+    policy_only: Annotated[
+        bool,
+        typer.Option(
+            "--policy-only",
+            help="Leave out the run's other model (the last or best-validated one, what "
+            "`evaluate --model` reads): about a third smaller.",
+        ),
+    ] = False,
 ) -> None:
     """Copy a finished run to DEST without checkpoints or replay buffers (spec, run.json,
     model, tables, log): small enough to commit or share, e.g. under models/.
@@ -1105,7 +1113,7 @@ def export(
     any run.
     """
     with _user_errors(runs_dir):
-        path = api.export(run, dest, runs_dir=runs_dir)
+        path = api.export(run, dest, runs_dir=runs_dir, policy_only=policy_only)
     size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
     typer.echo(f"exported: {path} ({size / 1e6:.1f} MB)")
 

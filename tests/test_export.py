@@ -85,6 +85,29 @@ def test_exported_policy_loads_with_plain_sbx_and_acts_as_the_run(
     )
 
 
+def test_policy_only_export_leaves_out_the_other_model(
+    sbx_run: tuple[Path, str], tmp_path: Path
+) -> None:
+    runs, run_id = sbx_run
+    full, lean = tmp_path / "full", tmp_path / "lean"
+    for dest, extra in ((full, []), (lean, ["--policy-only"])):
+        result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs), *extra])
+        assert result.exit_code == 0, result.output
+    assert (full / "other_models" / "last" / "model.zip").is_file()
+    assert not (lean / "other_models").exists()
+    manifest = json.loads((lean / "policy.json").read_text())
+    assert manifest["model"] == "best" and manifest["other_models"] == {}
+    observations = np.random.default_rng(1).normal(size=(8, 81)).astype(np.float32)
+    assert np.array_equal(
+        _actions(lean / "model.zip", observations), _actions(full / "model.zip", observations)
+    )
+    result = runner.invoke(app, ["evaluate", str(lean), "-t", "circle", "--in-place"])
+    assert result.exit_code == 0, result.output
+    result = runner.invoke(app, ["evaluate", str(lean), "-t", "circle", "--model", "last"])
+    assert result.exit_code == 2
+    assert "last" in result.output
+
+
 def test_upgrade_relayouts_an_old_export_in_place(
     sbx_run: tuple[Path, str], tmp_path: Path
 ) -> None:

@@ -98,13 +98,18 @@ def save_inference_model(spec: ExperimentSpec, source: Path, dest: Path) -> None
 
 
 def export_plan(
-    record: RunRecord, spec: ExperimentSpec
+    record: RunRecord, spec: ExperimentSpec, policy_only: bool = False
 ) -> tuple[list[ModelCopy], dict[Path, dict[str, Any]]]:
     """The model files to export and each policy directory's ``policy.json``.
 
+    Args:
+        policy_only: leave out the other models (``other_models/``: what ``evaluate --model
+            last``/``best`` would read), keeping only each policy's ``model.zip``.
+
     Returns:
         (models, manifests): one :class:`ModelCopy` per existing model of each policy (its
-        policy to ``model.zip``, the other to ``other_models/<name>/model.zip``), and the
+        policy to ``model.zip``, the other, unless ``policy_only``, to
+        ``other_models/<name>/model.zip``), and the
         manifest by policy directory relative to the run directory; none for a planner
         (``controller: mpc``), whose spec is the whole controller.
     """
@@ -124,7 +129,7 @@ def export_plan(
             "other_models": {},
         }
         other_path = candidate_path(policy, other)
-        if other_path.is_file():
+        if other_path.is_file() and not policy_only:
             dest = relative / OTHER_MODELS_DIR / other / "model.zip"
             models.append(ModelCopy(other_path, dest))
             manifest["other_models"][other] = {
@@ -135,10 +140,13 @@ def export_plan(
     return models, manifests
 
 
-def export_policy_run(record: RunRecord, dest: str | os.PathLike[str]) -> Path:
-    """Export ``record`` to the new directory ``dest`` (module docstring). Returns ``dest``."""
+def export_policy_run(
+    record: RunRecord, dest: str | os.PathLike[str], policy_only: bool = False
+) -> Path:
+    """Export ``record`` to the new directory ``dest`` (module docstring; ``policy_only``:
+    :func:`export_plan`). Returns ``dest``."""
     spec = record.load_spec()
-    models, manifests = export_plan(record, spec)
+    models, manifests = export_plan(record, spec, policy_only)
     return export_run(record, models, manifests, dest, partial(save_inference_model, spec))
 
 
