@@ -104,13 +104,15 @@ class Job:
 
     With ``derive_from``, the spec differs from that shipped run's only in its name and
     ``training.confirm_episodes``, so its training is that run's: the run is derived from
-    ``models/<derive_from>`` (:func:`derive_run`) instead of trained.
+    ``models/<derive_from>`` (:func:`derive_run`) instead of trained. With ``policy_only``
+    the export leaves out the run's other model (``softtrack export --policy-only``).
     """
 
     spec: str
     seed: int
     dest: str
     derive_from: str | None = None
+    policy_only: bool = False
 
     @property
     def name(self) -> str:
@@ -169,6 +171,16 @@ JOBS: tuple[Job, ...] = (
     Job(V + "td3-sbx-64-1e6-mirror-fast.yaml", 0, "td3-sbx-64-mirror-fast-1e6-seed0"),
     Job(
         V + "td3-sbx-128-1e6-mirror-fast-nstep3.yaml", 0, "td3-sbx-128-mirror-fast-nstep3-1e6-seed0"
+    ),
+    # the time-to-accuracy search's recipe (issue 40): 64 envs, UTD 1/32, 3e6 steps
+    *(
+        Job(
+            V + "td3-sbx-128-mirror-tta.yaml",
+            s,
+            f"td3-sbx-128-mirror-tta-3e6-seed{s}",
+            policy_only=True,
+        )
+        for s in (1, 2, 3, 4, 0)
     ),
     *(
         Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
@@ -546,7 +558,8 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         if status != "completed":
             _softtrack("train", "--resume", run_id, *runs, taskset=core)
     _softtrack("evaluate", run_id, "--random", str(RANDOM_EPISODES), *runs, taskset=core)
-    _softtrack("export", run_id, f"models/{job.dest}", *runs)
+    lean_model = ["--policy-only"] if job.policy_only else []
+    _softtrack("export", run_id, f"models/{job.dest}", *lean_model, *runs)
     lean(dest, job.name)
 
 
