@@ -182,6 +182,31 @@ JOBS: tuple[Job, ...] = (
         )
         for s in (1, 2, 3, 4, 0)
     ),
+    # centralized against independent with ten seeds each (issue 40), the tta recipe's budget
+    *(
+        job
+        for s in range(10)
+        for job in (
+            Job(
+                V + "independent-td3-sbx-128-tta.yaml",
+                s,
+                f"independent-td3-sbx-128-tta-3e6-seed{s}",
+                policy_only=True,
+            ),
+            *(
+                [
+                    Job(
+                        V + "td3-sbx-128-mirror-tta.yaml",
+                        s,
+                        f"td3-sbx-128-mirror-tta-3e6-seed{s}",
+                        policy_only=True,
+                    )
+                ]
+                if s >= 5
+                else []
+            ),
+        )
+    ),
     *(
         Job(V + "td3-sbx-128-1e6-mirror-fast.yaml", s, f"td3-sbx-128-mirror-fast-1e6-seed{s}")
         for s in (0, 1, 2)
