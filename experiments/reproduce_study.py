@@ -273,6 +273,7 @@ JOBS: tuple[Job, ...] = (
                 V + "independent-td3-sbx-128-5e5-fast-viewpoints.yaml",
                 s,
                 f"independent-td3-sbx-128-fast-viewpoints-1e6-seed{s}",
+                policy_only=s >= 2,  # shipped after models/ neared its 100 MB
             ),
         )
     ),
