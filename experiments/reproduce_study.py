@@ -175,7 +175,7 @@ JOBS: tuple[Job, ...] = (
     # the time-to-accuracy search's recipe (issue 40): 64 envs, UTD 1/32, 3e6 steps
     *(
         Job(
-            V + "td3-sbx-128-mirror-tta.yaml",
+            V + "td3-sbx-128-3e6-mirror-tta.yaml",
             s,
             f"td3-sbx-128-mirror-tta-3e6-seed{s}",
             policy_only=True,
@@ -188,7 +188,7 @@ JOBS: tuple[Job, ...] = (
         for s in range(10)
         for job in (
             Job(
-                V + "independent-td3-sbx-128-tta.yaml",
+                V + "independent-td3-sbx-128-15e5-tta.yaml",
                 s,
                 f"independent-td3-sbx-128-tta-3e6-seed{s}",
                 policy_only=True,
@@ -196,7 +196,7 @@ JOBS: tuple[Job, ...] = (
             *(
                 [
                     Job(
-                        V + "td3-sbx-128-mirror-tta.yaml",
+                        V + "td3-sbx-128-3e6-mirror-tta.yaml",
                         s,
                         f"td3-sbx-128-mirror-tta-3e6-seed{s}",
                         policy_only=True,

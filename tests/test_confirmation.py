@@ -104,7 +104,7 @@ def test_a_stopped_confirmation_writes_nothing(tmp_path: Path) -> None:
     policy = PolicyDir.of_run(record.path)
     before = _confirmation(record)
     policy.confirmed_path.unlink()
-    calls = iter([False, False, True])
+    calls = iter([False, True])  # checked before each batch of episodes: stops at the second
     assert confirm_policy(record, record.load_spec(), policy, lambda: next(calls)) is None
     assert policy.confirmed_choice() is None
     pd.testing.assert_frame_equal(_confirmation(record), before)

@@ -913,10 +913,12 @@ def test_experiments_exist() -> None:
 
 
 def _budget(steps: int) -> str:
-    """4000000 → "4e6" (the budgets of the naming scheme)."""
+    """4000000 → "4e6", 1500000 → "15e5" (the budgets of the naming scheme)."""
     mantissa, exponent = f"{steps:e}".split("e")
-    assert float(mantissa) == int(float(mantissa)), steps
-    return f"{int(float(mantissa))}e{int(exponent)}"
+    value, power = float(mantissa), int(exponent)
+    while value != int(value):
+        value, power = round(value * 10, 9), power - 1
+    return f"{int(value)}e{power}"
 
 
 def expected_file_stem(spec: ExperimentSpec) -> str:
