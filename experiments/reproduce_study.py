@@ -74,8 +74,9 @@ REPORT_DIR = "reports/study"
 #: (`softtrack report --figures-for`): the study protocol, the best centralized variant and the
 #: independent baseline selected alike. Only their runs keep ``eval_trajectories`` in models/.
 FEATURED = ("td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sbx-2e6-val-confirm")
-#: Experiments whose shipped runs keep their per-step table: the featured ones, and those the
-#: report's contact figures draw (clearance and contact force per step).
+#: Experiments whose shipped runs keep their per-step tables: the featured ones, and those the
+#: report's contact figures draw (clearance and contact force per step); the others drop their
+#: ``eval_trajectories`` and ``eval_moments`` (:func:`lean`).
 KEEP_STEPS = (
     *FEATURED,
     "td3-sbx-128-mirror-fast-contact",
@@ -590,13 +591,15 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
 
 
 def lean(run_dir: Path, name: str) -> None:
-    """Drop the per-step tip and target positions (``eval_trajectories``) of a run under
-    ``models/`` whose experiment is not in :data:`KEEP_STEPS`: the report draws them for the
-    featured and contact experiments only, and `softtrack evaluate models/<run>` writes them again in
-    seconds."""
-    table = run_dir / "tables" / "eval_trajectories.parquet"
-    if name not in KEEP_STEPS and table.is_file():
-        table.unlink()
+    """Drop the per-step tables of a run under ``models/`` whose experiment is not in
+    :data:`KEEP_STEPS`: the tip and target positions (``eval_trajectories``) and the moment
+    histories (``eval_moments``; the peaks stay in ``eval_moment_peaks``). The report draws them
+    for the featured and contact experiments only, and `softtrack evaluate models/<run>` writes
+    them again in seconds."""
+    if name in KEEP_STEPS:
+        return
+    for table in ("eval_trajectories", "eval_moments"):
+        (run_dir / "tables" / f"{table}.parquet").unlink(missing_ok=True)
 
 
 def main(argv: list[str] | None = None) -> None:
