@@ -8,7 +8,8 @@
 * :class:`Checkpointer` writes ``checkpoints/step-<global step>/`` of the policy's directory
   (:class:`~softtrack.store.layout.PolicyDir`) atomically every
   ``training.checkpoint_interval`` env steps: ``model.zip``, ``replay_buffer.pkl``
-  (off-policy, if ``training.save_replay_buffer``), ``vecnormalize.pkl`` (if normalising) and
+  (off-policy, if ``training.save_replay_buffer``; only its filled rows, see
+  :mod:`softtrack.rl.replay_file`), ``vecnormalize.pkl`` (if normalising) and
   ``state.json`` (global step, episode count, training wall time). Older checkpoints beyond
   ``training.keep_checkpoints`` are deleted. An ``after_save`` hook (validation, see
   :mod:`softtrack.rl.validation`) runs after each periodic checkpoint.
@@ -38,6 +39,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
+from softtrack.rl.replay_file import save_replay_buffer as save_replay_buffer_file
 from softtrack.store.atomic import atomic_dir, atomic_write_json
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore, utc_now
@@ -216,7 +218,7 @@ def save_checkpoint(
     with atomic_dir(target) as tmp:
         model.save(tmp / "model.zip")
         if save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
-            model.save_replay_buffer(tmp / "replay_buffer.pkl")
+            save_replay_buffer_file(model.replay_buffer, tmp / "replay_buffer.pkl")
         vec_normalize = model.get_vec_normalize_env()
         if vec_normalize is not None:
             vec_normalize.save(str(tmp / "vecnormalize.pkl"))

@@ -35,6 +35,7 @@ from softtrack.rl.callbacks import (
     save_checkpoint,
 )
 from softtrack.rl.factory import build_model, load_model, make_vec_env
+from softtrack.rl.replay_file import load_replay_buffer
 from softtrack.rl.validation import Validator, truncate_validation, validated_steps
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import atomic_path, atomic_write_json
@@ -228,7 +229,7 @@ class PolicyTrainer:
                 model = load_model(spec, checkpoint / "model.zip", env)
                 buffer = checkpoint / "replay_buffer.pkl"
                 if spec.algo.is_off_policy and buffer.exists():
-                    model.load_replay_buffer(buffer)
+                    load_replay_buffer(model, buffer)
                 if int(model.num_timesteps) != step:
                     raise ValueError("model and state.json disagree on the step count")
                 model.tensorboard_log = self._tensorboard_dir()  # None: off
