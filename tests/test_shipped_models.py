@@ -1,0 +1,62 @@
+"""The runs shipped under models/ stay lean: within the repository's 100 MB, and per-step tables
+only where the report draws them (experiments/reproduce_study.py ``KEEP_STEPS``)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+from reproduce_study import FEATURED, KEEP_STEPS, lean  # noqa: E402
+
+MODELS_BUDGET = 100 * 1000 * 1000  # bytes of models/ in the tree
+PER_STEP_TABLES = ("eval_trajectories", "eval_moments")
+
+
+def _shipped_runs() -> list[Path]:
+    return sorted(p.parent for p in (ROOT / "models").glob("*/run.json"))
+
+
+def _tracked_models_bytes() -> int:
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "models"], cwd=ROOT, capture_output=True, check=True
+    ).stdout
+    paths = [ROOT / name for name in listed.decode().split("\0") if name]
+    return sum(p.stat().st_size for p in paths if p.is_file())
+
+
+def test_models_fit_their_budget() -> None:
+    if not (ROOT / ".git").exists():
+        pytest.skip("not a git checkout")
+    assert _tracked_models_bytes() <= MODELS_BUDGET
+
+
+def test_per_step_tables_only_where_the_report_draws_them() -> None:
+    """A shipped run outside ``KEEP_STEPS`` has no per-step tables; every run of a featured
+    experiment (the report's trajectory and moment figures) has both."""
+    runs = _shipped_runs()
+    assert runs, "no shipped runs under models/"
+    for run in runs:
+        name = json.loads((run / "run.json").read_text(encoding="utf-8"))["name"]
+        present = {t for t in PER_STEP_TABLES if (run / "tables" / f"{t}.parquet").is_file()}
+        if name not in KEEP_STEPS:
+            assert not present, f"{run.name}: {sorted(present)} (run `lean` on it)"
+        elif name in FEATURED:
+            assert present == set(PER_STEP_TABLES), f"{run.name} lacks per-step tables"
+
+
+def test_lean_drops_the_per_step_tables_of_undrawn_experiments(tmp_path: Path) -> None:
+    for name, kept in (("some-undrawn-experiment", False), (FEATURED[0], True)):
+        tables = tmp_path / name / "tables"
+        tables.mkdir(parents=True)
+        for table in (*PER_STEP_TABLES, "eval_metrics", "eval_moment_peaks"):
+            (tables / f"{table}.parquet").write_bytes(b"x")
+        lean(tmp_path / name, name)
+        left = {p.stem for p in tables.iterdir()}
+        expected = {"eval_metrics", "eval_moment_peaks"} | (set(PER_STEP_TABLES) if kept else set())
+        assert left == expected
