@@ -6,7 +6,10 @@ its ``SimParams.sphere.center`` (by default between the tips, touching both). Th
 moves from that centre c₀ to the path's start p(0) over the task's ``approach`` T_a seconds
 with a smoothstep, g = c₀ + (3τ² − 2τ³)·(p(0) − c₀), τ = t/T_a, and then follows the path,
 g(t) = p(t − T_a): the target (random, circle, rectangle, figure-eight) rests during the
-approach and starts at T_a. Every controller gets the same goal.
+approach and starts at T_a. Every controller gets the same goal. A training curriculum
+(``training.goal_warmup_steps``) scales the goal's motion by m ∈ [0, 1] (:attr:`TransportModel.
+goal_motion`): g_m = c₀ + m·(g − c₀), its velocity m·ġ; m = 0 keeps the goal where the sphere
+starts. Evaluation and validation always see m = 1.
 
 **Observation** (88 values for 21 nodes): the study's 81 with the target block replaced by the
 sphere, then the goal:
@@ -94,6 +97,8 @@ class TransportModel:
         self.reach_cost = np.zeros((n_envs, 2))  # each arm's reach term of the last step
         self.goal_position = np.zeros((n_envs, 3))
         self.goal_velocity = np.zeros((n_envs, 3))
+        #: m, the fraction of the goal's motion away from the sphere's start (module docstring)
+        self.goal_motion = 1.0
         study_size = observation_size(2, config.sim.n_nodes)  # 81: arms, then the sphere
         self.observation_size = study_size + GOAL_SIZE
         self._study = np.zeros((n_envs, study_size), dtype=np.float32)
@@ -116,26 +121,27 @@ class TransportModel:
     ) -> None:
         """Set the goal of environments ``idx`` after ``step_count`` (n,) control steps."""
         count = step_count[idx].astype(float)
-        path_position = targets.position[idx]
-        path_velocity = targets.velocity[idx]
-        if self.approach_steps == 0:
-            self.goal_position[idx] = path_position
-            self.goal_velocity[idx] = path_velocity
-            return
-        tau = np.minimum(count / self.approach_steps, 1.0)[:, None]
-        leg = path_position - self.start
-        approaching = tau < 1.0
-        blend = tau * tau * (3.0 - 2.0 * tau)
-        rate = 6.0 * tau * (1.0 - tau) / self.task.approach
-        self.goal_position[idx] = np.where(approaching, self.start + blend * leg, path_position)
-        self.goal_velocity[idx] = np.where(approaching, rate * leg, path_velocity)
+        position = targets.position[idx]
+        velocity = targets.velocity[idx]
+        if self.approach_steps > 0:
+            tau = np.minimum(count / self.approach_steps, 1.0)[:, None]
+            leg = position - self.start
+            approaching = tau < 1.0
+            blend = tau * tau * (3.0 - 2.0 * tau)
+            rate = 6.0 * tau * (1.0 - tau) / self.task.approach
+            position = np.where(approaching, self.start + blend * leg, position)
+            velocity = np.where(approaching, rate * leg, velocity)
+        m = self.goal_motion
+        self.goal_position[idx] = position if m == 1.0 else self.start + m * (position - self.start)
+        self.goal_velocity[idx] = velocity if m == 1.0 else m * velocity
 
     def goal_ahead(
         self, step_count: int, targets: BatchedTargets, env: int, steps: np.ndarray
     ) -> np.ndarray:
         """(H, 3) environment ``env``'s goal after each of the next ``steps`` (H,) control
         steps (1, 2, …) from ``step_count``, m: the approach, then the path (closed forms
-        exactly; a random target extrapolated at its velocity inside its box)."""
+        exactly; a random target extrapolated at its velocity inside its box), scaled by
+        :attr:`goal_motion` as :meth:`update_goal` does."""
         from softtrack.env.targets import trajectory_position
 
         count = step_count + np.asarray(steps, dtype=float)
@@ -149,11 +155,12 @@ class TransportModel:
             moved = (path_time - targets.time[env])[:, None] * targets.velocity[env]
             path = np.clip(targets.position[env] + moved, low, high)
             path_start = targets.position[env] if targets.time[env] == 0.0 else path[0]
-        if self.approach_steps == 0:
-            return path
-        tau = np.minimum(count / self.approach_steps, 1.0)[:, None]
-        blend = tau * tau * (3.0 - 2.0 * tau)
-        return np.where(tau < 1.0, self.start + blend * (path_start - self.start), path)
+        if self.approach_steps > 0:
+            tau = np.minimum(count / self.approach_steps, 1.0)[:, None]
+            blend = tau * tau * (3.0 - 2.0 * tau)
+            path = np.where(tau < 1.0, self.start + blend * (path_start - self.start), path)
+        m = self.goal_motion
+        return path if m == 1.0 else self.start + m * (path - self.start)
 
     def observation(self, engine: RodBatch, out: np.ndarray) -> np.ndarray:
         """(n, 88) float32 observations (module docstring) written into ``out``."""

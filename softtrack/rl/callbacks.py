@@ -17,6 +17,8 @@
   (:attr:`softtrack.env.realism.RealismModel.strength`) linearly from 0 to 1 over
   ``training.randomisation_warmup_steps`` env steps (a curriculum); it follows the model's step
   count, so a resumed run continues the ramp where it stopped.
+* :class:`GoalMotionWarmup` (``training.goal_warmup_steps``) likewise raises the transport
+  goal's motion from still to full (:mod:`softtrack.env.transport`).
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
   latest episode return) on a terminal, or otherwise (a log file, a cluster job) prints whole
   progress lines: one at every :data:`PROGRESS_LINE_PERCENT` % of the budget and at least
@@ -51,6 +53,8 @@ __all__ = [
     "RECENT_EPISODES",
     "Checkpointer",
     "EpisodeLogger",
+    "GoalMotionWarmup",
+    "LinearWarmup",
     "ProgressMonitor",
     "RandomisationWarmup",
     "TrainingClock",
@@ -238,44 +242,90 @@ def save_checkpoint(
     return target
 
 
-class RandomisationWarmup(BaseCallback):
-    """Sets the realism strength of the training environments to min(1, step / warmup_steps)
-    (see the module docstring): at construction for ``step``, so that the episodes the model's
-    first reset starts are already ramped, then after every env step for the next one.
+def _tracking_core(env: Any) -> Any:
+    """The :class:`~softtrack.env.core.TrackingCore` of a ``TrackingVecEnv``, possibly wrapped
+    (``VecMonitor``, ``VecNormalize``)."""
+    from softtrack.env.vec_env import TrackingVecEnv
+
+    while not isinstance(env, TrackingVecEnv):
+        if not hasattr(env, "venv"):
+            raise TypeError(f"{type(env).__name__} wraps no TrackingVecEnv to ramp")
+        env = env.venv
+    return env.core
+
+
+class LinearWarmup(BaseCallback):
+    """A training curriculum: calls ``set_strength(min(1, step / warmup_steps))`` at
+    construction for ``step``, so that the episodes the model's first reset starts are already
+    ramped, then after every env step for the next one.
 
     Args:
         warmup_steps: env steps (the model's ``num_timesteps``) to reach full strength, > 0.
-        env: the training ``VecEnv``: a ``TrackingVecEnv`` with realism settings, possibly
-            wrapped (``VecMonitor``, ``VecNormalize``).
+        set_strength: applies a strength in [0, 1] to the training environments.
         step: the model's step count when training (re)starts.
 
     Raises:
-        ValueError: ``warmup_steps`` ≤ 0, or an environment without realism settings.
+        ValueError: ``warmup_steps`` ≤ 0.
     """
 
-    def __init__(self, warmup_steps: int, env: Any, step: int = 0) -> None:
+    def __init__(
+        self, warmup_steps: int, set_strength: Callable[[float], None], step: int = 0
+    ) -> None:
         super().__init__()
         if warmup_steps <= 0:
             raise ValueError(f"warmup_steps={warmup_steps!r} must be > 0")
         self.warmup_steps = int(warmup_steps)
-        from softtrack.env.vec_env import TrackingVecEnv
-
-        while not isinstance(env, TrackingVecEnv):
-            if not hasattr(env, "venv"):
-                raise TypeError(f"{type(env).__name__} wraps no TrackingVecEnv to ramp")
-            env = env.venv
-        if env.core.realism is None:
-            raise ValueError("a randomisation warm-up needs env.realism settings to ramp")
-        self.realism = env.core.realism
-        self.realism.strength = self.strength_at(step)
+        self.set_strength = set_strength
+        set_strength(self.strength_at(step))
 
     def strength_at(self, step: int) -> float:
         """The strength after ``step`` env steps, in [0, 1]."""
         return min(1.0, step / self.warmup_steps)
 
     def _on_step(self) -> bool:
-        self.realism.strength = self.strength_at(self.num_timesteps)
+        self.set_strength(self.strength_at(self.num_timesteps))
         return True
+
+
+class RandomisationWarmup(LinearWarmup):
+    """Raises the realism strength of the training environments (``env``: a
+    ``TrackingVecEnv`` with realism settings, possibly wrapped) over ``warmup_steps`` env
+    steps (:class:`LinearWarmup`; ``training.randomisation_warmup_steps``).
+
+    Raises:
+        ValueError: ``warmup_steps`` ≤ 0, or an environment without realism settings.
+    """
+
+    def __init__(self, warmup_steps: int, env: Any, step: int = 0) -> None:
+        realism = _tracking_core(env).realism
+        if realism is None:
+            raise ValueError("a randomisation warm-up needs env.realism settings to ramp")
+        self.realism = realism
+        super().__init__(warmup_steps, self._set, step)
+
+    def _set(self, strength: float) -> None:
+        self.realism.strength = strength
+
+
+class GoalMotionWarmup(LinearWarmup):
+    """Raises the transport goal's motion in the training environments (``env``, as for
+    :class:`RandomisationWarmup`) from still at the sphere's start to the full approach and
+    path over ``warmup_steps`` env steps (``training.goal_warmup_steps``;
+    :attr:`softtrack.env.transport.TransportModel.goal_motion`).
+
+    Raises:
+        ValueError: ``warmup_steps`` ≤ 0, or an environment without the transport task.
+    """
+
+    def __init__(self, warmup_steps: int, env: Any, step: int = 0) -> None:
+        transport = _tracking_core(env).transport
+        if transport is None:
+            raise ValueError("a goal warm-up needs the transport task (env.task.name: transport)")
+        self.transport = transport
+        super().__init__(warmup_steps, self._set, step)
+
+    def _set(self, strength: float) -> None:
+        self.transport.goal_motion = strength
 
 
 class Checkpointer(BaseCallback):

@@ -29,6 +29,7 @@ import numpy as np
 from softtrack.rl.callbacks import (
     Checkpointer,
     EpisodeLogger,
+    GoalMotionWarmup,
     ProgressMonitor,
     RandomisationWarmup,
     TrainingClock,
@@ -313,6 +314,15 @@ class PolicyTrainer:
                 0,
                 RandomisationWarmup(
                     training.randomisation_warmup_steps,
+                    self.model.get_env(),
+                    int(self.model.num_timesteps),
+                ),
+            )
+        if training.goal_warmup_steps > 0:
+            callbacks.insert(
+                0,
+                GoalMotionWarmup(
+                    training.goal_warmup_steps,
                     self.model.get_env(),
                     int(self.model.num_timesteps),
                 ),

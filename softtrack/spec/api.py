@@ -220,6 +220,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("training", "final_policy"): "last",
     ("training", "confirm_episodes"): 0,
     ("training", "randomisation_warmup_steps"): 0,
+    ("training", "goal_warmup_steps"): 0,
     ("algo", "target_entropy"): "auto",
     ("algo", "top_quantiles_to_drop_per_net"): 2,
     ("algo", "policy_kwargs", "n_quantiles"): 25,

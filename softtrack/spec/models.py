@@ -114,6 +114,15 @@ class TrainingSpec(SpecModel):
         "episodes",
         ge=0,
     )
+    goal_warmup_steps: Int = unit_field(
+        0,
+        "curriculum, transport task: the goal's motion away from the sphere's start (the "
+        "approach and the path) grows linearly from none to full over the first this many env "
+        "steps of training, so the first episodes only hold the sphere where it starts; "
+        "validation and evaluation always see the full motion; 0 = full motion from the start",
+        "env steps",
+        ge=0,
+    )
     randomisation_warmup_steps: Int = unit_field(
         0,
         "curriculum: env.realism's random perturbations (per-episode ranges of the model "
@@ -289,6 +298,25 @@ def _check_randomisation_warmup(spec: ExperimentSpec) -> None:
         )
 
 
+def _check_goal_warmup(spec: ExperimentSpec) -> None:
+    """Raise the spec error of a ``training.goal_warmup_steps`` without the transport task or
+    longer than the training."""
+    t = spec.training
+    if spec.env.task.name != "transport":
+        raise custom_error(
+            f"goal_warmup_steps {t.goal_warmup_steps} ramps the transport goal's motion, but "
+            f"env.task.name is {spec.env.task.name!r}; set env.task.name: transport or "
+            "goal_warmup_steps: 0",
+            "training.goal_warmup_steps",
+        )
+    if t.goal_warmup_steps > t.total_timesteps:
+        raise custom_error(
+            f"goal_warmup_steps {t.goal_warmup_steps} > total_timesteps {t.total_timesteps}, "
+            "so training would never see the full motion; use at most total_timesteps",
+            "training.goal_warmup_steps",
+        )
+
+
 class ExperimentSpec(SpecModel):
     """One experiment: an environment, an algorithm, a budget and a set of seeds.
 
@@ -349,6 +377,14 @@ class ExperimentSpec(SpecModel):
         return value
 
     @model_validator(mode="after")
+    def _check_curricula(self) -> ExperimentSpec:
+        if self.training.randomisation_warmup_steps > 0:
+            _check_randomisation_warmup(self)
+        if self.training.goal_warmup_steps > 0:
+            _check_goal_warmup(self)
+        return self
+
+    @model_validator(mode="after")
     def _check_budget(self) -> ExperimentSpec:
         a, t = self.algo, self.training
         if a.is_off_policy:
@@ -397,8 +433,6 @@ class ExperimentSpec(SpecModel):
                 "n_step_returns: 1",
                 "algo.n_step_returns",
             )
-        if t.randomisation_warmup_steps > 0:
-            _check_randomisation_warmup(self)
         if self.env.task.name == "transport" and self.controller == "independent":
             raise custom_error(
                 "controller: independent trains each arm's policy alone, in a one-arm scene "
