@@ -1,19 +1,15 @@
 """The transport curriculum: ``TransportModel.goal_motion`` and ``training.goal_warmup_steps``
-(:class:`softtrack.rl.callbacks.GoalMotionWarmup`)."""
+(:class:`softtrack.rl.callbacks.GoalMotionWarmup`; training with it:
+tests/test_randomisation_warmup.py)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-import yaml
 from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-from softtrack import api
 from softtrack.env import TrackingCore, make_config
 from softtrack.env.vec_env import TrackingVecEnv
-from softtrack.rl import policy_training
 from softtrack.rl.callbacks import GoalMotionWarmup
 from softtrack.spec import SpecError, parse_spec, spec_hash
 from softtrack.spec.api import _FIELDS_ADDED_LATER
@@ -104,53 +100,3 @@ def test_spec_field_is_hash_neutral_off_and_checked_on() -> None:
         parse_spec(_spec(goal_warmup_steps=2000))
     with pytest.raises(SpecError, match=r"env\.task\.name is 'shared'"):
         parse_spec(_spec("shared", goal_warmup_steps=10))
-
-
-def test_training_a_spec_with_a_goal_warmup_ramps_its_environments(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    made: list[GoalMotionWarmup] = []
-
-    class Recorded(GoalMotionWarmup):
-        def __init__(self, warmup_steps: int, env: object, step: int = 0) -> None:
-            super().__init__(warmup_steps, env, step)
-            self.seen: list[tuple[int, float]] = []
-            made.append(self)
-
-        def _on_step(self) -> bool:
-            result = super()._on_step()
-            self.seen.append((self.num_timesteps, self.transport.goal_motion))
-            return result
-
-    monkeypatch.setattr(policy_training, "GoalMotionWarmup", Recorded)
-    spec = {
-        "name": "tiny-goal-warmup",
-        "seeds": [0],
-        "env": {
-            "episode_duration": 0.1,
-            "physics": {"contact_k": 1e6, "contact_nu": 600.0, "sphere": {}},
-            "task": {"name": "transport"},
-        },
-        "algo": {
-            "name": "td3",
-            "backend": "sb3",
-            "device": "cpu",
-            "batch_size": 16,
-            "learning_starts": 50,
-            "buffer_size": 5000,
-            "policy_kwargs": {"net_arch": [16, 16]},
-        },
-        "training": {
-            "total_timesteps": 400,
-            "n_envs": 2,
-            "checkpoint_interval": 0,
-            "goal_warmup_steps": 200,
-        },
-    }
-    path = tmp_path / "goal-warmup.yaml"
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    [outcome] = api.train(path, runs_dir=tmp_path / "runs", show_progress=False)
-    assert outcome.status == "completed" and len(made) == 1
-    steps, motions = (np.array(column) for column in zip(*made[0].seen, strict=True))
-    assert made[0].warmup_steps == 200 and steps[-1] == 400
-    np.testing.assert_allclose(motions, np.minimum(1.0, steps / 200))

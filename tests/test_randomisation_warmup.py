@@ -1,9 +1,11 @@
 """The domain-randomisation curriculum: ``RealismModel.strength`` and
-``training.randomisation_warmup_steps`` (:class:`softtrack.rl.callbacks.RandomisationWarmup`)."""
+``training.randomisation_warmup_steps`` (:class:`softtrack.rl.callbacks.RandomisationWarmup`);
+training with either curriculum (the transport goal's: tests/test_goal_warmup.py)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,7 +18,7 @@ from softtrack import api
 from softtrack.env import TrackingCore, make_config
 from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl import policy_training
-from softtrack.rl.callbacks import RandomisationWarmup
+from softtrack.rl.callbacks import GoalMotionWarmup, RandomisationWarmup
 from softtrack.spec import SpecError, parse_spec, spec_hash
 from softtrack.spec.api import _FIELDS_ADDED_LATER
 
@@ -150,13 +152,33 @@ def test_spec_field_is_hash_neutral_off_and_checked_on() -> None:
         parse_spec(_spec(random, randomisation_warmup_steps=10))
 
 
+CURRICULA = {
+    "randomisation": (
+        RandomisationWarmup,
+        {"realism": {"youngs_modulus_scale": [0.9, 1.1]}},
+        lambda warmup: warmup.realism.strength,
+    ),
+    "goal": (
+        GoalMotionWarmup,
+        {
+            "physics": {"contact_k": 1e6, "contact_nu": 600.0, "sphere": {}},
+            "task": {"name": "transport"},
+        },
+        lambda warmup: warmup.transport.goal_motion,
+    ),
+}
+
+
+@pytest.mark.parametrize("curriculum", sorted(CURRICULA))
 def test_training_a_spec_with_a_warmup_ramps_its_environments(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    curriculum: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """``training.randomisation_warmup_steps`` and ``training.goal_warmup_steps``: a trained
+    spec's callback follows min(1, step / N) at every env step."""
+    base, env, strength = CURRICULA[curriculum]
+    made: list[Any] = []
 
-    made: list[RandomisationWarmup] = []
-
-    class Recorded(RandomisationWarmup):
+    class Recorded(base):  # type: ignore[misc, valid-type]
         def __init__(self, warmup_steps: int, env: object, step: int = 0) -> None:
             super().__init__(warmup_steps, env, step)
             self.seen: list[tuple[int, float]] = []
@@ -164,14 +186,14 @@ def test_training_a_spec_with_a_warmup_ramps_its_environments(
 
         def _on_step(self) -> bool:
             result = super()._on_step()
-            self.seen.append((self.num_timesteps, self.realism.strength))
+            self.seen.append((self.num_timesteps, strength(self)))
             return result
 
-    monkeypatch.setattr(policy_training, "RandomisationWarmup", Recorded)
+    monkeypatch.setattr(policy_training, base.__name__, Recorded)
     spec = {
         "name": "tiny-warmup",
         "seeds": [0],
-        "env": {"episode_duration": 0.1, "realism": {"youngs_modulus_scale": [0.9, 1.1]}},
+        "env": {"episode_duration": 0.1, **env},
         "algo": {
             "name": "td3",
             "backend": "sb3",
@@ -185,7 +207,7 @@ def test_training_a_spec_with_a_warmup_ramps_its_environments(
             "total_timesteps": 400,
             "n_envs": 2,
             "checkpoint_interval": 0,
-            "randomisation_warmup_steps": 200,
+            f"{curriculum}_warmup_steps": 200,
         },
     }
     path = tmp_path / "warmup.yaml"
