@@ -309,24 +309,14 @@ class PolicyTrainer:
         from stable_baselines3.common.callbacks import CallbackList
 
         callbacks: list[Any] = [episodes, checkpointer, self.monitor]
-        if training.randomisation_warmup_steps > 0:
-            callbacks.insert(
-                0,
-                RandomisationWarmup(
-                    training.randomisation_warmup_steps,
-                    self.model.get_env(),
-                    int(self.model.num_timesteps),
-                ),
-            )
-        if training.goal_warmup_steps > 0:
-            callbacks.insert(
-                0,
-                GoalMotionWarmup(
-                    training.goal_warmup_steps,
-                    self.model.get_env(),
-                    int(self.model.num_timesteps),
-                ),
-            )
+        curricula = (
+            (training.randomisation_warmup_steps, RandomisationWarmup),
+            (training.goal_warmup_steps, GoalMotionWarmup),
+        )
+        for warmup_steps, curriculum in curricula:
+            if warmup_steps > 0:
+                step = int(self.model.num_timesteps)
+                callbacks.insert(0, curriculum(warmup_steps, self.model.get_env(), step))
         remaining = job.total_timesteps - int(self.model.num_timesteps)
         if remaining > 0 and not self.stop_requested():
             self.model.learn(
