@@ -357,6 +357,8 @@ REPORTED = (
     "ddpg-sbx",
     "ppo-sbx",
     "td3-sbx-128-mirror-fast",
+    "td3-sbx-128-mirror-tta",
+    "independent-td3-sbx-128-tta",
     "td3-sbx-64-mirror-fast",
     "sac-sbx-128-mirror-fast",
     "td3-sbx-64-mirror-tuned",
