@@ -103,8 +103,8 @@ class Job:
     """One training: the spec file ``experiments/<spec>`` with ``seed``, kept as
     ``models/<dest>``.
 
-    With ``derive_from``, the spec differs from that shipped run's only in its name and
-    ``training.confirm_episodes``, so its training is that run's: the run is derived from
+    With ``derive_from``, the spec differs from that shipped run's only in what its training
+    does not see (:func:`_training_fields`), so its training is that run's: the run is derived from
     ``models/<derive_from>`` (:func:`derive_run`) instead of trained. With ``policy_only``
     the export leaves out the run's other model (``softtrack export --policy-only``).
     """
@@ -317,7 +317,27 @@ JOBS: tuple[Job, ...] = (
     ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
+    # the ten-seed comparison with solid arms (contact on, issue 40)
+    *(
+        Job(
+            V + "td3-sbx-128-3e6-mirror-tta-solid.yaml",
+            s,
+            f"td3-sbx-128-mirror-tta-solid-3e6-seed{s}",
+            policy_only=True,
+        )
+        for s in range(10)
+    ),
     # derived from shipped runs (after all trainings):
+    *(
+        Job(
+            V + "independent-td3-sbx-128-15e5-tta-solid.yaml",
+            s,
+            f"independent-td3-sbx-128-tta-solid-3e6-seed{s}",
+            f"independent-td3-sbx-128-tta-3e6-seed{s}",
+            policy_only=True,
+        )
+        for s in range(10)
+    ),
     *(
         Job(
             V + "td3-sbx-128-4e6-mirror-val-confirm.yaml",
@@ -488,8 +508,7 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
 def derive_run(job: Job, runs_dir: Path) -> str:
     """Create ``job``'s run in ``runs_dir`` from ``models/<job.derive_from>``: its files but the
     evaluation tables, under a new run id, with ``job``'s spec, and ``notes.derived_from`` in
-    run.json. The two specs must differ only in ``name`` and ``training.confirm_episodes``.
-    Returns the run id."""
+    run.json. The two specs must train alike (:func:`_training_fields`). Returns the run id."""
     assert job.derive_from is not None
     base = resolve_run(str(ROOT / "models" / job.derive_from))
     spec = load_experiment(job.spec).with_seed(job.seed)
@@ -527,7 +546,8 @@ def derive_run(job: Job, runs_dir: Path) -> str:
                     "run_id": base.info.run_id,
                     "name": base.info.name,
                     "spec_hash": base.info.spec_hash,
-                    "why": "the same training; the spec adds training.confirm_episodes",
+                    "why": "the same training; the spec changes "
+                    + ", ".join(_evaluation_only_changes(spec, base_spec)),
                 },
             },
         }
@@ -540,11 +560,43 @@ def derive_run(job: Job, runs_dir: Path) -> str:
     return run_id
 
 
+#: What a derived run's spec may change: fields its training does not see. An independent
+#: run's arm policies learn and are validated in single-arm scenes, where there is no other arm
+#: to touch, so the contact between the arms acts in its dual-arm evaluation only.
+EVALUATION_ONLY = ("training.confirm_episodes",)
+INDEPENDENT_EVALUATION_ONLY = ("env.physics.contact_k", "env.physics.contact_nu")
+
+
+def _evaluation_only(spec: ExperimentSpec) -> tuple[str, ...]:
+    """The dotted fields of ``spec`` that its training does not see."""
+    extra = INDEPENDENT_EVALUATION_ONLY if spec.controller == "independent" else ()
+    return (*EVALUATION_ONLY, *extra)
+
+
 def _training_fields(spec: ExperimentSpec) -> dict[str, Any]:
-    """The spec without what a derived run may change (name, the confirmation)."""
-    data = spec.model_dump(mode="json", exclude={"name", "cluster"})
-    data["training"].pop("confirm_episodes")
+    """The spec without what a derived run may change: its name, its list of seeds (the seed
+    is checked on its own), :func:`_evaluation_only`."""
+    data = spec.model_dump(mode="json", exclude={"name", "cluster", "seeds"})
+    for field in _evaluation_only(spec):
+        *parents, leaf = field.split(".")
+        node = data
+        for key in parents:
+            node = node[key]
+        node.pop(leaf)
     return data
+
+
+def _evaluation_only_changes(spec: ExperimentSpec, base: ExperimentSpec) -> list[str]:
+    """The fields of :func:`_evaluation_only` in which ``spec`` differs from ``base``."""
+    new, old = spec.model_dump(mode="json"), base.model_dump(mode="json")
+    changed = []
+    for field in _evaluation_only(spec):
+        a, b = new, old
+        for key in field.split("."):
+            a, b = a[key], b[key]
+        if a != b:
+            changed.append(field)
+    return changed
 
 
 def run_job(job: Job, runs_dir: Path, core: int | None) -> None:

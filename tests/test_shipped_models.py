@@ -60,3 +60,22 @@ def test_lean_drops_the_per_step_tables_of_undrawn_experiments(tmp_path: Path) -
         left = {p.stem for p in tables.iterdir()}
         expected = {"eval_metrics", "eval_moment_peaks"} | (set(PER_STEP_TABLES) if kept else set())
         assert left == expected
+
+
+def test_an_independent_run_with_contact_is_derived_from_its_nominal_training() -> None:
+    """Contact acts in an independent run's dual-arm evaluation only, so its training fields
+    are the nominal run's; a centralized run with contact trains differently."""
+    from reproduce_study import _evaluation_only_changes, _training_fields, load_experiment
+
+    nominal = load_experiment("variants/independent-td3-sbx-128-15e5-tta.yaml")
+    solid = load_experiment("variants/independent-td3-sbx-128-15e5-tta-solid.yaml")
+    assert solid.env.physics.contact_k > 0 == nominal.env.physics.contact_k
+    assert _training_fields(solid) == _training_fields(nominal)
+    assert _evaluation_only_changes(solid, nominal) == [
+        "env.physics.contact_k",
+        "env.physics.contact_nu",
+    ]
+    centralized = load_experiment("variants/td3-sbx-128-3e6-mirror-tta.yaml")
+    centralized_solid = load_experiment("variants/td3-sbx-128-3e6-mirror-tta-solid.yaml")
+    assert _training_fields(centralized_solid) != _training_fields(centralized)
+    assert _evaluation_only_changes(centralized_solid, centralized) == []
