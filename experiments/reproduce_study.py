@@ -541,7 +541,7 @@ def derive_run(job: Job, runs_dir: Path) -> str:
             "name": spec.name,
             "spec_hash": spec_hash(spec),
             "notes": {
-                **base.info.notes,
+                **{k: v for k, v in base.info.notes.items() if k != "read_only"},  # export marks it
                 "derived_from": {
                     "run_id": base.info.run_id,
                     "name": base.info.name,
