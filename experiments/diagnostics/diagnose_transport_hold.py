@@ -2,13 +2,15 @@
 
     .venv/bin/python experiments/diagnostics/diagnose_transport_hold.py \
         experiments/variants/td3-sbx-128-1e6-mirror-fast-transport-grip.yaml \
-        --torque-scale 75 7.5 --noise 0.1 0.3 --offset 0 0.1
+        --torque-scale 75 7.5 --noise 0.1 0.3 --offset 0 0.1 [--steps-per-action 10 50]
 
 Open loop, transport task of SPEC (its grip squeeze included), ``--envs`` environments on the
 random target: each control step every one of the 24 control values gets a fixed random offset
 of ±``offset`` (an actor that has drifted) plus Gaussian noise of std ``noise`` (TD3's
 exploration), in control units. With ``--torque-scale`` the torque per control unit is changed
-and the grip rescaled so that it squeezes with the same torque (N·m). Printed: the time each
+and the grip rescaled so that it squeezes with the same torque (N·m); with ``--steps-per-action``
+the control step (integration steps of ``dt`` per action, the noise drawn once per control
+step). Printed: the time each
 environment held the sphere (until the episode ended on a drop, or its end), median and range;
 then how far a constant control value on one arm's normal direction moves its tip in 2 s (the
 reach a smaller torque per unit leaves). Nothing is written.
@@ -68,6 +70,9 @@ def main() -> None:
     parser.add_argument("--torque-scale", type=float, nargs="+", default=[75.0, 7.5])
     parser.add_argument("--noise", type=float, nargs="+", default=[0.1])
     parser.add_argument("--offset", type=float, nargs="+", default=[0.0, 0.1])
+    parser.add_argument(
+        "--steps-per-action", type=int, nargs="+", default=None, help="default: the spec's"
+    )
     parser.add_argument("--envs", type=int, default=8)
     parser.add_argument("--duration", type=float, default=8.0, help="episode length, s")
     args = parser.parse_args()
@@ -76,21 +81,24 @@ def main() -> None:
         parser.error(f"{args.spec} is not a transport spec (env.task.name: transport)")
     for scale in args.torque_scale:
         grip = base.task.grip * base.sim.torque_scale / scale
-        config = dataclasses.replace(
-            base,
-            sim=dataclasses.replace(base.sim, torque_scale=scale),
-            task=dataclasses.replace(base.task, grip=grip),
-            episode_duration=args.duration,
-        )
-        for noise in args.noise:
-            for offset in args.offset:
-                held = hold_times(config, args.envs, noise, offset)
-                print(
-                    f"{scale:g} N·m per unit (grip {grip:.3g}), noise {noise:g}, offset "
-                    f"±{offset:g}: held median {np.median(held):.2f} s "
-                    f"({held.min():.2f}–{held.max():.2f} s)",
-                    flush=True,
-                )
+        for steps in args.steps_per_action or [base.sim.steps_per_action]:
+            sim = dataclasses.replace(base.sim, torque_scale=scale, steps_per_action=steps)
+            config = dataclasses.replace(
+                base,
+                sim=sim,
+                task=dataclasses.replace(base.task, grip=grip),
+                episode_duration=args.duration,
+            )
+            for noise in args.noise:
+                for offset in args.offset:
+                    held = hold_times(config, args.envs, noise, offset)
+                    print(
+                        f"{scale:g} N·m per unit (grip {grip:.3g}), control step "
+                        f"{sim.control_dt * 1e3:g} ms, noise {noise:g}, offset ±{offset:g}: "
+                        f"held median {np.median(held):.2f} s "
+                        f"({held.min():.2f}–{held.max():.2f} s)",
+                        flush=True,
+                    )
         values = [0.01, 0.03, 0.1, 0.3, 1.0]
         moved = reach(scale, values)
         print(
