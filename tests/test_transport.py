@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
@@ -398,3 +400,46 @@ def test_mpc_plans_with_the_grip_the_environment_adds() -> None:
     controller.start_episode(core)
     assert controller._planner is not None
     np.testing.assert_array_equal(controller._planner.action_offset, SQUEEZE)
+
+
+def _carry_rows(errors: list[float], drops: list[float | None]) -> pd.DataFrame:
+    """Validation rows of a transport checkpoint: one episode per error, both arms' rows, a
+    drop time (s) or None for an episode carried through."""
+    rows = []
+    for episode, (error, drop) in enumerate(zip(errors, drops, strict=True)):
+        for arm in (0, 1):
+            rows.append(
+                {
+                    "trajectory": "random",
+                    "episode": episode,
+                    "arm": arm,
+                    "rmse_3d": 0.5,
+                    "object_rmse_3d": error,
+                    "dropped": drop is not None,
+                    "drop_time": math.nan if drop is None else drop,
+                    "terminated": drop is not None,
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def test_a_transport_validation_counts_the_steps_after_a_drop() -> None:
+    """With the episodes' planned length, a dropped sphere counts 1 m for every second after its
+    drop (hand-computed), a longer hold scores lower, an episode carried through scores its
+    error, and a non-finite episode ∞; without the length any drop is ∞."""
+    from softtrack.evaluation.tables import LOST_OBJECT_ERROR, validation_score
+
+    assert LOST_OBJECT_ERROR == 1.0
+    held = _carry_rows([0.04, 0.06], [None, None])
+    assert validation_score(held, 10.0) == pytest.approx(0.05)
+    dropped = _carry_rows([0.04, 0.2], [None, 2.5])
+    # episode 2: sqrt((0.2² · 2.5 + 1² · 7.5) / 10) = sqrt(0.76)
+    assert validation_score(dropped, 10.0) == pytest.approx((0.04 + math.sqrt(0.76)) / 2)
+    later = _carry_rows([0.04, 0.2], [None, 5.0])
+    assert validation_score(later, 10.0) < validation_score(dropped, 10.0)
+    assert validation_score(held, 10.0) < validation_score(later, 10.0)
+    assert validation_score(dropped) == math.inf
+    diverged = held.assign(terminated=True)
+    assert validation_score(diverged, 10.0) == math.inf
+    trajectory_rows = _carry_rows([5.0], [1.0]).assign(trajectory="circle", episode=7)
+    assert validation_score(pd.concat([held, trajectory_rows]), 10.0) == pytest.approx(0.05)

@@ -16,6 +16,8 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation import metrics_table, run_episode
+from softtrack.report.data import load_run
+from softtrack.report.summaries import validation_scores
 from softtrack.rl.factory import algo_class
 from softtrack.rl.policy import deterministic_policy, model_paths
 from softtrack.rl.validation import VALIDATION_SEED, truncate_validation, validation_score
@@ -229,6 +231,9 @@ def test_validation_trajectories_track_each_checkpoint_without_entering_the_scor
     scores = _check_rows(random_rows, [200, 400], [0, 1])
     assert scores == _check_rows(_validation(plain), [200, 400], [0, 1])
     assert {s: validation_score(rows) for s, rows in table.groupby("global_step")} == scores
+    # the report reads the trajectory column too, so its scores are the validator's
+    reported = validation_scores(load_run(tracked))
+    assert dict(zip(reported["global_step"], reported["score"], strict=True)) == scores
     best = PolicyDir.of_run(tracked.path)
     assert [p.name for p in best.list_best()] == [f"step-{_best_of(scores):012d}"]
     # each checkpoint adds one episode per evaluation trajectory and arm, at its training clock
@@ -349,9 +354,11 @@ def test_training_clock_leaves_paused_time_out() -> None:
     assert 10.0 <= before <= clock.elapsed() < before + 0.1
 
 
-def test_a_checkpoint_whose_episodes_all_fail_is_stored_as_infinite(tmp_path: Path) -> None:
-    """Every validation episode of an untrained transport policy drops the sphere (a score of
-    ∞): training completes, ``state.json`` holds a null score and it reads back as ∞."""
+def test_a_checkpoint_whose_episodes_all_drop_is_scored_by_its_hold(tmp_path: Path) -> None:
+    """Every validation episode of an untrained transport policy drops the sphere: training
+    completes and the checkpoint's score counts the steps after each drop at 1 m
+    (``validation_score`` with the episodes' length), finite; a null score in
+    ``state.json`` (every episode non-finite) reads back as ∞."""
     from softtrack.rl.validation import best_model
 
     spec = (
@@ -380,6 +387,12 @@ def test_a_checkpoint_whose_episodes_all_fail_is_stored_as_infinite(tmp_path: Pa
     assert rows["terminated"].all() and rows["dropped"].all()
     policy = PolicyDir.of_run(record.path, None)
     state = json.loads((policy.list_best()[-1] / "state.json").read_text(encoding="utf-8"))
-    assert state["score"] is None
+    first = rows[rows["global_step"] == state["global_step"]]
+    assert state["score"] == pytest.approx(validation_score(first, 0.6))
+    assert 0.0 < state["score"] < float("inf") == validation_score(first)
+    best = best_model(policy)
+    assert best is not None and best.score == state["score"]
+    state["score"] = None
+    (policy.list_best()[-1] / "state.json").write_text(json.dumps(state), encoding="utf-8")
     best = best_model(policy)
     assert best is not None and best.score == float("inf")

@@ -30,6 +30,7 @@ from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.store.tables import element_peaks_frame
 
 __all__ = [
+    "LOST_OBJECT_ERROR",
     "STEADY_START",
     "element_moments_table",
     "element_peaks_frame",
@@ -213,16 +214,50 @@ def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
     return frame
 
 
-def validation_score(rows: pd.DataFrame) -> float:
+#: The error a dropped sphere counts, in a validation score, for every step of its episode
+#: after the drop, m: about the arms' reach, more than any carrying error.
+LOST_OBJECT_ERROR = 1.0
+
+
+def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) -> float:
     """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
-    (one per episode and arm): the mean ``rmse_3d`` (m) of its random-target episodes (in
-    the transport task the sphere's, ``object_rmse_3d``), or ∞ if one terminated (a drop
-    terminates). Rows of the evaluation trajectories (``training.validation_trajectories``)
-    are left out: models are selected on held-out random targets only."""
+    (one per episode and arm), m: the mean ``rmse_3d`` of its random-target episodes, or ∞
+    if one terminated (went non-finite). Rows of the evaluation trajectories
+    (``training.validation_trajectories``) are left out: models are selected on held-out
+    random targets only.
+
+    In the transport task (``object_rmse_3d`` rows) with ``episode_duration`` (s, the
+    validation episodes' planned length), a drop ends an episode early: each episode scores
+    the sphere's 3-D RMSE over the whole planned length with every step after the drop counted
+    at :data:`LOST_OBJECT_ERROR`, sqrt((e²·t + L²·(T − t)) / T) for an error e over the t s it
+    was carried, and the score is their mean. A checkpoint that carries it longer scores
+    lower, and one that carries it through scores its mean error, as before. Without
+    ``episode_duration`` any drop scores ∞."""
     if "trajectory" in rows:
         rows = rows[rows["trajectory"] == "random"]
-    if len(rows) == 0 or rows["terminated"].astype(bool).any():
+    if len(rows) == 0:
         return math.inf
-    if "object_rmse_3d" in rows and rows["object_rmse_3d"].notna().all():
+    carried = "object_rmse_3d" in rows and rows["object_rmse_3d"].notna().all()
+    if carried and episode_duration is not None and "dropped" in rows:
+        return _carry_score(rows, float(episode_duration))
+    if rows["terminated"].astype(bool).any():
+        return math.inf
+    if carried:
         return float(rows["object_rmse_3d"].mean())
     return float(rows["rmse_3d"].mean())
+
+
+def _carry_score(rows: pd.DataFrame, planned: float) -> float:
+    """:func:`validation_score` of transport rows (one per episode and arm; the sphere's
+    columns are the same in both arms' rows), ``planned`` s per episode."""
+    episodes = rows.drop_duplicates("episode") if "episode" in rows else rows
+    error = episodes["object_rmse_3d"].to_numpy(dtype=np.float64)
+    dropped = episodes["dropped"].fillna(False).astype(bool).to_numpy()
+    failed = episodes["terminated"].astype(bool).to_numpy() & ~dropped  # went non-finite
+    if failed.any() or not np.isfinite(error).all():
+        return math.inf
+    ended = episodes["drop_time"].to_numpy(dtype=np.float64) if "drop_time" in episodes else 0.0
+    carried = np.clip(np.where(dropped, np.nan_to_num(ended), planned), 0.0, planned)
+    lost = planned - carried
+    per_episode = np.sqrt((error**2 * carried + LOST_OBJECT_ERROR**2 * lost) / planned)
+    return float(per_episode.mean())

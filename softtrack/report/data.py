@@ -18,7 +18,7 @@ import pandas as pd
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.store.runs import RunRecord
-from softtrack.store.status import episodes_by_arm, final_stage_fraction
+from softtrack.store.status import episodes_by_arm, eval_duration, final_stage_fraction
 from softtrack.store.tables import TableError, read_table
 
 __all__ = [
@@ -51,7 +51,17 @@ _MOMENT_COLUMNS = (
 )
 _PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
 _RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
-_VALIDATION_COLUMNS = ("global_step", "episode", "arm", "rmse_3d", "terminated")
+_VALIDATION_COLUMNS = (
+    "global_step",
+    "trajectory",
+    "episode",
+    "arm",
+    "rmse_3d",
+    "terminated",
+    "object_rmse_3d",
+    "dropped",
+    "drop_time",
+)
 _ROBUSTNESS_COLUMNS = (
     "perturbation",
     "level",
@@ -83,6 +93,8 @@ class RunData:
     Attributes:
         record: the run directory and its ``run.json``.
         final_stage_fraction: ``training.final_stage_fraction`` of its spec (default 0.1).
+        eval_duration: ``training.eval_duration`` of its spec (s; ``None`` where absent), the
+            validation episodes' planned length.
         train: ``train_episodes`` (episode, global_step, return, …, optionally arm).
         trajectories: ``eval_trajectories`` (tip and target positions per step and arm, m).
         metrics: ``eval_metrics`` (one row per trajectory and arm, m; the action statistics
@@ -103,6 +115,7 @@ class RunData:
 
     record: RunRecord
     final_stage_fraction: float
+    eval_duration: float | None
     train: pd.DataFrame | None
     trajectories: pd.DataFrame | None
     metrics: pd.DataFrame | None
@@ -212,11 +225,13 @@ def episode_peaks(
 def load_run(record: RunRecord) -> RunData:
     """Read a run's tables (missing ones are ``None``; unreadable ones are noted in problems)."""
     problems: list[str] = []
+    raw_spec = record.raw_spec()
     moments = _read(record, "eval_moments", problems, _MOMENT_COLUMNS)
     element_peaks = _read(record, "eval_moment_peaks", problems, _PEAK_COLUMNS)
     return RunData(
         record=record,
-        final_stage_fraction=final_stage_fraction(record.raw_spec()),
+        final_stage_fraction=final_stage_fraction(raw_spec),
+        eval_duration=eval_duration(raw_spec),
         train=_read(record, "train_episodes", problems),
         trajectories=_read(record, "eval_trajectories", problems),
         metrics=_read(record, "eval_metrics", problems),

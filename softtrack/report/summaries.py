@@ -204,7 +204,11 @@ def validation_scores(run: RunData) -> pd.DataFrame:
     independent = run.record.info.controller == "independent"
     policy = df["arm"] if independent else pd.Series(-1, index=df.index)
     rows = [
-        {"policy": int(k), "global_step": int(step), "score": validation_score(part)}
+        {
+            "policy": int(k),
+            "global_step": int(step),
+            "score": validation_score(part, run.eval_duration),
+        }
         for (k, step), part in df.groupby([policy, df["global_step"]], sort=True)
     ]
     return pd.DataFrame(rows, columns=columns)

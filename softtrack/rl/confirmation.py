@@ -132,7 +132,7 @@ def confirm_policy(
         rows.insert(1, "candidate", candidate)
         rows.insert(2, "global_step", step)
         parts.append(rows)
-        scores[candidate] = validation_score(rows)
+        scores[candidate] = validation_score(rows, duration)
         log(
             f"{name} confirmation of the {candidate} model ({step:,} steps): 3-D RMSE "
             f"{scores[candidate]:.4f} m over {episodes} episode{'s' if episodes != 1 else ''} in "

@@ -288,7 +288,7 @@ class Validator:
         rows.insert(1, "global_step", step)
         if wall_time is not None:
             rows.insert(2, "wall_time", wall_time)
-        score = validation_score(rows)
+        score = validation_score(rows, self.duration)
         improved = self.best is None or score < self.best.score
         if improved:  # before the rows: a kill in between leaves the step to validate again
             self._save_best(model, normalizer, step, score)
@@ -306,7 +306,7 @@ class Validator:
                 + ", ".join(f"{t} {'/'.join(f'{v:.3f}' for v in part)}" for t, part in cells)
                 + " m"
             )
-        what = "the sphere's 3-D RMSE" if carried else "3-D RMSE"
+        what = "the sphere's 3-D RMSE (a drop counts 1 m after it)" if carried else "3-D RMSE"
         self.log(
             f"{name} validation at {step:,} steps: {what} {score:.4f} m over {self.episodes} "
             f"episode{'s' if self.episodes != 1 else ''} in {time.monotonic() - started:.0f} s"

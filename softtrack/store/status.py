@@ -36,6 +36,7 @@ __all__ = [
     "complete_episodes",
     "effective_status",
     "episodes_by_arm",
+    "eval_duration",
     "final_stage_fraction",
     "final_stage_return",
     "final_stage_returns",
@@ -69,6 +70,13 @@ def final_stage_fraction(raw_spec: dict[str, Any]) -> float:
     validated), or :data:`DEFAULT_FINAL_STAGE_FRACTION` where it is absent or not in (0, 1]."""
     value = _training_value(raw_spec, "final_stage_fraction", DEFAULT_FINAL_STAGE_FRACTION)
     return value if 0 < value <= 1 else DEFAULT_FINAL_STAGE_FRACTION
+
+
+def eval_duration(raw_spec: dict[str, Any]) -> float | None:
+    """``training.eval_duration`` of a run's spec as plain data (s), or ``None`` where it is
+    absent or not positive."""
+    value = _training_value(raw_spec, "eval_duration", 0.0)
+    return value if value > 0 else None
 
 
 def complete_episodes(train: pd.DataFrame) -> pd.DataFrame:

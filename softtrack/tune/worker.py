@@ -116,13 +116,14 @@ def _replay_scores(trial: Any, record: RunRecord, spec: ExperimentSpec) -> None:
     if not path.exists():
         return
     df = read_table(path)
+    duration = float(spec.training.eval_duration)
     if spec.controller == "centralized":
         for step, rows in df.groupby("global_step"):
-            trial.report(float(validation_score(rows)), _report_step(spec, int(step)))
+            trial.report(float(validation_score(rows, duration)), _report_step(spec, int(step)))
         return
     budget = int(spec.training.total_timesteps)
     for (arm, step), rows in df.groupby(["arm", "global_step"]):
-        trial.report(float(validation_score(rows)), int(arm) * budget + int(step))
+        trial.report(float(validation_score(rows, duration)), int(arm) * budget + int(step))
 
 
 def _note_trial(store: RunStore, record: RunRecord, ts: TuneStudy, number: int) -> RunRecord:
