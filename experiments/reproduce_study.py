@@ -392,6 +392,8 @@ REPORTED = (
     "td3-sbx-128-mirror-fast-viewpoints",
     "independent-td3-sbx-128-fast-contact",
     "independent-td3-sbx-128-fast-viewpoints",
+    "td3-sbx-128-mirror-tta-solid",
+    "independent-td3-sbx-128-tta-solid",
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
     "mpc-mppi-64x50-transport",
