@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import queue
 import shutil
 import subprocess
@@ -647,15 +648,41 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
 
 
 def lean(run_dir: Path, name: str) -> None:
-    """Drop the per-step tables of a run under ``models/`` whose experiment is not in
-    :data:`KEEP_STEPS`: the tip and target positions (``eval_trajectories``) and the moment
-    histories (``eval_moments``; the peaks stay in ``eval_moment_peaks``). The report draws them
-    for the featured and contact experiments only, and `softtrack evaluate models/<run>` writes
-    them again in seconds."""
-    if name in KEEP_STEPS:
-        return
-    for table in ("eval_trajectories", "eval_moments"):
-        (run_dir / "tables" / f"{table}.parquet").unlink(missing_ok=True)
+    """Drop from a run under ``models/`` what its experiment's report and derived runs do not
+    read. Unless it is in :data:`KEEP_STEPS`: the per-step tables, the tip and target positions
+    (``eval_trajectories``) and the moment histories (``eval_moments``; the peaks stay in
+    ``eval_moment_peaks``): the report draws them for the featured and contact experiments only,
+    and `softtrack evaluate models/<run>` writes them again in seconds. Unless a derived run
+    confirms its models (:func:`keeps_other_models`): the other model beside the policy
+    (``other_models/``, what ``softtrack evaluate --model last`` runs), as ``softtrack export
+    --policy-only`` leaves it out."""
+    if name not in KEEP_STEPS:
+        for table in ("eval_trajectories", "eval_moments"):
+            (run_dir / "tables" / f"{table}.parquet").unlink(missing_ok=True)
+    if not keeps_other_models(name):
+        drop_other_models(run_dir)
+
+
+def keeps_other_models(name: str) -> bool:
+    """Whether experiment ``name``'s shipped runs keep their other models: those a derived run
+    confirms against its policy (``training.confirm_episodes``), and the derived runs that did."""
+    experiment_of = {job.dest: job.name for job in JOBS}
+    keep: set[str] = set()
+    for job in JOBS:
+        if job.derive_from is not None and load_experiment(job.spec).training.confirm_episodes:
+            keep |= {job.name, experiment_of[job.derive_from]}
+    return name in keep
+
+
+def drop_other_models(run_dir: Path) -> None:
+    """Remove every policy's ``other_models/`` under ``run_dir`` and empty the list of them in
+    its ``policy.json``."""
+    for manifest in sorted(run_dir.rglob("policy.json")):
+        shutil.rmtree(manifest.parent / "other_models", ignore_errors=True)
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+        if data.get("other_models"):
+            data["other_models"] = {}
+            atomic_write_text(manifest, json.dumps(data, indent=2) + "\n")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -105,7 +105,8 @@ def test_policy_only_export_leaves_out_the_other_model(
     assert result.exit_code == 0, result.output
     result = runner.invoke(app, ["evaluate", str(lean), "-t", "circle", "--model", "last"])
     assert result.exit_code == 2
-    assert "last" in result.output
+    assert "exported with its policy only (no last model" in result.output
+    assert "train --resume" not in result.output
 
 
 def test_upgrade_relayouts_an_old_export_in_place(

@@ -79,3 +79,22 @@ def test_an_independent_run_with_contact_is_derived_from_its_nominal_training() 
     centralized_solid = load_experiment("variants/td3-sbx-128-3e6-mirror-tta-solid.yaml")
     assert _training_fields(centralized_solid) != _training_fields(centralized)
     assert _evaluation_only_changes(centralized_solid, centralized) == []
+
+
+def test_shipped_policies_list_the_other_models_they_have() -> None:
+    """Each shipped ``policy.json`` names exactly the other models beside the policy, and only
+    the experiments whose models a derived run confirmed keep any (``lean``)."""
+    from reproduce_study import keeps_other_models
+
+    for manifest in sorted((ROOT / "models").rglob("policy.json")):
+        listed = json.loads(manifest.read_text(encoding="utf-8")).get("other_models", {})
+        present = sorted(p.name for p in (manifest.parent / "other_models").glob("*"))
+        assert sorted(listed) == present, manifest
+        for entry in listed.values():
+            assert (manifest.parent / entry["path"]).is_file(), manifest
+        run = next(p for p in manifest.parents if (p / "run.json").is_file())
+        name = json.loads((run / "run.json").read_text(encoding="utf-8"))["name"]
+        assert not present or keeps_other_models(name), manifest
+    assert keeps_other_models("td3-sbx-128-mirror-val") and not keeps_other_models(
+        "td3-sbx-128-mirror-fast"
+    )

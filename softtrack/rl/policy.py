@@ -77,12 +77,26 @@ def require_model(
         )
     paths = model_paths(record, spec, model)
     missing = [p for p in paths if not p.is_file()]
+    if missing and model != "policy" and _exported_policy_only(record, spec):
+        raise RunStoreError(
+            f"{missing[0]}: run {record.run_id} was exported with its policy only (no "
+            f"{model} model beside it); evaluate its policy without --model, or the run it was "
+            "exported from"
+        )
     if missing:
         raise RunStoreError(
             f"{missing[0]}: run {record.run_id} has no trained model (status "
             f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}`"
         )
     return paths
+
+
+def _exported_policy_only(record: RunRecord, spec: ExperimentSpec) -> bool:
+    """Whether ``record`` is an exported run (``policy.json`` beside its policies) whose
+    policies list no other model."""
+    policies = PolicyDir.all_of_run(record.path, spec.controller == "independent")
+    manifests = [policy.read_manifest() for policy in policies]
+    return all(m is not None and not m.get("other_models") for m in manifests)
 
 
 def policy_choice(policy: PolicyDir, spec: ExperimentSpec) -> Literal["best", "last"]:
