@@ -328,6 +328,16 @@ JOBS: tuple[Job, ...] = (
         )
         for s in range(10)
     ),
+    # the tta recipe with solid arms on the viewpoints task (issue 37)
+    *(
+        Job(
+            V + "td3-sbx-128-3e6-mirror-tta-viewpoints.yaml",
+            s,
+            f"td3-sbx-128-mirror-tta-viewpoints-3e6-seed{s}",
+            policy_only=True,
+        )
+        for s in range(5)
+    ),
     # derived from shipped runs (after all trainings):
     *(
         Job(
@@ -712,6 +722,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = parser.parse_args(argv)
     jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
+    unknown = sorted(set(args.only or ()) - {j.name for j in JOBS} - {j.spec for j in JOBS})
+    if unknown and not args.robustness:
+        parser.exit(
+            2,
+            f"error: --only {', '.join(unknown)}: no job of this script has that experiment "
+            "name or spec file; `--list` prints them\n",
+        )
     if args.list:
         for job in jobs:
             spec = load_experiment(job.spec)

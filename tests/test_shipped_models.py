@@ -98,3 +98,13 @@ def test_shipped_policies_list_the_other_models_they_have() -> None:
     assert keeps_other_models("td3-sbx-128-mirror-val") and not keeps_other_models(
         "td3-sbx-128-mirror-fast"
     )
+
+
+def test_an_unknown_only_name_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    from reproduce_study import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--only", "no-such-experiment", "--list"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "no-such-experiment" in err and len(err.strip().splitlines()) == 1
