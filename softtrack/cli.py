@@ -22,6 +22,7 @@ from softtrack import api
 from softtrack.cli_classes import Command, Group
 from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.executors.dispatch import ExecOptions
+from softtrack.store import provenance
 from softtrack.store.disk import storage_problem
 from softtrack.store.query import ResultsDatabase, format_result, format_views
 from softtrack.store.runs import resolve_runs_dir
@@ -126,6 +127,7 @@ def main(
 ) -> None:
     """Train, evaluate and compare controllers for two soft arms tracking a moving target."""
 
+    provenance.mark_cli()
     if threading.current_thread() is threading.main_thread():
         # SIGTERM unwinds like Ctrl-C, so every command removes its temporary files (training
         # and the pools install their own clean stop while they run)

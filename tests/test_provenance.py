@@ -101,3 +101,15 @@ def test_git_dirty_counts_code_not_shipped_results(tmp_path: Path) -> None:
     assert git_info.__wrapped__(str(tmp_path))[1] is False
     (tmp_path / "code.py").write_text("x = 2\n")
     assert git_info.__wrapped__(str(tmp_path))[1] is True
+
+
+def test_a_cli_started_with_python_c_records_softtrack(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from softtrack.store import provenance
+
+    argv = ["-c", "train", "x.yaml", "--seed", "1"]
+    monkeypatch.setattr(provenance, "_cli_running", False)
+    assert portable_command(argv, cwd=tmp_path)[0] == "-c"  # some other program's -c
+    provenance.mark_cli()
+    assert portable_command(argv, cwd=tmp_path) == ["softtrack", *argv[1:]]

@@ -37,6 +37,16 @@ _TRACKED_LIBRARIES = (
 
 
 _PROGRAMS = ("softtrack", "softtrack/cli.py", "softtrack/__main__.py")
+#: Whether this process runs softtrack's command line (:func:`mark_cli`).
+_cli_running = False
+
+
+def mark_cli() -> None:
+    """Note that this process runs softtrack's command line, so that the command lines it
+    records name the program ``softtrack`` also when Python started it with ``-c`` (e.g.
+    ``python -c "from softtrack.cli import app; app()" train ...`` in a second checkout)."""
+    global _cli_running
+    _cli_running = True
 
 
 def portable_path(path: str | os.PathLike[str], cwd: str | os.PathLike[str] | None = None) -> str:
@@ -70,7 +80,9 @@ def portable_command(
     if not argv:
         return []
     program = os.fspath(argv[0]).replace(os.sep, "/")
-    if any(program == p or program.endswith("/" + p) for p in _PROGRAMS):
+    if any(program == p or program.endswith("/" + p) for p in _PROGRAMS) or (
+        program == "-c" and _cli_running
+    ):
         program = "softtrack"
     else:
         program = os.path.basename(program) or program
