@@ -338,6 +338,15 @@ JOBS: tuple[Job, ...] = (
         )
         for s in range(5)
     ),
+    *(
+        Job(
+            V + "td3-sbx-128-3e6-mirror-tta-viewpoints-apart.yaml",
+            s,
+            f"td3-sbx-128-mirror-tta-viewpoints-apart-3e6-seed{s}",
+            policy_only=True,
+        )
+        for s in range(5)
+    ),
     # derived from shipped runs (after all trainings):
     *(
         Job(
