@@ -89,6 +89,7 @@ KEEP_STEPS = (
     "td3-sbx-128-mirror-fast-transport-grip",
     "mpc-mppi-64x50-transport",
     "mpc-mppi-64x50-transport-grip",
+    "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 
@@ -316,6 +317,26 @@ JOBS: tuple[Job, ...] = (
             ),
         )
     ),
+    # the 10-ms recipe, the first learned controller that carries the sphere, and its
+    # independent baseline (own-arm actors)
+    *(
+        job
+        for s in (0, 1, 2)
+        for job in (
+            Job(
+                V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-long.yaml",
+                s,
+                f"td3-sbx-128-mirror-fast-transport-fine-10ms-long-3e6-seed{s}",
+                policy_only=True,
+            ),
+            Job(
+                V + "td3-sbx-128-3e6-fast-transport-fine-10ms-long-own-arm-actors.yaml",
+                s,
+                f"td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors-3e6-seed{s}",
+                policy_only=True,
+            ),
+        )
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     # the ten-seed comparison with solid arms (contact on, issue 40)
@@ -418,6 +439,9 @@ REPORTED = (
     "mpc-mppi-64x50-viewpoints",
     "mpc-mppi-64x50-transport",
     "mpc-mppi-64x50-transport-grip",
+    "td3-sbx-128-mirror-tta-viewpoints",
+    "td3-sbx-128-mirror-tta-viewpoints-apart",
+    "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
