@@ -54,6 +54,7 @@ import queue
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -121,6 +122,13 @@ class Job:
     def name(self) -> str:
         """The experiment's name (the spec's ``name``: run.json, ``models/``, the report)."""
         return load_experiment(self.spec).name
+
+
+def seeded_jobs(spec: str, dest: str, seeds: Iterable[int], policy_only: bool = False) -> list[Job]:
+    """The jobs of spec file ``experiments/<spec>`` for ``seeds``, kept as
+    ``models/<dest>-seed<s>`` (``dest``: the experiment's name and budget, e.g.
+    ``td3-sbx-128-mirror-tta-3e6``)."""
+    return [Job(spec, s, f"{dest}-seed{s}", policy_only=policy_only) for s in seeds]
 
 
 S, V = "study/", "variants/"
@@ -319,54 +327,39 @@ JOBS: tuple[Job, ...] = (
     ),
     # the 10-ms recipe, the first learned controller that carries the sphere, and its
     # independent baseline (own-arm actors)
-    *(
-        job
-        for s in (0, 1, 2)
-        for job in (
-            Job(
-                V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-long.yaml",
-                s,
-                f"td3-sbx-128-mirror-fast-transport-fine-10ms-long-3e6-seed{s}",
-                policy_only=True,
-            ),
-            Job(
-                V + "td3-sbx-128-3e6-fast-transport-fine-10ms-long-own-arm-actors.yaml",
-                s,
-                f"td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors-3e6-seed{s}",
-                policy_only=True,
-            ),
-        )
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-long.yaml",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-long-3e6",
+        (0, 1, 2),
+        policy_only=True,
+    ),
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-fast-transport-fine-10ms-long-own-arm-actors.yaml",
+        "td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors-3e6",
+        (0, 1, 2),
+        policy_only=True,
     ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     # the ten-seed comparison with solid arms (contact on, issue 40)
-    *(
-        Job(
-            V + "td3-sbx-128-3e6-mirror-tta-solid.yaml",
-            s,
-            f"td3-sbx-128-mirror-tta-solid-3e6-seed{s}",
-            policy_only=True,
-        )
-        for s in range(10)
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-tta-solid.yaml",
+        "td3-sbx-128-mirror-tta-solid-3e6",
+        range(10),
+        policy_only=True,
     ),
     # the tta recipe with solid arms on the viewpoints task (issue 37)
-    *(
-        Job(
-            V + "td3-sbx-128-3e6-mirror-tta-viewpoints.yaml",
-            s,
-            f"td3-sbx-128-mirror-tta-viewpoints-3e6-seed{s}",
-            policy_only=True,
-        )
-        for s in range(5)
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-tta-viewpoints.yaml",
+        "td3-sbx-128-mirror-tta-viewpoints-3e6",
+        range(5),
+        policy_only=True,
     ),
-    *(
-        Job(
-            V + "td3-sbx-128-3e6-mirror-tta-viewpoints-apart.yaml",
-            s,
-            f"td3-sbx-128-mirror-tta-viewpoints-apart-3e6-seed{s}",
-            policy_only=True,
-        )
-        for s in range(5)
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-tta-viewpoints-apart.yaml",
+        "td3-sbx-128-mirror-tta-viewpoints-apart-3e6",
+        range(5),
+        policy_only=True,
     ),
     # derived from shipped runs (after all trainings):
     *(
