@@ -334,6 +334,12 @@ JOBS: tuple[Job, ...] = (
         policy_only=True,
     ),
     *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-track.yaml",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-track-3e6",
+        (0, 1, 2),
+        policy_only=True,
+    ),
+    *seeded_jobs(
         V + "td3-sbx-128-3e6-fast-transport-fine-10ms-long-own-arm-actors.yaml",
         "td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors-3e6",
         (0, 1, 2),
@@ -358,6 +364,12 @@ JOBS: tuple[Job, ...] = (
     *seeded_jobs(
         V + "td3-sbx-128-3e6-mirror-tta-viewpoints-apart.yaml",
         "td3-sbx-128-mirror-tta-viewpoints-apart-3e6",
+        range(5),
+        policy_only=True,
+    ),
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-tta-viewpoints-margin.yaml",
+        "td3-sbx-128-mirror-tta-viewpoints-margin-3e6",
         range(5),
         policy_only=True,
     ),
