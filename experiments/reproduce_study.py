@@ -446,6 +446,7 @@ REPORTED = (
     "mpc-mppi-64x50-transport-grip",
     "td3-sbx-128-mirror-tta-viewpoints",
     "td3-sbx-128-mirror-tta-viewpoints-apart",
+    "td3-sbx-128-mirror-tta-viewpoints-margin",
     "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
 )
 
