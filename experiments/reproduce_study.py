@@ -345,8 +345,19 @@ JOBS: tuple[Job, ...] = (
         (0, 1, 2),
         policy_only=True,
     ),
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-long-gravity.yaml",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity-3e6",
+        (0, 1, 2),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
+    Job(
+        V + "mpc-mppi-64x50-transport-fine-10ms.yaml",
+        0,
+        "mpc-mppi-64x50-transport-fine-10ms-seed0",
+    ),
     # the ten-seed comparison with solid arms (contact on, issue 40)
     *seeded_jobs(
         V + "td3-sbx-128-3e6-mirror-tta-solid.yaml",

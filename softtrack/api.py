@@ -541,13 +541,15 @@ def compare(
     runs_dir: str | os.PathLike[str] | None = None,
     metric: str = "rmse_3d",
     reps: int = 2000,
+    random: bool = False,
 ) -> Any:
     """:func:`softtrack.report.compare.compare_selection`: the controllers the ``selection``
     items name, the first against each other, across their seeds (returns a ``Comparison``;
-    ``.lines()`` is what ``softtrack compare`` prints)."""
+    ``.lines()`` is what ``softtrack compare`` prints); ``random``: over the held-out
+    random-target episodes instead of the trajectories."""
     from softtrack.report.compare import compare_selection
 
-    return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps)
+    return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random)
 
 
 def compare_figure(comparison: Any, path: str | os.PathLike[str]) -> Path:

@@ -1221,9 +1221,20 @@ def compare(
     metric: Annotated[
         str,
         typer.Option(
-            "--metric", metavar="COLUMN", help="eval_metrics column to compare (an error, m)."
+            "--metric",
+            metavar="COLUMN",
+            help="eval_metrics column to compare (an error, m); transport: object_rmse_3d, or "
+            "object_carry_score (the sphere's error with every step after a drop at 1 m).",
         ),
     ] = "rmse_3d",
+    random: Annotated[
+        bool,
+        typer.Option(
+            "--random",
+            help="Compare on the held-out random-target episodes (eval_random, the same "
+            "targets for every run: softtrack evaluate RUN --random 20), one cell per episode.",
+        ),
+    ] = False,
     figure: Annotated[
         str | None,
         typer.Option(
@@ -1251,7 +1262,9 @@ def compare(
             raise api.SpecError(
                 "compare", "needs at least two controllers", "name two or more, e.g. A B"
             )
-        comparison = api.compare(selection, runs_dir=runs_dir, metric=metric, reps=reps)
+        comparison = api.compare(
+            selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random
+        )
         for line in comparison.lines():
             typer.echo(line)
         if figure:

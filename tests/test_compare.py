@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation.seed_statistics import interquartile_mean
-from softtrack.report.compare import compare_selection
+from softtrack.report.compare import MAX_PRINTED_CELLS, compare_selection
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import write_table
@@ -107,3 +107,101 @@ def test_unit_scores_use_nan_for_missing_cells(store: RunStore) -> None:
     )
     assert np.isnan(result.controllers[0].scores[:, 2:]).all()
     assert result.per_cell["good"][2] is None
+
+
+def _transport_runs(
+    store: RunStore, name: str, carried: list[tuple[float, float | None]], table: str
+) -> None:
+    """One run per (sphere error while carried in m, drop time in s or None) with 12-s
+    evaluation episodes: every trajectory (or random episode) of the run has those values."""
+    spec = parse_spec(
+        {"name": name, "training": {"total_timesteps": 100_000, "eval_duration": 12.0}}
+    )
+    for seed, (error, drop_time) in enumerate(carried):
+        record = store.create_run(spec, seed)
+        cells = TRAJECTORIES if table == "eval_metrics" else range(4)
+        rows = [
+            {
+                "run_id": record.run_id,
+                **(
+                    {"trajectory": cell}
+                    if table == "eval_metrics"
+                    else {"trajectory": "random", "episode": cell, "seed": 1_000_000 + cell}
+                ),
+                "arm": arm,
+                "rmse_3d": 0.5,
+                "terminated": drop_time is not None,
+                "object_rmse_3d": error,
+                "dropped": drop_time is not None,
+                "drop_time": np.nan if drop_time is None else drop_time,
+                "cpu": "CPU A",
+            }
+            for cell in cells
+            for arm in (0, 1)
+        ]
+        write_table(record.table_path(table), rows)
+
+
+@pytest.mark.parametrize("table", ["eval_metrics", "eval_random"])
+def test_the_carry_score_counts_a_drop_against_the_controller(tmp_path: Path, table: str) -> None:
+    store = RunStore(tmp_path / "runs")
+    _transport_runs(store, "drops", [(0.10, 3.0), (0.12, 3.0), (0.11, 3.0)], table)
+    _transport_runs(store, "carries", [(0.30, None), (0.32, None), (0.31, None)], table)
+    random = table == "eval_random"
+    on_error = compare_selection(
+        ["drops", "carries"], runs_dir=store.root, metric="object_rmse_3d", reps=200, random=random
+    )
+    assert on_error.improvement["carries"].value == pytest.approx(1.0)  # while carried it's better
+    scored = compare_selection(
+        ["drops", "carries"],
+        runs_dir=store.root,
+        metric="object_carry_score",
+        reps=200,
+        random=random,
+    )
+    drops, carries = scored.controllers
+    # 3 s carried at 0.10 m, then 9 s counted at 1 m: sqrt((0.01·3 + 1·9) / 12)
+    assert np.nanmin(drops.scores) == pytest.approx(np.sqrt((0.01 * 3 + 9) / 12))
+    assert np.nanmax(carries.scores) == pytest.approx(0.32)
+    assert scored.improvement["carries"].value == pytest.approx(0.0)
+    if random:
+        assert drops.cells[:3] == (("random 0", 0), ("random 0", 1), ("random 1", 0))
+        assert drops.scores.shape == (3, 8)
+        assert "8 cells" not in "\n".join(scored.lines())  # few cells: printed one by one
+
+
+def test_random_cells_need_random_evaluations(store: RunStore) -> None:
+    out = runner.invoke(
+        app, ["compare", "good", "worse", "--random", "--runs-dir", str(store.root)]
+    )
+    assert out.exit_code == 2
+    assert "good: no run has rmse_3d in eval_random" in out.stderr
+    assert "softtrack evaluate RUN --random 20" in out.stderr
+
+
+def test_many_cells_print_only_the_overall_statistics(tmp_path: Path) -> None:
+    store = RunStore(tmp_path / "runs")
+    _transport_runs(store, "a", [(0.10, None), (0.11, None)], "eval_random")
+    _transport_runs(store, "b", [(0.20, None), (0.21, None)], "eval_random")
+    spec = parse_spec({"name": "a", "training": {"total_timesteps": 100_000}})
+    extra = store.create_run(spec, 5)
+    rows = [
+        {
+            "run_id": extra.run_id,
+            "trajectory": "random",
+            "episode": k,
+            "arm": arm,
+            "rmse_3d": 0.1,
+            "terminated": False,
+            "cpu": "CPU A",
+        }
+        for k in range(MAX_PRINTED_CELLS)
+        for arm in (0, 1)
+    ]
+    write_table(extra.table_path("eval_random"), rows)
+    result = compare_selection(
+        ["a", "b"], runs_dir=store.root, metric="object_rmse_3d", reps=200, random=True
+    )
+    text = "\n".join(result.lines())
+    assert f"({2 * MAX_PRINTED_CELLS} cells: the per-cell intervals are left out)" in text
+    assert "per cell:" not in text and "P(a improves on b) = 1.00" in text

@@ -30,8 +30,10 @@ from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.store.tables import element_peaks_frame
 
 __all__ = [
+    "CARRY_SCORE",
     "LOST_OBJECT_ERROR",
     "STEADY_START",
+    "carry_errors",
     "element_moments_table",
     "element_peaks_frame",
     "metrics_table",
@@ -40,6 +42,7 @@ __all__ = [
     "snapshot_table",
     "trajectory_table",
     "validation_score",
+    "with_carry_score",
 ]
 
 STEADY_START = 1.0  # s: the "steady" metrics leave out the initial approach
@@ -251,13 +254,39 @@ def _carry_score(rows: pd.DataFrame, planned: float) -> float:
     """:func:`validation_score` of transport rows (one per episode and arm; the sphere's
     columns are the same in both arms' rows), ``planned`` s per episode."""
     episodes = rows.drop_duplicates("episode") if "episode" in rows else rows
-    error = episodes["object_rmse_3d"].to_numpy(dtype=np.float64)
     dropped = episodes["dropped"].fillna(False).astype(bool).to_numpy()
     failed = episodes["terminated"].astype(bool).to_numpy() & ~dropped  # went non-finite
-    if failed.any() or not np.isfinite(error).all():
+    per_episode = carry_errors(episodes, planned)
+    if failed.any() or not np.isfinite(per_episode).all():
         return math.inf
-    ended = episodes["drop_time"].to_numpy(dtype=np.float64) if "drop_time" in episodes else 0.0
+    return float(per_episode.mean())
+
+
+#: The eval_metrics / eval_random column :func:`with_carry_score` derives (``softtrack compare
+#: --metric object_carry_score``), m.
+CARRY_SCORE = "object_carry_score"
+
+
+def carry_errors(rows: pd.DataFrame, planned: float) -> np.ndarray:
+    """(rows,) the sphere's 3-D RMSE of each transport row over the whole planned episode of
+    ``planned`` s, with every step after a drop counted at :data:`LOST_OBJECT_ERROR`,
+    sqrt((e²·t + L²·(T − t)) / T) for the error e over the t s it was carried, m. A row
+    without a drop keeps its ``object_rmse_3d``; NaN where that is NaN."""
+    error = rows["object_rmse_3d"].to_numpy(dtype=np.float64)
+    dropped = rows["dropped"].fillna(False).astype(bool).to_numpy()
+    ended = (
+        rows["drop_time"].to_numpy(dtype=np.float64) if "drop_time" in rows else np.zeros(len(rows))
+    )
     carried = np.clip(np.where(dropped, np.nan_to_num(ended), planned), 0.0, planned)
     lost = planned - carried
-    per_episode = np.sqrt((error**2 * carried + LOST_OBJECT_ERROR**2 * lost) / planned)
-    return float(per_episode.mean())
+    return np.sqrt((error**2 * carried + LOST_OBJECT_ERROR**2 * lost) / planned)
+
+
+def with_carry_score(rows: pd.DataFrame, planned: float | None) -> pd.DataFrame:
+    """``rows`` (eval_metrics or eval_random of one run) with the column :data:`CARRY_SCORE`
+    (:func:`carry_errors`, m) added, so that a controller that drops the sphere early cannot
+    score better than one that carries it on; unchanged without transport columns or without
+    the planned episode length ``planned`` (s, ``training.eval_duration``)."""
+    if planned is None or not {"object_rmse_3d", "dropped"} <= set(rows.columns):
+        return rows
+    return rows.assign(**{CARRY_SCORE: carry_errors(rows, float(planned))})

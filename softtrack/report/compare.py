@@ -35,19 +35,25 @@ from softtrack.evaluation.seed_statistics import (
     probability_of_improvement,
     stratified_bootstrap,
 )
-from softtrack.report.data import load_runs
+from softtrack.evaluation.tables import with_carry_score
+from softtrack.report.data import RunData, load_runs
 from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
 from softtrack.report.select import select_report_runs
 from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
 
 __all__ = [
     "CROSS_CPU_NOTE",
+    "MAX_PRINTED_CELLS",
     "Comparison",
     "ControllerScores",
     "compare_controllers",
     "compare_selection",
     "profile_figure",
 ]
+
+#: More cells than this (e.g. one per random-target episode) print only the statistics over
+#: all cells.
+MAX_PRINTED_CELLS = 12
 
 CROSS_CPU_NOTE = (
     "cross-CPU noise floor: one deterministic evaluation of a shipped policy moved by a median "
@@ -106,17 +112,22 @@ class Comparison:
                 f"{c.label:{width}}  {len(c.seeds):>4}  {_seeds(c.seeds):>5}  "
                 f"{self.overall[c.label].text():>24}  {cpus}"
             )
+        per_cell = len(first.cells) <= MAX_PRINTED_CELLS
         columns = {c.label: max(24, len(c.label)) for c in self.controllers}
-        out += [
-            "",
-            f"{'cell':20}" + "".join(f"  {c.label:>{columns[c.label]}}" for c in self.controllers),
-        ]
-        for j, (trajectory, arm) in enumerate(first.cells):
+        if per_cell:
+            out += [
+                "",
+                f"{'cell':20}"
+                + "".join(f"  {c.label:>{columns[c.label]}}" for c in self.controllers),
+            ]
+        for j, (trajectory, arm) in enumerate(first.cells if per_cell else ()):
             row = f"{trajectory_title(trajectory) + f', arm {arm + 1}':20}"
             for c in self.controllers:
                 interval = self.per_cell[c.label][j]
                 row += f"  {interval.text() if interval else 'no data':>{columns[c.label]}}"
             out.append(row)
+        if not per_cell:
+            out += ["", f"({len(first.cells)} cells: the per-cell intervals are left out)"]
         for other in self.controllers[1:]:
             p = self.improvement[other.label]
             out += [
@@ -130,7 +141,8 @@ class Comparison:
                     first.cells, self.per_cell_improvement[other.label], strict=True
                 )
             ]
-            out.append("  per cell: " + "; ".join(cells))
+            if per_cell:
+                out.append("  per cell: " + "; ".join(cells))
         out += ["", CROSS_CPU_NOTE]
         return out
 
@@ -147,8 +159,10 @@ def controller_scores(
     metrics: Sequence[tuple[int, pd.DataFrame | None]],
     metric: str,
     trajectories: Sequence[str],
+    table_name: str = "eval_metrics",
 ) -> ControllerScores:
-    """The score matrix of one controller from its runs' ``(seed, eval_metrics)``.
+    """The score matrix of one controller from its runs' ``(seed, eval_metrics)`` (or other
+    rows with the columns trajectory, arm and ``metric``; ``table_name`` names them in errors).
 
     Raises:
         RunStoreError: no run has ``metric`` stored.
@@ -171,8 +185,8 @@ def controller_scores(
             cpus[str(kind)] = cpus.get(str(kind), 0) + 1
     if not rows:
         raise RunStoreError(
-            f"{label}: no run has {metric} in eval_metrics; evaluate it first "
-            f"(`softtrack evaluate RUN`)"
+            f"{label}: no run has {metric} in {table_name}; evaluate it first "
+            f"(`softtrack evaluate RUN{' --random 20' if table_name == 'eval_random' else ''}`)"
         )
     return ControllerScores(label, cells, np.asarray(rows, dtype=float), tuple(seeds), cpus)
 
@@ -235,20 +249,52 @@ def compare_selection(
     trajectories: Sequence[str] = EVAL_TRAJECTORIES,
     reps: int = BOOTSTRAP_REPS,
     seed: int = 0,
+    random: bool = False,
 ) -> Comparison:
     """Compare the controllers the ``selection`` items name (one controller per item).
+
+    ``random``: the cells are the held-out random-target episodes of ``eval_random`` (the same
+    targets for every run, ``softtrack evaluate RUN --random N``), "random k" and arm, instead
+    of ``trajectories``. In the transport task ``metric`` may also be
+    :data:`~softtrack.evaluation.tables.CARRY_SCORE`, derived from the stored columns.
 
     Raises:
         EmptySelectionError, RunNotFoundError: an item names no run (one line with the fix).
         RunStoreError: an item's runs have no stored ``metric``.
     """
     store = RunStore(resolve_runs_dir(runs_dir))
-    controllers = []
+    tables = []
     for item in selection:
         runs = load_runs(select_report_runs(store, [item]))
-        metrics = [(run.seed, run.metrics) for run in runs]
-        controllers.append(controller_scores(item, metrics, metric, trajectories))
+        tables.append([(run.seed, _scored_rows(run, random)) for run in runs])
+    if random:
+        episodes = {
+            str(t)
+            for runs in tables
+            for _, rows in runs
+            if rows is not None
+            for t in rows["trajectory"]
+        }
+        trajectories = sorted(episodes, key=lambda t: int(t.split()[-1]))
+    table_name = "eval_random" if random else "eval_metrics"
+    controllers = [
+        controller_scores(item, runs, metric, trajectories, table_name)
+        for item, runs in zip(selection, tables, strict=True)
+    ]
     return compare_controllers(controllers, metric, reps=reps, seed=seed)
+
+
+def _scored_rows(run: RunData, random: bool) -> pd.DataFrame | None:
+    """A run's eval_metrics (or, ``random``, its eval_random with each episode named "random
+    k" as its trajectory), with the transport task's carry score derived."""
+    rows = run.random if random else run.metrics
+    if rows is None:
+        return None
+    if random:
+        if "episode" not in rows:
+            return None
+        rows = rows.assign(trajectory="random " + rows["episode"].astype(int).astype(str))
+    return with_carry_score(rows, run.eval_duration)
 
 
 def profile_figure(

@@ -50,7 +50,17 @@ _MOMENT_COLUMNS = (
     "max_abs_moment",  # only in tables written before eval_moment_peaks existed
 )
 _PEAK_COLUMNS = ("trajectory", "arm", "direction", "peak_abs_moment")
-_RANDOM_COLUMNS = ("episode", "seed", "arm", "rmse_3d", "terminated")
+_RANDOM_COLUMNS = (
+    "episode",
+    "seed",
+    "arm",
+    "rmse_3d",
+    "terminated",
+    "cpu",
+    "object_rmse_3d",
+    "dropped",
+    "drop_time",
+)
 _VALIDATION_COLUMNS = (
     "global_step",
     "trajectory",
