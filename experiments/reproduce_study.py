@@ -61,7 +61,9 @@ from pathlib import Path
 from typing import Any
 
 from softtrack import api
+from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.runs import resolve_run
+from softtrack.report.data import Group, load_runs, representative_run
 from softtrack.rl.confirmation import confirm_run
 from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash, spec_to_yaml
 from softtrack.store.atomic import atomic_write_text
@@ -724,6 +726,26 @@ def lean(run_dir: Path, name: str) -> None:
         drop_other_models(run_dir)
 
 
+def lean_undrawn_steps(name: str) -> None:
+    """For an experiment in :data:`KEEP_STEPS` but not :data:`FEATURED`, once every one of its
+    jobs is shipped: drop the per-step tables of the runs the report does not draw, i.e. all
+    but each evaluation trajectory's representative run (the median seed over all runs,
+    :func:`softtrack.report.data.representative_run`) and, in the transport task, the lowest
+    seed (the transport figure's)."""
+    dests = [ROOT / "models" / job.dest for job in JOBS if job.name == name]
+    if name not in KEEP_STEPS or name in FEATURED or not all(d.is_dir() for d in dests):
+        return
+    runs = load_runs(resolve_run(str(d)) for d in dests)
+    group = Group("", "", name, "", name, name, tuple(runs))
+    drawn = {id(representative_run(group, t)) for t in EVAL_TRAJECTORIES}
+    if any(r.metrics is not None and "object_rmse_3d" in r.metrics for r in runs):
+        drawn.add(id(min(runs, key=lambda r: r.seed)))
+    for run in runs:
+        if id(run) not in drawn:
+            for table in ("eval_trajectories", "eval_moments"):
+                (run.record.path / "tables" / f"{table}.parquet").unlink(missing_ok=True)
+
+
 def keeps_other_models(name: str) -> bool:
     """Whether experiment ``name``'s shipped runs keep their other models: those a derived run
     confirms against its policy (``training.confirm_episodes``), and the derived runs that did."""
@@ -824,6 +846,8 @@ def main(argv: list[str] | None = None) -> None:
             with ThreadPoolExecutor(n) as pool:
                 for future in [pool.submit(on_free_core, job) for job in phase]:
                     future.result()
+        for name in {job.name for job in jobs}:
+            lean_undrawn_steps(name)
     if args.no_report:
         return
     shipped = {job.name for job in JOBS if (ROOT / "models" / job.dest).is_dir()}

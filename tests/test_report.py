@@ -4,6 +4,7 @@ selection is a clear error."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import re
@@ -27,7 +28,7 @@ from softtrack.evaluation import (
 from softtrack.evaluation.metrics import ACTION_STATISTICS, SAFETY_STATISTICS, TORQUE_STATISTICS
 from softtrack.report import EmptySelectionError, build_report, select_report_runs
 from softtrack.report.curves import final_stage_table, training_curves
-from softtrack.report.data import Group, group_runs, load_runs
+from softtrack.report.data import Group, group_runs, load_runs, representative_run
 from softtrack.report.summaries import controller_differences, metrics_summary, moment_peaks
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.provenance import cpu_description
@@ -904,3 +905,28 @@ def test_across_seeds_tables_and_profile(report: Path) -> None:
     assert all(re.search(r"\d\.\d\d \[\d\.\d\d, \d\.\d\d\]", r.split("|")[5]) for r in body[1:])
     assert "noise floor" in section.split("##")[0]
     assert (report.parent / "figures" / "performance_profile.png").is_file()
+
+
+def test_the_representative_run_does_not_depend_on_which_runs_keep_their_steps(
+    tmp_path: Path,
+) -> None:
+    """The median seed is taken over every run with metrics; a run without per-step tables is
+    replaced by the drawable run nearest to it in RMSE."""
+    store = RunStore(tmp_path / "runs")
+    spec = parse_spec({"name": "five", "training": {"total_timesteps": 100_000}})
+    errors = [0.05, 0.01, 0.03, 0.02, 0.04]  # seed 2 is the median
+    for seed, error in enumerate(errors):
+        record = store.create_run(spec, seed)
+        metrics = [{"trajectory": "circle", "arm": a, "rmse_3d": error} for a in (0, 1)]
+        write_table(record.table_path("eval_metrics"), metrics)
+        if seed != 4:  # seed 4 never kept its per-step tables
+            steps = [{"trajectory": "circle", "arm": a, "step": 1} for a in (0, 1)]
+            write_table(record.table_path("eval_trajectories"), steps)
+    runs = load_runs(store.list_runs())
+    group = Group("td3", "centralized", "five", "0" * 12, "five", "five", tuple(runs))
+    assert representative_run(group, "circle").seed == 2
+    # without seed 2's steps, seeds 0 (0.05), 1 (0.01) and 3 (0.02) are drawable: 0.02 is nearest
+    lean = tuple(r if r.seed != 2 else dataclasses.replace(r, trajectories=None) for r in runs)
+    group = dataclasses.replace(group, runs=lean)
+    assert representative_run(group, "circle").seed == 3
+    assert representative_run(group, "rectangle") is None

@@ -8,11 +8,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
 from reproduce_study import FEATURED, KEEP_STEPS, lean  # noqa: E402
+
+from softtrack.evaluation import EVAL_TRAJECTORIES  # noqa: E402
+from softtrack.evaluation.runs import resolve_run  # noqa: E402
+from softtrack.report.data import Group, episode_rmse, load_runs, representative_run  # noqa: E402
 
 MODELS_BUDGET = 100 * 1000 * 1000  # bytes of models/ in the tree
 PER_STEP_TABLES = ("eval_trajectories", "eval_moments")
@@ -108,3 +113,26 @@ def test_an_unknown_only_name_is_one_line_and_exit_2(capsys: pytest.CaptureFixtu
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "no-such-experiment" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_runs_the_report_draws_keep_their_per_step_tables() -> None:
+    """Where only some runs of an experiment keep their per-step tables (reproduce_study's
+    ``lean_undrawn_steps``), the median seed of every trajectory, over all its runs, is one of
+    them: the report draws the same run as with every table present."""
+    by_name: dict[str, list[Path]] = {}
+    for run in _shipped_runs():
+        name = json.loads((run / "run.json").read_text(encoding="utf-8"))["name"]
+        if name in KEEP_STEPS and name not in FEATURED:
+            by_name.setdefault(name, []).append(run)
+    assert by_name
+    for name, dirs in by_name.items():
+        runs = load_runs(resolve_run(str(d)) for d in dirs)
+        group = Group("", "", name, "", name, name, tuple(runs))
+        for trajectory in EVAL_TRAJECTORIES:
+            scored = sorted(
+                (v, r.seed) for r in runs if np.isfinite(v := episode_rmse(r, trajectory))
+            )
+            drawn = representative_run(group, trajectory)
+            if not scored or drawn is None:
+                continue
+            assert drawn.seed == scored[(len(scored) - 1) // 2][1], (name, trajectory)

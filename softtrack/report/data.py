@@ -9,6 +9,7 @@ across seeds.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -28,6 +29,7 @@ __all__ = [
     "Group",
     "RunData",
     "episode_peaks",
+    "episode_rmse",
     "episodes_by_arm",
     "group_runs",
     "load_run",
@@ -345,24 +347,38 @@ def trajectories_in(groups: Sequence[Group]) -> list[str]:
 
 def representative_run(group: Group, trajectory: str) -> RunData | None:
     """The run whose ``trajectory`` episode has the median 3-D RMSE (mean over arms; the lower
-    median for an even count) among the group's runs with stored trajectories; without
-    metrics, the lowest seed. ``None`` if no run has this trajectory."""
-    candidates = [
+    median for an even count) among all the group's runs with metrics for it, so that the
+    choice does not depend on which runs keep their per-step tables (shipped runs keep them
+    only where the report draws them). If that run has no stored trajectory, the run with one
+    nearest to it in RMSE; without metrics, the first run with the trajectory. ``None`` if no
+    run has this trajectory stored."""
+    drawable = [
         r
         for r in group.runs
         if r.trajectories is not None and (r.trajectories["trajectory"] == trajectory).any()
     ]
-    if not candidates:
+    if not drawable:
         return None
-    scored = []
-    for run in candidates:
-        if run.metrics is None or "rmse_3d" not in run.metrics:
-            continue
-        rows = run.metrics[run.metrics["trajectory"] == trajectory]
-        value = pd.to_numeric(rows["rmse_3d"], errors="coerce").mean()
-        if np.isfinite(value):
-            scored.append((float(value), run.seed, run))
+    scored = sorted(
+        (value, run.seed, id(run), run)
+        for run in group.runs
+        if np.isfinite(value := episode_rmse(run, trajectory))
+    )
     if not scored:
-        return candidates[0]
-    scored.sort(key=lambda s: (s[0], s[1]))
-    return scored[(len(scored) - 1) // 2][2]
+        return drawable[0]
+    median = scored[(len(scored) - 1) // 2]
+    if any(run is median[3] for run in drawable):
+        return median[3]
+    return min(
+        (r for r in drawable if np.isfinite(episode_rmse(r, trajectory))),
+        key=lambda r: (abs(episode_rmse(r, trajectory) - median[0]), r.seed),
+        default=drawable[0],
+    )
+
+
+def episode_rmse(run: RunData, trajectory: str) -> float:
+    """The run's 3-D RMSE on ``trajectory``, the mean over its arms (m); NaN if not stored."""
+    if run.metrics is None or "rmse_3d" not in run.metrics:
+        return math.nan
+    rows = run.metrics[run.metrics["trajectory"] == trajectory]
+    return float(pd.to_numeric(rows["rmse_3d"], errors="coerce").mean())

@@ -16,7 +16,7 @@ from softtrack.evaluation import RANDOM_TARGET_SEED
 from softtrack.report import comparison_figures as cf
 from softtrack.report import figures as fg
 from softtrack.report.actions import ACTIONS_HEADER, actions_caption, actions_rows
-from softtrack.report.data import DIRECTIONS, Group, RunData, representative_run
+from softtrack.report.data import DIRECTIONS, Group, RunData, episode_rmse, representative_run
 from softtrack.report.document import NOT_IN_STUDY, Context, Doc, num_text, study_text
 from softtrack.report.families import MAX_SERIES
 from softtrack.report.featured import Featured
@@ -252,11 +252,7 @@ def actions_section(
 
 
 def _run_caption(group: Group, run: RunData, trajectory: str) -> str:
-    n = sum(
-        1
-        for r in group.runs
-        if r.trajectories is not None and (r.trajectories["trajectory"] == trajectory).any()
-    )
+    n = sum(1 for r in group.runs if np.isfinite(episode_rmse(r, trajectory)))
     seeds = "1 seed" if n == 1 else f"{n} seeds"
     return f"seed {run.seed}, run {run.run_id} (median 3-D RMSE of {seeds})"
 
