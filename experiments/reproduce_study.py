@@ -457,6 +457,7 @@ REPORTED = (
     "mpc-mppi-64x50-viewpoints",
     "mpc-mppi-64x50-transport",
     "mpc-mppi-64x50-transport-grip",
+    "mpc-mppi-64x50-transport-fine-10ms",
     "td3-sbx-128-mirror-tta-viewpoints",
     "td3-sbx-128-mirror-tta-viewpoints-apart",
     "td3-sbx-128-mirror-tta-viewpoints-margin",
