@@ -11,6 +11,8 @@ from typer.testing import CliRunner
 from softtrack.cli import app
 from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.report.compare import MAX_PRINTED_CELLS, compare_selection
+from softtrack.report.data import group_runs, load_runs
+from softtrack.report.transport import random_summary
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import write_table
@@ -205,3 +207,19 @@ def test_many_cells_print_only_the_overall_statistics(tmp_path: Path) -> None:
     text = "\n".join(result.lines())
     assert f"({2 * MAX_PRINTED_CELLS} cells: the per-cell intervals are left out)" in text
     assert "per cell:" not in text and "P(a improves on b) = 1.00" in text
+
+
+def test_the_report_summarises_the_random_targets_of_transport(tmp_path: Path) -> None:
+    store = RunStore(tmp_path / "runs")
+    _transport_runs(store, "drops", [(0.10, 3.0), (0.12, 3.0)], "eval_random")
+    _transport_runs(store, "carries", [(0.30, None), (0.32, None), (0.31, None)], "eval_random")
+    groups = group_runs(load_runs(store.list_runs()))
+    summary = random_summary(groups, reps=200).set_index("group")
+    drops = summary.loc[next(g for g in summary.index if "drops" in g)]
+    carries = summary.loc[next(g for g in summary.index if "carries" in g)]
+    assert (drops["n"], drops["episodes"], drops["carried"]) == (2, 8, 0)
+    assert (carries["n"], carries["episodes"], carries["carried"]) == (3, 12, 12)
+    assert drops["median_hold"] == pytest.approx(3.0) and carries["median_hold"] == 12.0
+    assert carries["score"] == pytest.approx(0.31)
+    assert carries["score_low"] <= 0.31 <= carries["score_high"]
+    assert drops["score"] > 0.8  # 9 s of 12 counted at 1 m

@@ -49,6 +49,7 @@ __all__ = [
     "compare_controllers",
     "compare_selection",
     "profile_figure",
+    "scored_rows",
 ]
 
 #: More cells than this (e.g. one per random-target episode) print only the statistics over
@@ -266,7 +267,7 @@ def compare_selection(
     tables = []
     for item in selection:
         runs = load_runs(select_report_runs(store, [item]))
-        tables.append([(run.seed, _scored_rows(run, random)) for run in runs])
+        tables.append([(run.seed, scored_rows(run, random)) for run in runs])
     if random:
         episodes = {
             str(t)
@@ -284,7 +285,7 @@ def compare_selection(
     return compare_controllers(controllers, metric, reps=reps, seed=seed)
 
 
-def _scored_rows(run: RunData, random: bool) -> pd.DataFrame | None:
+def scored_rows(run: RunData, random: bool) -> pd.DataFrame | None:
     """A run's eval_metrics (or, ``random``, its eval_random with each episode named "random
     k" as its trajectory), with the transport task's carry score derived."""
     rows = run.random if random else run.metrics

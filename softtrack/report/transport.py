@@ -3,7 +3,9 @@ how they hold it (docs/environment.md, "Transport").
 
 Only for controllers whose evaluations recorded the sphere (``eval_metrics`` column
 ``object_rmse_3d``). A table per controller and trajectory (the sphere's 3-D RMSE against its
-goal, drops, the time both arms held it, each arm's mean squeeze), and a figure per
+goal, its carry score, drops, the time both arms held it, each arm's mean squeeze), a table
+of the held-out random targets per controller (episodes carried to the end, the carry score
+with its interval), and a figure per
 controller (rows) and trajectory (columns): the sphere's path and its goal's from the front and
 from above, with the arms and the sphere drawn at the instants ``eval_snapshots`` kept.
 """
@@ -19,13 +21,15 @@ import pandas as pd
 from matplotlib.patches import Circle
 
 from softtrack.env.targets import EVAL_TRAJECTORIES
+from softtrack.evaluation.tables import CARRY_SCORE, with_carry_score
 from softtrack.report import figures as fg
+from softtrack.report.compare import compare_controllers, controller_scores, scored_rows
 from softtrack.report.contact import draw_arm
 from softtrack.report.data import Group, RunData
 from softtrack.report.document import Context, Doc
 from softtrack.report.text import mean_pm_std
 
-__all__ = ["transport_figure", "transport_section", "transport_summary"]
+__all__ = ["random_summary", "transport_figure", "transport_section", "transport_summary"]
 
 _MAX_FIGURE_GROUPS = 4  # controllers drawn in the figure (the rest: the table)
 _STUDY_WORST = 0.065  # m, the study's worst single-arm 3-D RMSE: the issue's carrying target
@@ -44,7 +48,8 @@ def _carried(run: RunData) -> bool:
 
 def transport_summary(groups: Sequence[Group]) -> pd.DataFrame:
     """One row per group with transport evaluations and trajectory: ``object_rmse`` (m),
-    ``two_arm_contact`` (fraction of steps), ``force`` (N, mean over both arms) as
+    ``carry_score`` (m, every step after a drop at 1 m; NaN without the planned episode
+    length), ``two_arm_contact`` (fraction of steps), ``force`` (N, mean over both arms) as
     ``<name>_mean``/``<name>_std`` across seeds, ``drops`` (seeds that dropped the sphere) and
     ``n`` (seeds)."""
     rows = []
@@ -53,6 +58,7 @@ def transport_summary(groups: Sequence[Group]) -> pd.DataFrame:
         for trajectory in _ordered({str(t) for r in runs for t in r.metrics["trajectory"]}):  # type: ignore[index]
             per_seed: dict[str, list[float]] = {
                 "object_rmse": [],
+                "carry_score": [],
                 "two_arm_contact": [],
                 "force": [],
             }
@@ -63,6 +69,7 @@ def transport_summary(groups: Sequence[Group]) -> pd.DataFrame:
                 if part.empty:
                     continue
                 per_seed["object_rmse"].append(float(part["object_rmse_3d"].iloc[0]))
+                per_seed["carry_score"].append(_carry_score(run, part))
                 per_seed["two_arm_contact"].append(float(part["two_arm_contact"].iloc[0]))
                 per_seed["force"].append(float(part["object_force_mean"].mean()))
                 drops += int(bool(part["dropped"].iloc[0]))
@@ -81,6 +88,62 @@ def transport_summary(groups: Sequence[Group]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _carry_score(run: RunData, rows: pd.DataFrame) -> float:
+    """The :data:`~softtrack.evaluation.tables.CARRY_SCORE` of the first of ``rows`` (one
+    episode's rows of ``run``), m; NaN without the run's planned episode length."""
+    scored = with_carry_score(rows, run.eval_duration)
+    return float(scored[CARRY_SCORE].iloc[0]) if CARRY_SCORE in scored else float("nan")
+
+
+def random_summary(groups: Sequence[Group], reps: int = 2000) -> pd.DataFrame:
+    """One row per group with transport episodes on the held-out random targets
+    (``eval_random``): ``n`` (seeds), ``episodes``, ``carried`` (episodes held to their end),
+    ``median_hold`` (s, a held episode counting its full length), and the interquartile mean
+    of the carry score over (seed, episode) with its 95 % stratified bootstrap interval
+    (``score``, ``score_low``, ``score_high``, m)."""
+    rows = []
+    for group in groups:
+        tables = [
+            (run.seed, scored[scored["arm"] == 0], float(run.eval_duration))
+            for run in group.runs
+            if run.eval_duration is not None
+            if (scored := scored_rows(run, random=True)) is not None and CARRY_SCORE in scored
+        ]
+        if not tables:
+            continue
+        episodes = pd.concat([t for _, t, _ in tables])
+        held = np.concatenate(
+            [
+                np.where(
+                    t["dropped"].fillna(False).astype(bool),
+                    t["drop_time"].to_numpy(dtype=float),
+                    planned,
+                )
+                for _, t, planned in tables
+            ]
+        )
+        cells = sorted({str(t) for t in episodes["trajectory"]}, key=lambda t: int(t.split()[-1]))
+        scores = controller_scores(
+            group.label, [(seed, t) for seed, t, _ in tables], CARRY_SCORE, cells, "eval_random"
+        )
+        interval = compare_controllers([scores], CARRY_SCORE, reps=reps, cells=False).overall[
+            group.label
+        ]
+        rows.append(
+            {
+                "group": group.label,
+                "n": len(tables),
+                "episodes": len(episodes),
+                "carried": int((~episodes["dropped"].fillna(False).astype(bool)).sum()),
+                "median_hold": float(np.median(held)),
+                "score": interval.value,
+                "score_low": interval.low,
+                "score_high": interval.high,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
 def transport_section(doc: Doc, ctx: Context) -> None:
     """The table and the figure (module docstring); nothing when no run carried a sphere."""
     summary = transport_summary(ctx.groups)
@@ -93,6 +156,7 @@ def transport_section(doc: Doc, ctx: Context) -> None:
             "trajectory",
             "seeds",
             "sphere 3-D RMSE (m)",
+            "carry score (m)",
             "seeds that dropped it",
             "held by both arms",
             "mean squeeze per arm (N)",
@@ -103,6 +167,7 @@ def transport_section(doc: Doc, ctx: Context) -> None:
                 fg.trajectory_title(str(r["trajectory"])),
                 str(int(r["n"])),
                 mean_pm_std(r["object_rmse_mean"], r["object_rmse_std"], 4),
+                mean_pm_std(r["carry_score_mean"], r["carry_score_std"], 4),
                 f"{int(r['drops'])} of {int(r['n'])}",
                 f"{100 * r['two_arm_contact_mean']:.0f} %",
                 f"{r['force_mean']:.1f}",
@@ -114,10 +179,14 @@ def transport_section(doc: Doc, ctx: Context) -> None:
         "The sphere's centre against its goal over the whole episode (the approach from the "
         "sphere's start to the path's start included), mean ± sample std across seeds; a seed "
         "that drops the sphere ends its episode there (its error is over the steps it ran). "
+        "Carry score: the sphere's 3-D RMSE over the whole planned episode with every step "
+        "after a drop counted at 1 m, so that dropping it early never scores better "
+        "(`softtrack compare --metric object_carry_score`). "
         "Held by both arms: the share of control steps on which both touched it. "
         f"Target: carried along all three trajectories without a drop at ≤ {_STUDY_WORST} m "
         '(the study\'s worst single-arm 3-D RMSE). docs/environment.md, "Transport".'
     )
+    _random_table(doc, ctx)
     carried = set(summary["group"])
     drawn = [g for g in ctx.groups if g.label in carried][:_MAX_FIGURE_GROUPS]
     runs = []
@@ -130,6 +199,39 @@ def transport_section(doc: Doc, ctx: Context) -> None:
     path, rel = ctx.figure("transport.png")
     transport_figure(runs, path, ctx.footer(drawn))
     doc.img(rel, "the arms carrying the sphere along each trajectory")
+
+
+def _random_table(doc: Doc, ctx: Context) -> None:
+    """The held-out random targets' table (:func:`random_summary`), if any run has them."""
+    summary = random_summary(ctx.groups)
+    if summary.empty:
+        return
+    doc.table(
+        [
+            "controller",
+            "seeds",
+            "episodes carried to the end",
+            "median time held (s)",
+            "carry score (m): IQM [95 % CI]",
+        ],
+        [
+            [
+                str(r["group"]),
+                str(int(r["n"])),
+                f"{int(r['carried'])} of {int(r['episodes'])}",
+                f"{r['median_hold']:.1f}",
+                f"{r['score']:.3f} [{r['score_low']:.3f}, {r['score_high']:.3f}]",
+            ]
+            for _, r in summary.iterrows()
+        ],
+    )
+    doc.p(
+        "The held-out random targets (`softtrack evaluate RUN --random 20`: the same targets "
+        "for every run): episodes that kept the sphere to their end, the median time it was "
+        "held, and the interquartile mean of the carry score over every seed and episode with "
+        "its stratified bootstrap interval (episodes as cells). `softtrack compare A B --random "
+        "--metric object_carry_score` compares two controllers on them."
+    )
 
 
 def _ending(run: RunData, trajectory: str) -> str:
