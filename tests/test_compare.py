@@ -167,9 +167,10 @@ def test_the_carry_score_counts_a_drop_against_the_controller(tmp_path: Path, ta
     assert np.nanmax(carries.scores) == pytest.approx(0.32)
     assert scored.improvement["carries"].value == pytest.approx(0.0)
     if random:
-        assert drops.cells[:3] == (("random 0", 0), ("random 0", 1), ("random 1", 0))
-        assert drops.scores.shape == (3, 8)
-        assert "8 cells" not in "\n".join(scored.lines())  # few cells: printed one by one
+        # the sphere's score is the same in both arms' rows: one cell per episode
+        assert drops.cells[:3] == (("random 0", 0), ("random 1", 0), ("random 2", 0))
+        assert drops.scores.shape == (3, 4)
+        assert "random 3  " in "\n".join(scored.lines())  # few cells: printed one by one
 
 
 def test_random_cells_need_random_evaluations(store: RunStore) -> None:
@@ -197,7 +198,7 @@ def test_many_cells_print_only_the_overall_statistics(tmp_path: Path) -> None:
             "terminated": False,
             "cpu": "CPU A",
         }
-        for k in range(MAX_PRINTED_CELLS)
+        for k in range(MAX_PRINTED_CELLS + 1)
         for arm in (0, 1)
     ]
     write_table(extra.table_path("eval_random"), rows)
@@ -205,7 +206,7 @@ def test_many_cells_print_only_the_overall_statistics(tmp_path: Path) -> None:
         ["a", "b"], runs_dir=store.root, metric="object_rmse_3d", reps=200, random=True
     )
     text = "\n".join(result.lines())
-    assert f"({2 * MAX_PRINTED_CELLS} cells: the per-cell intervals are left out)" in text
+    assert f"({MAX_PRINTED_CELLS + 1} cells: the per-cell intervals are left out)" in text
     assert "per cell:" not in text and "P(a improves on b) = 1.00" in text
 
 

@@ -35,7 +35,8 @@ from softtrack.evaluation.seed_statistics import (
     probability_of_improvement,
     stratified_bootstrap,
 )
-from softtrack.evaluation.tables import with_carry_score
+from softtrack.evaluation.tables import CARRY_SCORE, with_carry_score
+from softtrack.evaluation.transport_metrics import TRANSPORT_STATISTICS
 from softtrack.report.data import RunData, load_runs
 from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
 from softtrack.report.select import select_report_runs
@@ -44,6 +45,7 @@ from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
 __all__ = [
     "CROSS_CPU_NOTE",
     "MAX_PRINTED_CELLS",
+    "SCENE_METRICS",
     "Comparison",
     "ControllerScores",
     "compare_controllers",
@@ -51,6 +53,9 @@ __all__ = [
     "profile_figure",
     "scored_rows",
 ]
+
+#: Metrics of the whole scene, the same in both arms' rows: one cell per trajectory.
+SCENE_METRICS = frozenset((*TRANSPORT_STATISTICS, CARRY_SCORE))
 
 #: More cells than this (e.g. one per random-target episode) print only the statistics over
 #: all cells.
@@ -114,6 +119,7 @@ class Comparison:
                 f"{self.overall[c.label].text():>24}  {cpus}"
             )
         per_cell = len(first.cells) <= MAX_PRINTED_CELLS
+        scene = not any(arm for _, arm in first.cells)
         columns = {c.label: max(24, len(c.label)) for c in self.controllers}
         if per_cell:
             out += [
@@ -122,7 +128,7 @@ class Comparison:
                 + "".join(f"  {c.label:>{columns[c.label]}}" for c in self.controllers),
             ]
         for j, (trajectory, arm) in enumerate(first.cells if per_cell else ()):
-            row = f"{trajectory_title(trajectory) + f', arm {arm + 1}':20}"
+            row = f"{_cell_name(trajectory, arm, scene, ', '):20}"
             for c in self.controllers:
                 interval = self.per_cell[c.label][j]
                 row += f"  {interval.text() if interval else 'no data':>{columns[c.label]}}"
@@ -137,7 +143,7 @@ class Comparison:
                 "(0.5: no difference; above 0.5: the first is better)",
             ]
             cells = [
-                f"{trajectory_title(t)} arm {a + 1} {i.text(2) if i else 'no data'}"
+                f"{_cell_name(t, a, scene, ' ')} {i.text(2) if i else 'no data'}"
                 for (t, a), i in zip(
                     first.cells, self.per_cell_improvement[other.label], strict=True
                 )
@@ -146,6 +152,12 @@ class Comparison:
                 out.append("  per cell: " + "; ".join(cells))
         out += ["", CROSS_CPU_NOTE]
         return out
+
+
+def _cell_name(trajectory: str, arm: int, scene: bool, separator: str) -> str:
+    """``circle, arm 1`` (or, for a metric of the whole scene, ``circle``)."""
+    title = trajectory_title(trajectory)
+    return title if scene else f"{title}{separator}arm {arm + 1}"
 
 
 def _seeds(seeds: Sequence[int]) -> str:
@@ -164,11 +176,14 @@ def controller_scores(
 ) -> ControllerScores:
     """The score matrix of one controller from its runs' ``(seed, eval_metrics)`` (or other
     rows with the columns trajectory, arm and ``metric``; ``table_name`` names them in errors).
+    A cell is a trajectory and arm; for a metric of the whole scene (the sphere's, the same in
+    both arms' rows) a trajectory, as arm 0, so that no value counts twice.
 
     Raises:
         RunStoreError: no run has ``metric`` stored.
     """
-    cells = tuple((t, arm) for t in trajectories for arm in (0, 1))
+    arms = (0,) if metric in SCENE_METRICS else (0, 1)
+    cells = tuple((t, arm) for t in trajectories for arm in arms)
     rows: list[list[float]] = []
     seeds: list[int] = []
     cpus: dict[str, int] = {}
