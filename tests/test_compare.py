@@ -166,6 +166,7 @@ def test_the_carry_score_counts_a_drop_against_the_controller(tmp_path: Path, ta
     assert np.nanmin(drops.scores) == pytest.approx(np.sqrt((0.01 * 3 + 9) / 12))
     assert np.nanmax(carries.scores) == pytest.approx(0.32)
     assert scored.improvement["carries"].value == pytest.approx(0.0)
+    assert drops.cpus == {"CPU A": 3 * (4 if random else 3)}  # one row per cell, not per arm
     if random:
         # the sphere's score is the same in both arms' rows: one cell per episode
         assert drops.cells[:3] == (("random 0", 0), ("random 1", 0), ("random 2", 0))

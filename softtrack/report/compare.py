@@ -196,7 +196,12 @@ def controller_scores(
         }
         rows.append([by_cell.get(cell, np.nan) for cell in cells])
         seeds.append(seed)
-        kinds = table["cpu"].fillna("unrecorded") if "cpu" in table else ["unrecorded"] * len(table)
+        counted = table[table["arm"].isin(arms)] if "arm" in table else table
+        kinds = (
+            counted["cpu"].fillna("unrecorded")
+            if "cpu" in counted
+            else ["unrecorded"] * len(counted)
+        )
         for kind in kinds:
             cpus[str(kind)] = cpus.get(str(kind), 0) + 1
     if not rows:
