@@ -463,6 +463,8 @@ REPORTED = (
     "td3-sbx-128-mirror-tta-viewpoints-margin",
     "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
     "td3-sbx-128-mirror-fast-transport-fine-10ms-track",
+    "td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors",
+    "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
