@@ -13,6 +13,11 @@ from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.report.compare import MAX_PRINTED_CELLS, compare_selection
 from softtrack.report.data import group_runs, load_runs
 from softtrack.report.transport import random_summary
+from softtrack.report.transport_frontier import (
+    frontier_figure,
+    hold_track_frontier,
+    longest_holding,
+)
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import write_table
@@ -225,3 +230,24 @@ def test_the_report_summarises_the_random_targets_of_transport(tmp_path: Path) -
     assert carries["score"] == pytest.approx(0.31)
     assert carries["score_low"] <= 0.31 <= carries["score_high"]
     assert drops["score"] > 0.8  # 9 s of 12 counted at 1 m
+
+
+def test_the_frontier_places_each_run_between_holding_and_carrying(tmp_path: Path) -> None:
+    store = RunStore(tmp_path / "runs")
+    _transport_runs(store, "drops", [(0.10, 3.0), (0.12, 6.0)], "eval_random")
+    _transport_runs(store, "carries", [(0.30, None)], "eval_random")
+    _transport_runs(store, "carries", [(0.30, None)], "eval_metrics")
+    groups = group_runs(load_runs(store.list_runs()))
+    frontier = hold_track_frontier(groups)
+    drops = frontier[frontier["group"].str.contains("drops")].sort_values("seed")
+    assert list(drops["episodes"]) == ["random", "random"]
+    assert list(drops["held_fraction"]) == pytest.approx([3.0 / 12, 6.0 / 12])
+    assert list(drops["error"]) == pytest.approx([0.10, 0.12])
+    assert list(drops["carried"]) == [0, 0] and list(drops["n"]) == [4, 4]  # arm 0's rows only
+    carries = frontier[frontier["group"].str.contains("carries")].set_index("episodes")
+    assert carries.loc["random", "held_fraction"] == 1.0
+    assert carries.loc["trajectories", "n"] == 3 and carries.loc["trajectories", "carried"] == 3
+    path = frontier_figure(frontier, tmp_path / "frontier.png", 0.065, "footer")
+    assert path.stat().st_size > 10_000
+    kept = longest_holding(frontier, 1)
+    assert set(kept["group"]) == set(carries["group"]) and len(kept) == 2  # both its rows

@@ -5,9 +5,10 @@ Only for controllers whose evaluations recorded the sphere (``eval_metrics`` col
 ``object_rmse_3d``). A table per controller and trajectory (the sphere's 3-D RMSE against its
 goal, its carry score, drops, the time both arms held it, each arm's mean squeeze), a table
 of the held-out random targets per controller (episodes carried to the end, the carry score
-with its interval), and a figure per
-controller (rows) and trajectory (columns): the sphere's path and its goal's from the front and
-from above, with the arms and the sphere drawn at the instants ``eval_snapshots`` kept.
+with its interval), a figure of holding against carrying (one point per run:
+:mod:`softtrack.report.transport_frontier`) and a figure per controller (rows) and trajectory
+(columns): the sphere's path and its goal's from the front and from above, with the arms and
+the sphere drawn at the instants ``eval_snapshots`` kept.
 """
 
 from __future__ import annotations
@@ -27,7 +28,13 @@ from softtrack.report.compare import compare_controllers, controller_scores, sco
 from softtrack.report.contact import draw_arm
 from softtrack.report.data import Group, RunData
 from softtrack.report.document import Context, Doc
+from softtrack.report.families import MAX_SERIES
 from softtrack.report.text import mean_pm_std
+from softtrack.report.transport_frontier import (
+    frontier_figure,
+    hold_track_frontier,
+    longest_holding,
+)
 
 __all__ = ["random_summary", "transport_figure", "transport_section", "transport_summary"]
 
@@ -187,6 +194,7 @@ def transport_section(doc: Doc, ctx: Context) -> None:
         '(the study\'s worst single-arm 3-D RMSE). docs/environment.md, "Transport".'
     )
     _random_table(doc, ctx)
+    _frontier(doc, ctx)
     carried = set(summary["group"])
     drawn = [g for g in ctx.groups if g.label in carried][:_MAX_FIGURE_GROUPS]
     runs = []
@@ -231,6 +239,30 @@ def _random_table(doc: Doc, ctx: Context) -> None:
         "held, and the interquartile mean of the carry score over every seed and episode with "
         "its stratified bootstrap interval (episodes as cells). `softtrack compare A B --random "
         "--metric object_carry_score` compares two controllers on them."
+    )
+
+
+def _frontier(doc: Doc, ctx: Context) -> None:
+    """The holding-against-carrying figure (:mod:`softtrack.report.transport_frontier`)."""
+    frontier = hold_track_frontier(ctx.groups)
+    if frontier.empty:
+        return
+    shown = longest_holding(frontier, MAX_SERIES)
+    drawn = [g for g in ctx.groups if g.label in set(shown["group"])]
+    path, rel = ctx.figure("transport_frontier.png")
+    frontier_figure(shown, path, _STUDY_WORST, ctx.footer(drawn))
+    doc.img(rel, "holding the sphere against carrying it, one point per run")
+    left_out = frontier["group"].nunique() - len(drawn)
+    doc.p(
+        (
+            f"The {len(drawn)} controllers that hold the sphere longest ({left_out} left out). "
+            if left_out
+            else ""
+        )
+        + "One point per run: how much of its episodes it kept the sphere (x) and how far the "
+        "sphere was from its goal while held (y, the median over the episodes). A lazy grasp "
+        "holds long and lags the goal; a grasp that moves the sphere loses it sooner. The "
+        f"green corner is the target: held to the end at ≤ {_STUDY_WORST} m."
     )
 
 
