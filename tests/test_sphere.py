@@ -44,7 +44,8 @@ def _params(**changes: object) -> SimParams:
     [
         ({"radius": -0.05}, "sphere radius=-0.05 must be > 0 m"),
         ({"density": 0.0}, "sphere density=0.0 must be > 0"),
-        ({"center": (0.05, 0.975, 0.0)}, "overlaps an arm at rest by 50 mm"),
+        ({"center": (0.03, 0.975, 0.0)}, "by 30 mm; move the centre or use a radius ≤ 0.02 m"),
+        ({"center": (0.05, 0.975, 0.0)}, "by 50 mm; move the centre off the arms"),
         ({"contact_k": 0.0}, "sphere contact_nu=100.0 needs contact between the arms and"),
         (
             {"contact_k": 0.0, "contact_nu": 0.0, "velocity_damping": 0.0},

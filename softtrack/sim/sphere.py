@@ -139,10 +139,15 @@ class SphereParams:
             return f"a sphere needs the two-arm scene, but there are {params.n_arms} arms"
         overlap = self.rest_overlap(params)
         if overlap > _REST_OVERLAP_TOLERANCE:
+            largest = self.radius - overlap
+            fix = (
+                f"move the centre or use a radius ≤ {largest:.4g} m"
+                if largest > 0
+                else "move the centre off the arms (it lies on or inside one)"
+            )
             return (
                 f"sphere center={tuple(self.center)} overlaps an arm at rest by "
-                f"{overlap * 1e3:.3g} mm; move the centre or use a radius ≤ "
-                f"{self.radius - overlap:.4g} m"
+                f"{overlap * 1e3:.3g} mm; {fix}"
             )
         return self._stability_problem(params)
 
