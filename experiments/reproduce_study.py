@@ -93,6 +93,7 @@ KEEP_STEPS = (
     "mpc-mppi-64x50-transport",
     "mpc-mppi-64x50-transport-grip",
     "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
+    "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
 

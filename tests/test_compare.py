@@ -12,7 +12,7 @@ from softtrack.cli import app
 from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.report.compare import MAX_PRINTED_CELLS, compare_selection
 from softtrack.report.data import group_runs, load_runs
-from softtrack.report.transport import random_summary
+from softtrack.report.transport import figure_runs, random_summary
 from softtrack.report.transport_frontier import (
     frontier_figure,
     hold_track_frontier,
@@ -251,3 +251,25 @@ def test_the_frontier_places_each_run_between_holding_and_carrying(tmp_path: Pat
     assert path.stat().st_size > 10_000
     kept = longest_holding(frontier, 1)
     assert set(kept["group"]) == set(carries["group"]) and len(kept) == 2  # both its rows
+
+
+def test_the_transport_figure_skips_controllers_without_per_step_positions(
+    tmp_path: Path,
+) -> None:
+    """A controller whose shipped runs dropped ``eval_trajectories`` takes no place in the
+    figure: the next one that kept them is drawn instead."""
+    store = RunStore(tmp_path / "runs")
+    for name in ("a-lean", "b-kept", "c-kept"):
+        _transport_runs(store, name, [(0.30, None)], "eval_metrics")
+    for record in store.list_runs():
+        if record.info.name != "a-lean":
+            positions = [
+                {"run_id": record.run_id, "trajectory": "circle", "step": 0, "t": 0.0, "arm": arm}
+                for arm in (0, 1)
+            ]
+            write_table(record.table_path("eval_trajectories"), positions)
+    groups = group_runs(load_runs(store.list_runs()))
+    assert len(groups) == 3
+    drawn = [group.label for group, _ in figure_runs(groups, 4)]
+    assert len(drawn) == 2 and not any("a-lean" in label for label in drawn)
+    assert figure_runs(groups, 1)[0][0].label == drawn[0]

@@ -36,7 +36,13 @@ from softtrack.report.transport_frontier import (
     longest_holding,
 )
 
-__all__ = ["random_summary", "transport_figure", "transport_section", "transport_summary"]
+__all__ = [
+    "figure_runs",
+    "random_summary",
+    "transport_figure",
+    "transport_section",
+    "transport_summary",
+]
 
 _MAX_FIGURE_GROUPS = 4  # controllers drawn in the figure (the rest: the table)
 _STUDY_WORST = 0.065  # m, the study's worst single-arm 3-D RMSE: the issue's carrying target
@@ -195,18 +201,27 @@ def transport_section(doc: Doc, ctx: Context) -> None:
     )
     _random_table(doc, ctx)
     _frontier(doc, ctx)
-    carried = set(summary["group"])
-    drawn = [g for g in ctx.groups if g.label in carried][:_MAX_FIGURE_GROUPS]
-    runs = []
-    for group in drawn:
-        run = next((r for r in group.runs if _carried(r) and r.trajectories is not None), None)
-        if run is not None:
-            runs.append((group.label, run))
-    if not runs:
+    drawn_runs = figure_runs(ctx.groups, _MAX_FIGURE_GROUPS)
+    if not drawn_runs:
         return
+    drawn = [g for g, _ in drawn_runs]
+    runs = [(g.label, run) for g, run in drawn_runs]
     path, rel = ctx.figure("transport.png")
     transport_figure(runs, path, ctx.footer(drawn))
     doc.img(rel, "the arms carrying the sphere along each trajectory")
+
+
+def figure_runs(groups: Sequence[Group], limit: int) -> list[tuple[Group, RunData]]:
+    """The transport figure's controllers, in the groups' order, at most ``limit``: each
+    group's first run that carried a sphere and kept its per-step positions
+    (``eval_trajectories``; the shipped runs of most experiments drop them), groups without
+    one left out so that they take no place in the figure."""
+    drawn = []
+    for group in groups:
+        run = next((r for r in group.runs if _carried(r) and r.trajectories is not None), None)
+        if run is not None:
+            drawn.append((group, run))
+    return drawn[:limit]
 
 
 def _random_table(doc: Doc, ctx: Context) -> None:
