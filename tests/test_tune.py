@@ -164,7 +164,9 @@ def test_tune_needs_a_tune_section_and_a_mode(tmp_path: Path) -> None:
 
 
 # ---- trials are runs; status, best, continuing ------------------------------------------------
-def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
+def test_trials_are_runs_and_the_best_spec_trains(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     spec = _spec(tmp_path)
     runs_dir = tmp_path / "runs"
     result = _tune(str(spec), "--trials", "2", "--study", "s", "--runs-dir", str(runs_dir))
@@ -204,7 +206,7 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
     text = out.read_text(encoding="utf-8")
     assert text.startswith("# Best trial of study s") and "base: ../tiny.yaml" in text
     winner = min(study.get_trials(), key=lambda t: t.value)
-    assert f"trial {winner.number} " in text and winner.user_attrs["run_id"] in text
+    assert f"): trial {winner.number}, run {winner.user_attrs['run_id']}," in text
     best_spec = load_spec(out)
     assert best_spec.tune is None
     assert spec_hash(best_spec) == _run_of(winner, runs_dir).info.spec_hash
@@ -215,6 +217,20 @@ def test_trials_are_runs_and_the_best_spec_trains(tmp_path: Path) -> None:
     again = RunStore(tmp_path / "again").get_run(trained.stdout.strip())
     assert again.info.status == "completed"
     assert again.info.spec_hash == _run_of(winner, runs_dir).info.spec_hash
+
+    # from another checkout (a clone holding the same tuned spec): the best spec names the
+    # clone's file, and the study's database relative to the working directory, so that the
+    # written file has no machine path and stays valid where it is committed
+    clone = tmp_path / "clone"
+    clone.mkdir()
+    (clone / spec.name).write_text(spec.read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.chdir(tmp_path)
+    best = _tune("--best", "s", "--out", "clone/s-best.yaml", "--runs-dir", "runs")
+    assert best.exit_code == 0, best.output
+    text = (clone / "s-best.yaml").read_text(encoding="utf-8")
+    assert f"base: {spec.name}" in text and "# storage: sqlite:///runs/optuna.db" in text
+    assert str(tmp_path) not in text
+    assert spec_hash(load_spec(clone / "s-best.yaml")) == _run_of(winner, runs_dir).info.spec_hash
 
     # continuing the study: one more trial, exactly
     result = _tune(str(spec), "--trials", "3", "--study", "s", "--runs-dir", str(runs_dir))
@@ -362,6 +378,12 @@ def test_interrupted_study_resumes_its_run(tmp_path: Path) -> None:
     assert rows.groupby(["global_step", "episode", "arm"]).size().max() == 1  # validated once
     assert set(rows["global_step"]) == set(range(200, 1601, 200))
     assert len(RunStore(runs_dir).list_runs()) == 1
+    best = _tune("--best", "i", "--out", str(tmp_path / "i-best.yaml"), "--runs-dir", str(runs_dir))
+    assert best.exit_code == 0, best.output
+    header = (tmp_path / "i-best.yaml").read_text(encoding="utf-8").splitlines()[0]
+    assert header.endswith(
+        f"(softtrack tune, 1 trial): trial 1 (a retry of trial 0), run {record.run_id},"
+    )
 
 
 @pytest.mark.faults("held")

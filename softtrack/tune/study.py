@@ -693,16 +693,20 @@ def best_spec_text(ts: TuneStudy, out: Path, runs_dir: str | os.PathLike[str] | 
     values = decode_params(ts.tune, best.params)
     spec = trial_spec(ts, values, name)
     shown = ", ".join(f"{p} = {json.dumps(v)}" for p, v in values.items())
+    retry_of = best.user_attrs.get("retry_of")
+    trial = f"trial {best.number}" + (
+        f" (a retry of trial {retry_of})" if retry_of is not None else ""
+    )
     header = (
-        f"# Best trial of study {ts.name} (softtrack tune): trial {best.number} of "
-        f"{ts.n_trials}, run {run_id or '?'},\n"
+        f"# Best trial of study {ts.name} (softtrack tune, {ts.n_trials} "
+        f"trial{'' if ts.n_trials == 1 else 's'}): {trial}, "
+        f"run {run_id or '?'},\n"
         f"# validation score {best.value:.6g} m (mean 3-D RMSE at its best checkpoint)\n"
-        f"# storage: {shown_url(ts.url)}\n# values: {shown}\n"
+        f"# storage: {_portable_url(ts.url)}\n# values: {shown}\n"
         "# Train it with `softtrack train THIS_FILE`: its runs join the trial's run (same "
         "experiment\n# name and spec hash).\n"
     )
-    base_file = ts.info.get("spec_file")
-    if base_file and Path(base_file).is_file():
+    for base_file in _base_candidates(ts.info.get("spec_file"), out):
         try:
             base = load_spec(base_file)
             exclude = {"tune", "name", "seeds"}
@@ -725,6 +729,29 @@ def best_spec_text(ts: TuneStudy, out: Path, runs_dir: str | os.PathLike[str] | 
         + "# (the whole resolved spec: the tuned spec file is not available)\n"
         + spec_to_yaml(full)
     )
+
+
+def _base_candidates(spec_file: str | None, out: Path) -> list[Path]:
+    """Files the best spec may name as its ``base:``, in order: the tuned spec's namesake
+    beside ``out`` (the same file in this checkout when the study was started from another
+    one, so that the written spec stays valid in a clone), then the file the study was started
+    from. Only existing files."""
+    if not spec_file:
+        return []
+    started_from = Path(spec_file)
+    candidates = [out.parent / started_from.name, started_from]
+    unique = {os.path.abspath(c): c for c in candidates if c.is_file()}
+    return list(unique.values())
+
+
+def _portable_url(url: str) -> str:
+    """``url`` as the header of a written spec shows it: a SQLite file below the working
+    directory relative to it (no machine path in a committed file), else :func:`shown_url`."""
+    db = _sqlite_file(url)
+    if db is not None and db.is_absolute():
+        with contextlib.suppress(ValueError):
+            return f"sqlite:///{db.relative_to(Path.cwd()).as_posix()}"
+    return shown_url(url)
 
 
 def _diff(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
