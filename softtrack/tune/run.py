@@ -188,7 +188,7 @@ def tune(
     store = RunStore(root)
     added = top_up(ts, store, trials)
     say = log or (lambda line: None)
-    say(f"{summary_line(ts)}; {added} trial{'s' if added != 1 else ''} to run")
+    say(f"{summary_line(ts)}; {added} new trial{'s' if added != 1 else ''} queued")
     outcome = TuneOutcome(name, url, trials)
     workers = options.workers or 1
     if options.executor == "local":
