@@ -416,6 +416,12 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     assert retry.user_attrs["run_id"] == record.run_id and retry.user_attrs["deaths"] == 1
     assert store.get_run(record.run_id).info.status == "completed"
     assert len(store.list_runs()) == 1
+    status = _tune("--status", "d", "--runs-dir", str(runs_dir))
+    assert status.exit_code == 0, status.output
+    row = next(line for line in status.stdout.splitlines() if line.startswith("0 "))
+    assert row.split()[1] == "fail" and row.endswith(
+        f"its worker died (run {record.run_id} lost); retried as 1"
+    )
 
 
 @pytest.mark.slow

@@ -606,9 +606,11 @@ def summary_line(ts: TuneStudy) -> str:
 
 def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
     """One row per trial: number, state, value (m), step (the last reported), params (spec
-    values), run_id, note (retry of / pruned at / failure)."""
+    values), run_id, note (retry of / pruned at / failure / retried as)."""
     rows = []
-    for t in ts.trials():
+    trials = ts.trials()
+    retried_as = {t.user_attrs["retry_of"]: t.number for t in trials if "retry_of" in t.user_attrs}
+    for t in trials:
         attrs = t.user_attrs
         notes = []
         if "retry_of" in attrs:
@@ -617,9 +619,12 @@ def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
             notes.append(f"replaces {attrs['replaces']}")
         if t.state.name == "PRUNED" and t.intermediate_values:
             notes.append(f"pruned at step {max(t.intermediate_values):,}")
-        for key in ("interrupted", "failure", "error"):
-            if key in attrs:
-                notes.append(str(attrs[key]))
+        reasons = [str(attrs[key]) for key in ("interrupted", "failure", "error") if key in attrs]
+        if t.state.name == "FAIL" and not reasons:
+            reasons.append("its worker stopped (no heartbeat)")
+        notes.extend(reasons)
+        if t.state.name == "FAIL" and t.number in retried_as:
+            notes.append(f"retried as {retried_as[t.number]}")
         value = t.value
         if value is None and t.intermediate_values:
             value = t.intermediate_values[max(t.intermediate_values)]
