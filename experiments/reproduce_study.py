@@ -63,6 +63,7 @@ from typing import Any
 from softtrack import api
 from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.runs import resolve_run
+from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS
 from softtrack.report.data import Group, load_runs, representative_run
 from softtrack.rl.confirmation import confirm_run
 from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash, spec_to_yaml
@@ -70,6 +71,7 @@ from softtrack.store.atomic import atomic_write_text
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.provenance import portable_path
 from softtrack.store.runs import RunStore, resolve_runs_dir
+from softtrack.store.tables import read_table, write_table
 
 ROOT = Path(__file__).resolve().parent.parent
 SOFTTRACK = [sys.executable, "-m", "softtrack.cli"]
@@ -728,12 +730,28 @@ def lean(run_dir: Path, name: str) -> None:
     and `softtrack evaluate models/<run>` writes them again in seconds. Unless a derived run
     confirms its models (:func:`keeps_other_models`): the other model beside the policy
     (``other_models/``, what ``softtrack evaluate --model last`` runs), as ``softtrack export
-    --policy-only`` leaves it out."""
+    --policy-only`` leaves it out. And the validation table's columns that nothing reads
+    (:func:`lean_validation`)."""
     if name not in KEEP_STEPS:
         for table in ("eval_trajectories", "eval_moments"):
             (run_dir / "tables" / f"{table}.parquet").unlink(missing_ok=True)
     if not keeps_other_models(name):
         drop_other_models(run_dir)
+    lean_validation(run_dir)
+
+
+def lean_validation(run_dir: Path) -> None:
+    """Keep of ``tables/validation.parquet`` the columns that scores and the report read
+    (:data:`~softtrack.evaluation.tables.VALIDATION_SCORED_COLUMNS`, with ``run_id``,
+    ``seed`` and ``wall_time``): the per-axis and action metrics of every checkpoint are four
+    fifths of a shipped transport run's bytes, and the run directory under ``runs/`` keeps
+    them."""
+    path = run_dir / "tables" / "validation.parquet"
+    if not path.is_file():
+        return
+    rows = read_table(path)
+    keep = {"run_id", "seed", "wall_time", *VALIDATION_SCORED_COLUMNS}
+    write_table(path, rows[[c for c in rows.columns if c in keep]])
 
 
 def lean_undrawn_steps(name: str) -> None:

@@ -4,20 +4,24 @@ only where the report draws them (experiments/reproduce_study.py ``KEEP_STEPS``)
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
-from reproduce_study import FEATURED, KEEP_STEPS, lean  # noqa: E402
+from reproduce_study import FEATURED, KEEP_STEPS, lean, lean_validation  # noqa: E402
 
 from softtrack.evaluation import EVAL_TRAJECTORIES  # noqa: E402
 from softtrack.evaluation.runs import resolve_run  # noqa: E402
+from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS, validation_score  # noqa: E402
 from softtrack.report.data import Group, episode_rmse, load_runs, representative_run  # noqa: E402
+from softtrack.store.tables import read_table  # noqa: E402
 
 MODELS_BUDGET = 100 * 1000 * 1000  # bytes of models/ in the tree
 PER_STEP_TABLES = ("eval_trajectories", "eval_moments")
@@ -65,6 +69,26 @@ def test_lean_drops_the_per_step_tables_of_undrawn_experiments(tmp_path: Path) -
         left = {p.stem for p in tables.iterdir()}
         expected = {"eval_metrics", "eval_moment_peaks"} | (set(PER_STEP_TABLES) if kept else set())
         assert left == expected
+
+
+def test_lean_validation_keeps_what_scores_and_the_report_read(tmp_path: Path) -> None:
+    """A shipped transport run's validation table, trimmed to the scored columns: the same
+    validation score at every checkpoint and the same report rows, in a fraction of the bytes."""
+    source = ROOT / "models" / "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity-3e6-seed2"
+    run = tmp_path / source.name
+    shutil.copytree(source, run)
+    path = run / "tables" / "validation.parquet"
+    full = read_table(path)
+    lean_validation(run)
+    trimmed = read_table(path)
+    assert set(trimmed.columns) == {"run_id", "seed", "wall_time", *VALIDATION_SCORED_COLUMNS}
+    assert path.stat().st_size < (source / "tables" / "validation.parquet").stat().st_size / 4
+    for step, rows in full.groupby("global_step"):
+        kept = trimmed[trimmed["global_step"] == step]
+        assert validation_score(kept, 12.0) == validation_score(rows, 12.0)
+    original, lean_run = load_runs([resolve_run(str(source)), resolve_run(str(run))])
+    assert lean_run.validation is not None and original.validation is not None
+    pd.testing.assert_frame_equal(lean_run.validation, original.validation)
 
 
 def test_an_independent_run_with_contact_is_derived_from_its_nominal_training() -> None:

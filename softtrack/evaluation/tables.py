@@ -33,6 +33,7 @@ __all__ = [
     "CARRY_SCORE",
     "LOST_OBJECT_ERROR",
     "STEADY_START",
+    "VALIDATION_SCORED_COLUMNS",
     "carry_errors",
     "element_moments_table",
     "element_peaks_frame",
@@ -220,6 +221,21 @@ def element_moments_table(run_id: str, episode: Episode) -> pd.DataFrame:
 #: The error a dropped sphere counts, in a validation score, for every step of its episode
 #: after the drop, m: about the arms' reach, more than any carrying error.
 LOST_OBJECT_ERROR = 1.0
+
+
+#: The columns of ``tables/validation.parquet`` that :func:`validation_score` and the report's
+#: validation section read; a shipped run may keep only these (experiments/reproduce_study.py).
+VALIDATION_SCORED_COLUMNS = (
+    "global_step",
+    "trajectory",
+    "episode",
+    "arm",
+    "rmse_3d",
+    "terminated",
+    "object_rmse_3d",
+    "dropped",
+    "drop_time",
+)
 
 
 def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) -> float:

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from softtrack.evaluation import EVAL_TRAJECTORIES
+from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS
 from softtrack.store.runs import RunRecord
 from softtrack.store.status import episodes_by_arm, eval_duration, final_stage_fraction
 from softtrack.store.tables import TableError, read_table
@@ -59,17 +60,6 @@ _RANDOM_COLUMNS = (
     "rmse_3d",
     "terminated",
     "cpu",
-    "object_rmse_3d",
-    "dropped",
-    "drop_time",
-)
-_VALIDATION_COLUMNS = (
-    "global_step",
-    "trajectory",
-    "episode",
-    "arm",
-    "rmse_3d",
-    "terminated",
     "object_rmse_3d",
     "dropped",
     "drop_time",
@@ -249,7 +239,7 @@ def load_run(record: RunRecord) -> RunData:
         metrics=_read(record, "eval_metrics", problems),
         moments=moments,
         random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
-        validation=_read(record, "validation", problems, _VALIDATION_COLUMNS),
+        validation=_read(record, "validation", problems, VALIDATION_SCORED_COLUMNS),
         peaks=episode_peaks(moments, element_peaks),
         robustness=_read(record, "eval_robustness", problems, _ROBUSTNESS_COLUMNS),
         snapshots=_read(record, "eval_snapshots", problems),
