@@ -357,8 +357,8 @@ JOBS: tuple[Job, ...] = (
         policy_only=True,
     ),
     *seeded_jobs(
-        V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-tuned.yaml",
-        "td3-sbx-128-mirror-fast-transport-fine-10ms-tuned-3e6",
+        V + "td3-sbx-128-15e5-mirror-fast-transport-fine-10ms-tuned.yaml",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-tuned-15e5",
         (0, 1, 2),
         policy_only=True,
     ),
