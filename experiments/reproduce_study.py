@@ -16,8 +16,11 @@ lists which file each experiment comes from.
 Each job is one (spec, seed). A job whose directory under ``models/`` exists is done. Otherwise
 the script looks in the runs directory (``runs/`` or ``--runs-dir``) for a run of the same
 experiment, seed and spec: a completed one is exported, an interrupted or lost one is resumed
-(`softtrack train --resume`), and without one a new run is trained. So the script can be
-stopped at any time and started again; a training continues from its last checkpoint.
+(`softtrack train --resume`), and without one a new run is trained, unless a completed run of
+another experiment trained exactly like it (the same seed and training fields, e.g. the
+`softtrack tune` trial whose values the spec took): that run is derived under the job's spec
+(:func:`derive_run`) instead of trained again. So the script can be stopped at any time and
+started again; a training continues from its last checkpoint.
 The ``-confirm`` experiments train exactly like a shipped run and only add a confirmation
 after training (``training.confirm_episodes``), so their runs are derived from the shipped
 ones once every training is done (:func:`derive_run`), then confirmed.
@@ -70,7 +73,7 @@ from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash,
 from softtrack.store.atomic import atomic_write_text
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.provenance import portable_path
-from softtrack.store.runs import RunStore, resolve_runs_dir
+from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.tables import read_table, write_table
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -583,18 +586,25 @@ def _existing_run(job: Job, runs_dir: Path) -> tuple[str, str] | None:
     return newest.run_id, api.effective_status(newest)
 
 
-def derive_run(job: Job, runs_dir: Path) -> str:
-    """Create ``job``'s run in ``runs_dir`` from ``models/<job.derive_from>``: its files but the
-    evaluation tables, under a new run id, with ``job``'s spec, and ``notes.derived_from`` in
-    run.json. The two specs must train alike (:func:`_training_fields`). Returns the run id."""
-    assert job.derive_from is not None
-    base = resolve_run(str(ROOT / "models" / job.derive_from))
+#: run.json notes a derived run does not take from its source: the export's mark and a
+#: ``softtrack tune`` trial's study (its storage, trial numbers and pruning).
+NOT_DERIVED_NOTES = ("read_only", "tune", "pruned")
+
+
+def derive_run(job: Job, runs_dir: Path, base: RunRecord | None = None) -> str:
+    """Create ``job``'s run in ``runs_dir`` from ``base`` (default ``models/<job.derive_from>``):
+    its files but the evaluation tables and training checkpoints, under a new run id, with
+    ``job``'s spec, and ``notes.derived_from`` in run.json. The two specs must train alike
+    (:func:`_training_fields`). Returns the run id."""
+    if base is None:
+        assert job.derive_from is not None
+        base = resolve_run(str(ROOT / "models" / job.derive_from))
     spec = load_experiment(job.spec).with_seed(job.seed)
     base_spec = base.load_spec()
-    if _training_fields(spec) != _training_fields(base_spec) or base.info.seed != job.seed:
+    if not _trains_like(spec, base_spec) or base.info.seed != job.seed:
         raise SystemExit(
             f"experiments/{job.spec} (seed {job.seed}) does not train like "
-            f"models/{job.derive_from}; train it instead of deriving it"
+            f"{portable_path(base.path, ROOT)}; train it instead of deriving it"
         )
     run_id, path = create_unique_dir(runs_dir)
     shutil.copytree(
@@ -602,7 +612,9 @@ def derive_run(job: Job, runs_dir: Path) -> str:
         path,
         dirs_exist_ok=True,
         ignore=lambda _dir, names: [
-            n for n in names if n in ("run.json", "spec.yaml") or n.startswith("eval_")
+            n
+            for n in names
+            if n in ("run.json", "run.lock", "spec.yaml", "checkpoints") or n.startswith("eval_")
         ],
     )
     header = (
@@ -619,23 +631,54 @@ def derive_run(job: Job, runs_dir: Path) -> str:
             "name": spec.name,
             "spec_hash": spec_hash(spec),
             "notes": {
-                **{k: v for k, v in base.info.notes.items() if k != "read_only"},  # export marks it
+                **{k: v for k, v in base.info.notes.items() if k not in NOT_DERIVED_NOTES},
                 "derived_from": {
                     "run_id": base.info.run_id,
                     "name": base.info.name,
                     "spec_hash": base.info.spec_hash,
-                    "why": "the same training; the spec changes "
-                    + ", ".join(_evaluation_only_changes(spec, base_spec)),
+                    "why": _derivation_reason(spec, base_spec),
                 },
             },
         }
     )
     atomic_write_text(path / "run.json", info.model_dump_json(indent=2) + "\n")  # last
     print(
-        f"derived run {run_id} ({job.name} seed {job.seed}) from models/{job.derive_from}",
+        f"derived run {run_id} ({job.name} seed {job.seed}) from run {base.info.run_id} "
+        f"({base.info.name})",
         flush=True,
     )
     return run_id
+
+
+def _derivation_reason(spec: ExperimentSpec, base: ExperimentSpec) -> str:
+    """run.json ``notes.derived_from.why`` of a run of ``spec`` derived from one of ``base``."""
+    changes = _evaluation_only_changes(spec, base)
+    if not changes:
+        return "the same training under another name"
+    return "the same training; the spec changes " + ", ".join(changes)
+
+
+def _trained_twin(job: Job, runs_dir: Path) -> RunRecord | None:
+    """A completed run in ``runs_dir`` of another experiment that trained exactly like ``job``
+    (:func:`_training_fields`, the same seed), e.g. the ``softtrack tune`` trial whose values
+    ``job``'s spec took: the newest, or None."""
+    if not runs_dir.is_dir():
+        return None
+    spec = load_experiment(job.spec).with_seed(job.seed)
+    twins = []
+    for record in RunStore(runs_dir).list_runs():
+        if record.info.seed != job.seed or record.info.name == spec.name:
+            continue
+        if record.info.total_timesteps != spec.training.total_timesteps:
+            continue  # cheap filter before reading the spec
+        if api.effective_status(record) == "completed" and _trains_like(spec, record.load_spec()):
+            twins.append(record)
+    return twins[-1] if twins else None
+
+
+def _trains_like(spec: ExperimentSpec, other: ExperimentSpec) -> bool:
+    """Whether runs of the two specs train alike: equal :func:`_training_fields`."""
+    return _training_fields(spec) == _training_fields(other)
 
 
 #: What a derived run's spec may change: fields its training does not see. An independent
@@ -701,10 +744,14 @@ def run_job(job: Job, runs_dir: Path, core: int | None) -> None:
         lean(dest, job.name)
         return
     elif found is None:
-        out = _softtrack(
-            "train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs, taskset=core
-        )
-        run_id = out.split()[0]
+        twin = _trained_twin(job, runs_dir)
+        if twin is not None:
+            run_id = derive_run(job, runs_dir, twin)
+        else:
+            out = _softtrack(
+                "train", f"experiments/{job.spec}", "--seed", str(job.seed), *runs, taskset=core
+            )
+            run_id = out.split()[0]
     else:
         run_id, status = found
         if status == "running":

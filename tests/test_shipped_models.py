@@ -160,3 +160,47 @@ def test_the_runs_the_report_draws_keep_their_per_step_tables() -> None:
             if not scored or drawn is None:
                 continue
             assert drawn.seed == scored[(len(scored) - 1) // 2][1], (name, trajectory)
+
+
+def test_a_job_that_a_tune_trial_trained_is_derived_from_it(tmp_path: Path) -> None:
+    """The tuned transport recipe's seed 0 trains exactly like the tune's trial 0 (the tune's
+    seed), so the script derives it from that completed run, without its checkpoints and its
+    study notes; a run that trained otherwise, or one not completed, is not a twin."""
+    import reproduce_study as rs
+
+    from softtrack.spec import spec_hash
+    from softtrack.store.runs import RunStore
+
+    dest = "td3-sbx-128-mirror-fast-transport-fine-10ms-tuned-15e5-seed"
+    job0, job1 = (next(j for j in rs.JOBS if j.dest == f"{dest}{s}") for s in (0, 1))
+    spec = rs.load_experiment(job0.spec)
+    store = RunStore(tmp_path / "runs")
+    trial = spec.model_copy(update={"name": f"{spec.name}-tune-t0"})
+    storage = {"study": "transport-10ms", "trial": 0, "storage": "sqlite:////abs/optuna.db"}
+    twin = store.create_run(trial, 0, status="completed", notes={"tune": storage})
+    (twin.path / "checkpoints" / "step-000001500000").mkdir(parents=True)
+    (twin.path / "model.zip").write_bytes(b"model")
+    store.create_run(trial, 1, status="interrupted")
+    other_values = spec.model_copy(
+        update={"name": f"{spec.name}-tune-t1", "algo": spec.algo.model_copy(update={"tau": 0.01})}
+    )
+    store.create_run(other_values, 1, status="completed")
+
+    found = rs._trained_twin(job0, store.root)
+    assert found is not None and found.run_id == twin.run_id
+    assert rs._trained_twin(job1, store.root) is None  # the seed-1 trial is not completed
+    run_id = rs.derive_run(job0, store.root, found)
+    derived = store.get_run(run_id)
+    assert derived.info.name == spec.name and derived.info.status == "completed"
+    assert derived.info.spec_hash == spec_hash(spec.with_seed(0))
+    assert (derived.path / "model.zip").read_bytes() == b"model"
+    assert not (derived.path / "checkpoints").exists()
+    assert "tune" not in derived.info.notes
+    assert derived.info.notes["derived_from"] == {
+        "run_id": twin.run_id,
+        "name": trial.name,
+        "spec_hash": twin.info.spec_hash,
+        "why": "the same training under another name",
+    }
+    assert rs._existing_run(job0, store.root) == (run_id, "completed")
+    assert rs._trained_twin(job0, store.root) is not None  # still, but the job now has its run
