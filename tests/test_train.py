@@ -157,6 +157,51 @@ def test_progress_line_format() -> None:
         "mean return of the last 20 episodes 14,169.21, 0:59 h left"
     )
     assert progress_line("x arm1", 0, 10, None, float("nan")) == "x arm1 0/10 steps (0.0%)"
+    assert progress_line("x", 5_000, 1_500_000, 1_812.4, None, updates_start=10_000) == (
+        "x 5,000/1,500,000 steps (0.3%), 1,812 steps/s, updates start at 10,000 steps"
+    )
+
+
+def test_the_time_left_counts_from_the_first_update(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """1,000 env steps without updates in 1 s, then 1,000 with updates in 10 s: the lines
+    give no time left before the updates, then the updating rate (100 steps/s, not the
+    session's 182) and the time left at that rate; the final line keeps the session's rate."""
+    from types import SimpleNamespace
+
+    from softtrack.rl import callbacks
+
+    clock = {"now": 0.0}
+    monkeypatch.setattr(callbacks.time, "monotonic", lambda: clock["now"])
+    monkeypatch.setenv("CI", "1")
+    model = SimpleNamespace(
+        num_timesteps=0, learning_starts=1_000, get_env=lambda: None, logger=None
+    )
+    record = SimpleNamespace(run_id="01ABCDEFGH12345678")
+    episodes = SimpleNamespace(recent_return=None)
+    monitor = callbacks.ProgressMonitor(
+        store=None,  # type: ignore[arg-type]
+        record=record,  # type: ignore[arg-type]
+        episodes=episodes,  # type: ignore[arg-type]
+        total_timesteps=11_000,
+        heartbeat_interval=1e9,
+        stop_requested=lambda: False,
+        line_interval=0.0,
+    )
+    monitor.init_callback(model)  # type: ignore[arg-type]
+    monitor.on_training_start({}, {})
+    for step, now in ((500, 0.5), (999, 0.999), (1_000, 1.009), (2_000, 11.009)):
+        model.num_timesteps, clock["now"] = step, now
+        monitor.on_step()
+    monitor.close()
+    lines = capsys.readouterr().err.splitlines()
+    assert (
+        lines[0] == "12345678 500/11,000 steps (4.5%), 1,000 steps/s, updates start at 1,000 steps"
+    )
+    assert lines[2] == "12345678 1,000/11,000 steps (9.1%), 100 steps/s, 0:02 h left"
+    assert lines[3] == "12345678 2,000/11,000 steps (18.2%), 100 steps/s, 0:02 h left"
+    assert lines[4] == "12345678 stopped: 2,000/11,000 steps (18.2%) in 0:11 min, 182 steps/s"
 
 
 @pytest.mark.parametrize(

@@ -388,17 +388,28 @@ def _duration(seconds: float) -> str:
 
 
 def progress_line(
-    name: str, step: int, total: int, steps_per_second: float | None, recent_return: float | None
+    name: str,
+    step: int,
+    total: int,
+    steps_per_second: float | None,
+    recent_return: float | None,
+    updates_start: int = 0,
 ) -> str:
     """One line of training progress for a log, e.g. ``5JP1EEN4 2,650,720/4,000,000 steps
     (66.3%), 378 steps/s, mean return of the last 20 episodes 14,169.21, 0:59 h left`` (the
-    episode return: the reward summed over a training episode, :attr:`EpisodeLogger.recent_return`)."""
+    episode return: the reward summed over a training episode, :attr:`EpisodeLogger.recent_return`).
+
+    Before ``updates_start`` (the model's ``learning_starts``, env steps) the env steps run
+    without gradient updates, several times faster than after: the line says when updates
+    start instead of a time left that ``steps_per_second`` would underestimate."""
     parts = [f"{name} {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%)"]
     if steps_per_second:
         parts.append(f"{steps_per_second:,.0f} steps/s")
     if recent_return is not None and math.isfinite(recent_return):
         parts.append(f"mean return of the last {RECENT_EPISODES} episodes {recent_return:,.2f}")
-    if steps_per_second and step < total:
+    if step < updates_start:
+        parts.append(f"updates start at {updates_start:,} steps")
+    elif steps_per_second and step < total:
         parts.append(f"{_duration((total - step) / steps_per_second)} left")
     return ", ".join(parts)
 
@@ -480,6 +491,7 @@ class ProgressMonitor(BaseCallback):
         self._last_line = time.monotonic()
         self._last_milestone = 0
         self._final_printed = False
+        self._updates_from = (self._start_time, 0)  # (monotonic s, env step)
 
     @property
     def name(self) -> str:
@@ -496,9 +508,27 @@ class ProgressMonitor(BaseCallback):
         done = self.num_timesteps - self._start_step
         return done / dt if dt > 0 and done > 0 else None
 
+    @property
+    def updates_start(self) -> int:
+        """The env step from which the model makes gradient updates (its ``learning_starts``;
+        0 for an on-policy model)."""
+        return int(getattr(self.model, "learning_starts", 0) or 0)
+
+    def updating_steps_per_second(self) -> float | None:
+        """Env steps per second of this session since the model's updates began (validation
+        pauses included): the rate the rest of the training runs at. Before updates begin,
+        the session's rate (``None`` before the first step)."""
+        if self.num_timesteps < self.updates_start:
+            return self.steps_per_second()
+        since, step = self._updates_from
+        dt = time.monotonic() - since
+        done = self.num_timesteps - step
+        return done / dt if dt > 0 and done > 0 else None
+
     def _on_training_start(self) -> None:
         self._start_time = self._last_line = time.monotonic()
         self._start_step = int(self.num_timesteps)
+        self._updates_from = (self._start_time, self._start_step)
         self._last_milestone = self._milestone(self._start_step)
         if self.show:
             from tqdm import tqdm
@@ -514,6 +544,8 @@ class ProgressMonitor(BaseCallback):
 
     def _on_step(self) -> bool:
         now = time.monotonic()
+        if self.num_timesteps < self.updates_start:  # the last step before the updates
+            self._updates_from = (now, int(self.num_timesteps))
         if now - self._last_beat >= self.heartbeat_interval:
             self._last_beat = now
             fields = self.run_fields(int(self.num_timesteps))
@@ -530,14 +562,15 @@ class ProgressMonitor(BaseCallback):
                     self.name,
                     step,
                     self.total_timesteps,
-                    self.steps_per_second(),
+                    self.updating_steps_per_second(),
                     self.episodes.recent_return,
+                    self.updates_start,
                 )
                 print(line, file=sys.stderr, flush=True)
         if self._bar is not None and now - self._last_bar >= 0.2:
             self._last_bar = now
             self._bar.n = min(self.num_timesteps, self.total_timesteps)
-            sps = self.steps_per_second()
+            sps = self.updating_steps_per_second()
             ret = self.episodes.recent_return
             self._bar.set_postfix(
                 {
