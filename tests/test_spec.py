@@ -629,21 +629,28 @@ def test_experiment_file_of_shipped_run_gives_its_hash(run_dir: Path) -> None:
     the run's recorded spec hash: a change to any file of a ``base:`` chain that alters a
     shipped experiment fails here. A run derived from another (``notes.derived_from``, e.g.
     the ``-confirm`` runs) records its base run's training command, whose spec gives the base
-    run's hash."""
+    run's hash; one derived from a ``softtrack tune`` trial records the tune's command, and its
+    own experiment file under the trial's name gives the trial's hash (the same spec values)."""
     info = json.loads((run_dir / "run.json").read_text(encoding="utf-8"))
     command = info["command"]
     assert not any(Path(arg).is_absolute() for arg in command), command
-    spec_file, overrides = _spec_of_command(command)
-    assert spec_file.is_file(), f"{run_dir.name}: recorded command names a missing {spec_file}"
     derived = info["notes"].get("derived_from")
-    want = derived["spec_hash"] if derived else info["spec_hash"]
-    assert spec_hash(load_spec(spec_file, overrides)) == want
     by_name = _experiment_files_by_name()
     assert info["name"] in by_name, f"no experiment file named {info['name']!r}"
     named = by_name[info["name"]]
+    if command[:2] == ["softtrack", "tune"]:
+        assert derived is not None, f"{run_dir.name}: a tune trial's run shipped as it is"
+        assert (REPO / command[2]).is_file(), f"{run_dir.name}: no tuned spec {command[2]}"
+        spec_file, overrides = named, [f"name={derived['name']}"]
+    else:
+        spec_file, overrides = _spec_of_command(command)
+    assert spec_file.is_file(), f"{run_dir.name}: recorded command names a missing {spec_file}"
+    want = derived["spec_hash"] if derived else info["spec_hash"]
+    assert spec_hash(load_spec(spec_file, overrides)) == want
     if derived is None:
         assert named == spec_file
-    assert spec_hash(load_spec(named, overrides if named == spec_file else [])) == info["spec_hash"]
+    own_overrides = overrides if named == spec_file and command[1] != "tune" else []
+    assert spec_hash(load_spec(named, own_overrides)) == info["spec_hash"]
 
 
 # ---- base: specs that state only what differs ---------------------------------------------
