@@ -477,6 +477,7 @@ REPORTED = (
     "td3-sbx-128-mirror-fast-transport-fine-10ms-track",
     "td3-sbx-128-fast-transport-fine-10ms-long-own-arm-actors",
     "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity",
+    "td3-sbx-128-mirror-fast-transport-fine-10ms-tuned",
 )
 
 #: The controllers `--robustness` evaluates under perturbations (`softtrack robustness` on their
