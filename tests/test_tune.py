@@ -319,7 +319,9 @@ def test_two_workers_pull_from_one_study(tmp_path: Path) -> None:
     assert len(run_ids) == 3 and {r.run_id for r in RunStore(runs_dir).list_runs()} == run_ids
     pids = {int(t.user_attrs["worker"].split(":")[1]) for t in study.get_trials()}
     assert os.getpid() not in pids  # trained by the worker processes
-    assert (runs_dir / "tune-w-w0.log").is_file() and (runs_dir / "tune-w-w1.log").is_file()
+    logs = [(runs_dir / f"tune-w-w{k}.log").read_text(encoding="utf-8") for k in (0, 1)]
+    finished = [line for log in logs for line in log.splitlines() if " finished: " in line]
+    assert len(finished) == 3  # each trial's training reports its progress in its worker's log
     assert "3/3 finished" in result.stderr
 
 
@@ -422,6 +424,26 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     assert row.split()[1] == "fail" and row.endswith(
         f"its worker died (run {record.run_id} lost); retried as 1"
     )
+
+
+def test_status_shows_how_far_a_running_trial_has_trained(tmp_path: Path) -> None:
+    spec_path = _spec(tmp_path)
+    runs_dir = tmp_path / "runs"
+    spec = load_spec(spec_path)
+    ts = create_or_continue(default_storage(runs_dir), "s", spec, [str(spec_path)], str(spec_path))
+    store = RunStore(runs_dir)
+    assert top_up(ts, store, 1) == 1
+    trial = take_trial(ts, store)
+    assert trial is not None
+    record = store.create_run(trial_spec(ts, suggest(trial, ts.tune), "tiny-t0"), 0)
+    trial.set_user_attr("run_id", record.run_id)
+    store.mark_running(record.run_id)
+    store.heartbeat(record.run_id, global_step=1234)
+    status = _tune("--status", "s", "--runs-dir", str(runs_dir))
+    assert status.exit_code == 0, status.output
+    row = next(line for line in status.stdout.splitlines() if line.startswith("0 "))
+    total = spec.training.total_timesteps
+    assert row.split()[1] == "running" and row.endswith(f"training at step 1,234 of {total:,}")
 
 
 @pytest.mark.slow

@@ -284,8 +284,9 @@ def tune_status(
     study: str, *, storage: str | None = None, runs_dir: str | os.PathLike[str] | None = None
 ) -> str:
     """The study's summary and one line per trial (number, state, score, step, run, params,
-    note)."""
-    return format_status(load_study(_storage_url(storage, resolve_runs_dir(runs_dir)), study))
+    note: for a running trial, its training's step from the run store)."""
+    root = resolve_runs_dir(runs_dir)
+    return format_status(load_study(_storage_url(storage, root), study), RunStore(root))
 
 
 def tune_best(

@@ -604,9 +604,22 @@ def summary_line(ts: TuneStudy) -> str:
     return text
 
 
-def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
+def _training_note(store: RunStore | None, run_id: object) -> str | None:
+    """``training at step 85,872 of 1,500,000`` from a running trial's run record (its last
+    heartbeat), ``None`` without a store or a readable record."""
+    if store is None or not run_id:
+        return None
+    try:
+        info = store.get_run(str(run_id)).info
+    except RunStoreError:
+        return None
+    return f"training at step {info.global_step:,} of {info.total_timesteps:,}"
+
+
+def status_rows(ts: TuneStudy, store: RunStore | None = None) -> list[dict[str, Any]]:
     """One row per trial: number, state, value (m), step (the last reported), params (spec
-    values), run_id, note (retry of / pruned at / failure / retried as)."""
+    values), run_id, note (retry of / pruned at / failure / retried as; with the runs'
+    ``store``, a running trial's training step)."""
     rows = []
     trials = ts.trials()
     retried_as = {t.user_attrs["retry_of"]: t.number for t in trials if "retry_of" in t.user_attrs}
@@ -619,6 +632,8 @@ def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
             notes.append(f"replaces {attrs['replaces']}")
         if t.state.name == "PRUNED" and t.intermediate_values:
             notes.append(f"pruned at step {max(t.intermediate_values):,}")
+        if t.state.name == "RUNNING":
+            notes.append(_training_note(store, attrs.get("run_id")) or "")
         reasons = [str(attrs[key]) for key in ("interrupted", "failure", "error") if key in attrs]
         if t.state.name == "FAIL" and not reasons:
             reasons.append("its worker stopped (no heartbeat)")
@@ -636,15 +651,16 @@ def status_rows(ts: TuneStudy) -> list[dict[str, Any]]:
                 "step": max(t.intermediate_values) if t.intermediate_values else None,
                 "params": decode_params(ts.tune, t.params),
                 "run_id": attrs.get("run_id"),
-                "note": "; ".join(notes),
+                "note": "; ".join(n for n in notes if n),
             }
         )
     return rows
 
 
-def format_status(ts: TuneStudy) -> str:
-    """The summary line and a table of the trials (``softtrack tune --status``)."""
-    rows = status_rows(ts)
+def format_status(ts: TuneStudy, store: RunStore | None = None) -> str:
+    """The summary line and a table of the trials (``softtrack tune --status``); with the
+    runs' ``store``, how far each running trial's training has got."""
+    rows = status_rows(ts, store)
     labels = _param_labels(list(ts.tune.params))
     header = ["trial", "state", "score_m", "step", "run_id", "params", "note"]
     lines = [

@@ -428,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(args.threads)
     try:
         ts = load_study(args.storage, args.study)
-        return work(ts, args.runs_dir, show_progress=False)
+        return work(ts, args.runs_dir)  # its log: progress lines, not a bar
     except (TuneError, SpecError, RunStoreError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
