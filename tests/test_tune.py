@@ -388,22 +388,33 @@ def test_interrupted_study_resumes_its_run(tmp_path: Path) -> None:
     )
 
 
+def _trial_with_running_run(
+    spec_path: Path, runs_dir: Path, study: str
+) -> tuple[Any, RunStore, Any, RunRecord]:
+    """A one-trial study whose only trial a worker took and whose run it marked running, as
+    a worker does before training: the study, the run store, the trial and its run."""
+    spec = load_spec(spec_path)
+    ts = create_or_continue(
+        default_storage(runs_dir), study, spec, [str(spec_path)], str(spec_path)
+    )
+    store = RunStore(runs_dir)
+    assert top_up(ts, store, 1) == 1
+    trial = take_trial(ts, store)
+    assert trial is not None
+    record = store.create_run(trial_spec(ts, suggest(trial, ts.tune), "tiny-t0"), 0)
+    trial.set_user_attr("run_id", record.run_id)
+    store.mark_running(record.run_id)
+    return ts, store, trial, record
+
+
 @pytest.mark.faults("held")
 def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
     """A trial left RUNNING by a killed worker (its run `lost`: the pid is gone) is failed and
     retried by the next `softtrack tune`, which resumes its run; it is not counted."""
     spec_path = _spec(tmp_path)
     runs_dir = tmp_path / "runs"
-    spec = load_spec(spec_path)
-    ts = create_or_continue(default_storage(runs_dir), "d", spec, [str(spec_path)], str(spec_path))
-    store = RunStore(runs_dir)
-    assert top_up(ts, store, 1) == 1
-    trial = take_trial(ts, store)  # the worker that will die
-    assert trial is not None and take_trial(ts, store) is None  # no second ticket
-    run_spec = trial_spec(ts, suggest(trial, ts.tune), "tiny-t0")
-    record = store.create_run(run_spec, 0)
-    trial.set_user_attr("run_id", record.run_id)
-    store.mark_running(record.run_id)
+    ts, store, trial, record = _trial_with_running_run(spec_path, runs_dir, "d")  # a worker's
+    assert take_trial(ts, store) is None  # no second ticket
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     store.update_run(record.run_id, pid=dead.pid)
@@ -429,20 +440,12 @@ def test_dead_workers_trial_is_failed_and_retried(tmp_path: Path) -> None:
 def test_status_shows_how_far_a_running_trial_has_trained(tmp_path: Path) -> None:
     spec_path = _spec(tmp_path)
     runs_dir = tmp_path / "runs"
-    spec = load_spec(spec_path)
-    ts = create_or_continue(default_storage(runs_dir), "s", spec, [str(spec_path)], str(spec_path))
-    store = RunStore(runs_dir)
-    assert top_up(ts, store, 1) == 1
-    trial = take_trial(ts, store)
-    assert trial is not None
-    record = store.create_run(trial_spec(ts, suggest(trial, ts.tune), "tiny-t0"), 0)
-    trial.set_user_attr("run_id", record.run_id)
-    store.mark_running(record.run_id)
+    _, store, _, record = _trial_with_running_run(spec_path, runs_dir, "s")
     store.heartbeat(record.run_id, global_step=1234)
     status = _tune("--status", "s", "--runs-dir", str(runs_dir))
     assert status.exit_code == 0, status.output
     row = next(line for line in status.stdout.splitlines() if line.startswith("0 "))
-    total = spec.training.total_timesteps
+    total = load_spec(spec_path).training.total_timesteps
     assert row.split()[1] == "running" and row.endswith(f"training at step 1,234 of {total:,}")
 
 
