@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.robustness import expand_settings
 from softtrack.evaluation.robustness_runs import run_robustness
 from softtrack.evaluation.runs import (
@@ -47,6 +46,7 @@ from softtrack.spec import (
     spec_to_yaml,
 )
 from softtrack.store.atomic import atomic_dir, is_temp_file
+from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.provenance import portable_command, portable_path
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.status import (
@@ -61,6 +61,7 @@ from softtrack.store.status import (
 )
 from softtrack.store.tables import TableError
 from softtrack.store.upgrade import upgrade_run_tables
+from softtrack.trajectories import EVAL_TRAJECTORIES
 from softtrack.tune import TuneError
 from softtrack.tune.run import TuneOutcome
 from softtrack.tune.run import tune as run_tune
@@ -607,10 +608,6 @@ def report(
         all_figures=all_figures,
         figures_for=figures_for,
     )
-
-
-QUICKSTART_PRETRAINED = "models/td3-sbx-1e7-seed0"
-"""The shipped policy the quickstart shows beside its own short training (repo-relative)."""
 
 
 def _checkout_or_cwd(relative: str) -> list[Path]:

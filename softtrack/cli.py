@@ -18,21 +18,31 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 
-from softtrack import api
 from softtrack.cli_classes import Command, Group
-from softtrack.env.targets import EVAL_TRAJECTORIES
-from softtrack.executors.dispatch import ExecOptions
+from softtrack.lazy import lazy_module
 from softtrack.store import provenance
 from softtrack.store.disk import storage_problem
-from softtrack.store.query import ResultsDatabase, format_result, format_views
-from softtrack.store.runs import resolve_runs_dir
+from softtrack.store.location import QUICKSTART_PRETRAINED, resolve_runs_dir
+from softtrack.trajectories import EVAL_TRAJECTORIES
 
 if TYPE_CHECKING:
+    import duckdb
     import pandas as pd
 
+    from softtrack import api
     from softtrack.evaluation.episodes import Episode
+    from softtrack.executors import dispatch
     from softtrack.executors.dispatch import Outcome
+    from softtrack.store import query as results_db
+    from softtrack.store import summaries
     from softtrack.store.runs import RunRecord
+else:
+    # loaded at their first use, so `softtrack --help` and `softtrack runs` start at once
+    api = lazy_module("softtrack.api")
+    dispatch = lazy_module("softtrack.executors.dispatch")
+    duckdb = lazy_module("duckdb")
+    results_db = lazy_module("softtrack.store.query")
+    summaries = lazy_module("softtrack.store.summaries")
 
 app = typer.Typer(
     name="softtrack",
@@ -361,9 +371,9 @@ def _exec_options(
     time_min: int | None,
     cpus: int | None,
     mem: float | None,
-) -> ExecOptions:
+) -> dispatch.ExecOptions:
     """The executor options of a command (``--executor`` … ``--mem``) as one object."""
-    return ExecOptions(
+    return dispatch.ExecOptions(
         executor=executor.value,
         workers=workers,
         detach=detach,
@@ -689,6 +699,16 @@ def runs(
             "--failed", metavar="", help="Only failed runs, each with its stored traceback."
         ),
     ] = False,
+    limit: Annotated[
+        int,
+        typer.Option(
+            "--limit",
+            "-n",
+            min=0,
+            metavar="N",
+            help="Only the N runs created last (0: all).",
+        ),
+    ] = 0,
 ) -> None:
     """List the runs with their status, progress and final-stage return.
 
@@ -696,22 +716,43 @@ def runs(
     return (mean training-episode return over the last 10 % of the budget; blank until such
     episodes exist), start and end times (UTC). A running run whose process is gone (its
     heartbeat is stale, or its pid is dead on this host) shows as `lost`; `softtrack resume`
-    continues it.
+    continues it. Answered from the runs directory's catalog (`.softtrack-catalog/`, rebuilt
+    from the run directories whenever it is missing or out of date).
     """
     with _user_errors(runs_dir):
-        summaries = api.list_run_summaries(runs_dir, failed=failed)
+        listing = summaries.run_listing(
+            runs_dir, failed=failed, limit=limit or None, progress=_catalog_progress
+        )
+    for notice in listing.notices:
+        typer.echo(f"note: {notice}", err=True)
+    shown = listing.summaries
     if output_format is OutputFormat.json:
-        typer.echo(json.dumps(summaries, indent=2, ensure_ascii=False))
+        typer.echo(json.dumps(shown, indent=2, ensure_ascii=False))
         return
-    if not summaries:
+    if not shown:
         root = resolve_runs_dir(runs_dir)
         note = "" if root.is_dir() else " (the directory does not exist)"
         typer.echo(f"no {'failed ' if failed else ''}runs in {root}{note}", err=True)
         return
     if failed:
-        typer.echo(api.format_failures(summaries))
+        typer.echo(summaries.format_failures(shown))
         return
-    typer.echo(api.format_runs_table(summaries))
+    typer.echo(summaries.format_runs_table(shown))
+    if limit and listing.total > len(shown):
+        typer.echo(
+            f"(the {limit} runs created last of {listing.total}; --limit 0 lists all)", err=True
+        )
+
+
+def _catalog_progress(done: int, total: int) -> None:
+    """A progress line while the catalog reads runs from their directories (many: a new or
+    rebuilt catalog)."""
+    if total < 50 or not sys.stderr.isatty():
+        return
+    end = "\n" if done == total else ""
+    if done == total or done % 25 == 0:
+        sys.stderr.write(f"\rcatalog: reading run directories {done}/{total}{end}")
+        sys.stderr.flush()
 
 
 class QueryFormat(enum.StrEnum):
@@ -758,18 +799,27 @@ def query_command(
     if views == (sql is not None):
         _fail('query: give either SQL or --views; e.g. `softtrack query "SELECT * FROM runs"`')
 
-    with _user_errors(), ResultsDatabase(runs_dir) as db:
-        for item in db.unreadable:
-            typer.echo(
-                f"warning: run {item.path.name} left out: {item.reason}; {item.fix}", err=True
-            )
+    with _user_errors(), results_db.ResultsDatabase(runs_dir, progress=_catalog_progress) as db:
+        for notice in db.notices:
+            typer.echo(f"note: {notice}", err=True)
+        for path, reason in db.unreadable:
+            fix = summaries.unreadable_fix(path)
+            typer.echo(f"warning: run {path.name} left out: {reason}; {fix}", err=True)
         if views:
-            typer.echo(format_views(db.views()))
+            typer.echo(results_db.format_views(db.views()))
             return
         assert sql is not None
-        result = db.query(sql)
-    if len(result.columns):
-        typer.echo(format_result(result, output_format.value))
+        cursor = db.execute(sql)
+        if cursor.description is None:
+            return
+        try:
+            results_db.write_cursor(cursor, output_format.value, _write_stdout)
+        except duckdb.Error as exc:
+            _fail(db.explain(exc))
+
+
+def _write_stdout(text: str) -> None:
+    sys.stdout.write(text)
 
 
 #: --trajectory: one of the evaluation trajectories (softtrack.env.targets), all or none
@@ -1285,7 +1335,7 @@ def quickstart(
             metavar="DIR",
             show_default=False,
             help="A trained run directory to show beside the quickstart's own run "
-            f"[default: {api.QUICKSTART_PRETRAINED} of this checkout].",
+            f"[default: {QUICKSTART_PRETRAINED} of this checkout].",
         ),
     ] = None,
     no_pretrained: Annotated[

@@ -1,13 +1,17 @@
-"""Import a package's public names on first use (PEP 562), so a light module can import the
-package without loading its heavy dependencies (numba, JAX)."""
+"""Import a package's public names, or a whole module, on first use, so a light module can
+import them without loading their heavy dependencies (numba, JAX, torch, pandas) until needed:
+``softtrack --help`` starts in a fraction of a second."""
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import sys
 from collections.abc import Callable, Mapping, Sequence
+from types import ModuleType
 from typing import Any
 
-__all__ = ["lazy_exports"]
+__all__ = ["lazy_exports", "lazy_module"]
 
 
 def lazy_exports(
@@ -25,3 +29,19 @@ def lazy_exports(
         return sorted(names)
 
     return getattr_, dir_
+
+
+def lazy_module(name: str) -> ModuleType:
+    """Module ``name``, executed at the first access to one of its attributes
+    (:class:`importlib.util.LazyLoader`); an already imported module is returned as it is."""
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no module named {name!r}")
+    loader = importlib.util.LazyLoader(spec.loader)
+    spec.loader = loader
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    loader.exec_module(module)
+    return module

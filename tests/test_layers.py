@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "softtrack"
 
 #: bottom to top; a package may import those of lower layers only
 LAYERS: list[set[str]] = [
-    {"lazy", "signals", "numbers"},
+    {"lazy", "signals", "numbers", "trajectories"},
     {"sim"},
     {"env"},
     {"mpc"},

@@ -26,6 +26,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from softtrack.numbers import is_finite_number
+from softtrack.trajectories import EVAL_TRAJECTORIES, TrajectoryName
 
 __all__ = [
     "CLOSED_FORM_MODES",
@@ -41,8 +42,6 @@ __all__ = [
 
 #: The closed-form trajectories of the evaluation (the study's three), by name: the one place
 #: the names are written (specs, the CLI, evaluation and reports take them from here).
-TrajectoryName = Literal["circle", "rectangle", "figure8"]
-EVAL_TRAJECTORIES: tuple[TrajectoryName, ...] = get_args(TrajectoryName)
 #: Every target motion: the random training target, the trajectories, a fixed point.
 TargetMode = Literal["random", TrajectoryName, "fixed"]
 TARGET_MODES: tuple[str, ...] = get_args(TargetMode)

@@ -15,29 +15,9 @@ The names below are those of :mod:`~softtrack.evaluation.episodes` and
 :mod:`~softtrack.evaluation.tables`.
 """
 
-from softtrack.evaluation.episodes import (
-    CONFIRM_SEED,
-    EVAL_TRAJECTORIES,
-    RANDOM_TARGET_SEED,
-    VALIDATION_SEED,
-    Episode,
-    Policy,
-    accepts_batches,
-    independent_policy,
-    iter_episodes,
-    run_episode,
-    run_episodes,
-)
-from softtrack.evaluation.tables import (
-    STEADY_START,
-    element_moments_table,
-    element_peaks_frame,
-    metrics_table,
-    moment_peaks_table,
-    moments_table,
-    trajectory_table,
-    validation_score,
-)
+from __future__ import annotations
+
+from softtrack.lazy import lazy_exports
 
 __all__ = [
     "CONFIRM_SEED",
@@ -60,3 +40,27 @@ __all__ = [
     "trajectory_table",
     "validation_score",
 ]
+
+_HOME = {
+    "CONFIRM_SEED": "softtrack.evaluation.episodes",
+    "EVAL_TRAJECTORIES": "softtrack.evaluation.episodes",
+    "RANDOM_TARGET_SEED": "softtrack.evaluation.episodes",
+    "STEADY_START": "softtrack.evaluation.tables",
+    "VALIDATION_SEED": "softtrack.evaluation.episodes",
+    "Episode": "softtrack.evaluation.episodes",
+    "Policy": "softtrack.evaluation.episodes",
+    "accepts_batches": "softtrack.evaluation.episodes",
+    "element_moments_table": "softtrack.evaluation.tables",
+    "element_peaks_frame": "softtrack.evaluation.tables",
+    "independent_policy": "softtrack.evaluation.episodes",
+    "iter_episodes": "softtrack.evaluation.episodes",
+    "metrics_table": "softtrack.evaluation.tables",
+    "moment_peaks_table": "softtrack.evaluation.tables",
+    "moments_table": "softtrack.evaluation.tables",
+    "run_episode": "softtrack.evaluation.episodes",
+    "run_episodes": "softtrack.evaluation.episodes",
+    "trajectory_table": "softtrack.evaluation.tables",
+    "validation_score": "softtrack.evaluation.tables",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)

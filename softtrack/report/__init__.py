@@ -11,7 +11,17 @@ A report reads only the stored tables of the selected runs (``runs/<id>/tables/*
                  "softtrack report td3 independent-td3 --out reports/study")
 """
 
-from softtrack.report.build import build_report, report_selection
-from softtrack.report.select import EmptySelectionError, select_report_runs
+from __future__ import annotations
+
+from softtrack.lazy import lazy_exports
 
 __all__ = ["EmptySelectionError", "build_report", "report_selection", "select_report_runs"]
+
+_HOME = {
+    "EmptySelectionError": "softtrack.report.select",
+    "build_report": "softtrack.report.build",
+    "report_selection": "softtrack.report.build",
+    "select_report_runs": "softtrack.report.select",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)

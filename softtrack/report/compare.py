@@ -26,7 +26,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.seed_statistics import (
     BOOTSTRAP_REPS,
     Interval,
@@ -41,6 +40,7 @@ from softtrack.report.data import RunData, load_runs
 from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
 from softtrack.report.select import select_report_runs
 from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
+from softtrack.trajectories import EVAL_TRAJECTORIES
 
 __all__ = [
     "CROSS_CPU_NOTE",

@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS
 from softtrack.store.runs import RunRecord
 from softtrack.store.status import episodes_by_arm, eval_duration, final_stage_fraction
 from softtrack.store.tables import TableError, read_table
+from softtrack.trajectories import EVAL_TRAJECTORIES
 
 __all__ = [
     "AXIS_METRICS",

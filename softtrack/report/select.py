@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from softtrack.spec import load_spec, spec_hash
+from softtrack.store.catalog import read_catalog
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore, RunStoreError
 
 __all__ = ["EmptySelectionError", "select_report_runs"]
@@ -44,30 +47,58 @@ def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRec
             "nothing to report: give one or more experiment names, run ids or spec files "
             f"(list the runs with `softtrack runs --runs-dir {store.root}`)"
         )
-    records = store.list_runs()
-    names = sorted({r.info.name for r in records})
+    index = _RunIndex.of(store)
     chosen: dict[str, RunRecord] = {}
     for item in items:
-        found = _match(store, records, names, item)
+        found = _match(store, index, item)
         for record in sorted(found, key=lambda r: (r.info.name, r.info.seed, r.run_id)):
             chosen.setdefault(record.run_id, record)
     return list(chosen.values())
 
 
-def _match(
-    store: RunStore, records: list[RunRecord], names: list[str], item: str
-) -> list[RunRecord]:
+@dataclass(frozen=True)
+class _RunIndex:
+    """The catalog's columns that select runs (:mod:`softtrack.store.catalog`): reading the
+    chosen runs' ``run.json`` only, not every run's."""
+
+    dirs: list[str]
+    run_ids: list[str | None]
+    names: list[str | None]
+    spec_hashes: list[str | None]
+
+    @classmethod
+    def of(cls, store: RunStore) -> _RunIndex:
+        if not store.root.is_dir():
+            return cls([], [], [], [])
+        columns = read_catalog(store.root).table.to_pydict()
+        readable = [i for i, bad in enumerate(columns["unreadable"]) if bad is None]
+        return cls(
+            *([columns[key][i] for i in readable] for key in ("dir", "run_id", "name", "spec_hash"))
+        )
+
+    def records(self, store: RunStore, where: list[bool]) -> list[RunRecord]:
+        found = []
+        for directory, chosen in zip(self.dirs, where, strict=True):
+            if chosen:
+                try:
+                    found.append(store.read_record(store.root / directory))
+                except RunStoreError:
+                    continue  # changed since the catalog saw it: unreadable now
+        return found
+
+
+def _match(store: RunStore, index: _RunIndex, item: str) -> list[RunRecord]:
     if _looks_like_spec(item):
         spec = load_spec(item)
         digest = spec_hash(spec)
-        found = [r for r in records if r.info.spec_hash == digest]
+        found = index.records(store, [h == digest for h in index.spec_hashes])
         if not found:
             raise EmptySelectionError(
                 f"{item}: no run in {store.root} has this spec (hash {digest[:12]}); "
                 f"train it with `softtrack train {item}` or select runs by name or id"
             )
         return found
-    by_name = [r for r in records if r.info.name == item]
+    by_name = index.records(store, [n == item for n in index.names])
     if by_name:
         return by_name
     try:
@@ -75,8 +106,15 @@ def _match(
     except RunNotFoundError as exc:
         if "matches" in str(exc):  # an ambiguous prefix: its message already says what to do
             raise
-        known = ", ".join(names) if names else "none"
+        names = sorted({n for n in index.names if n})
+        close = difflib.get_close_matches(item, names, n=5, cutoff=0.5)
+        known = (
+            f"closest names: {', '.join(close)}"
+            if close
+            else f"known: {', '.join(names[:5]) or 'none'}"
+            + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+        )
         raise EmptySelectionError(
-            f"{store.root}: {item!r} is neither an experiment name (known: {known}), a run id "
+            f"{store.root}: {item!r} is neither an experiment name ({known}), a run id "
             f"nor a spec file; list the runs with `softtrack runs --runs-dir {store.root}`"
         ) from None

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
+    "TEMP_MARK",
     "atomic_dir",
     "atomic_path",
     "atomic_write_bytes",
@@ -34,7 +35,8 @@ __all__ = [
     "temp_name",
 ]
 
-_TEMP_MARK = ".tmp-"
+TEMP_MARK = ".tmp-"
+"""What every temporary name of this module contains (after a leading ``.``)."""
 
 
 def _split(path: Path) -> tuple[str, str]:
@@ -46,14 +48,14 @@ def temp_name(path: Path) -> Path:
     """A fresh temporary sibling of ``path`` keeping its suffix and naming the writing
     process: ``.model.tmp-4711-3fa29c1b.zip`` (pid 4711)."""
     stem, suffix = _split(path)
-    return path.with_name(f".{stem}{_TEMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{suffix}")
+    return path.with_name(f".{stem}{TEMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{suffix}")
 
 
 def _writer_alive(name: str) -> bool:
     """Whether the process named in a temporary file's name still runs (names without a pid,
     from older versions, count as dead)."""
-    pid_text = name.partition(_TEMP_MARK)[2].split("-", 1)[0]
-    if not pid_text.isdigit() or "-" not in name.partition(_TEMP_MARK)[2]:
+    pid_text = name.partition(TEMP_MARK)[2].split("-", 1)[0]
+    if not pid_text.isdigit() or "-" not in name.partition(TEMP_MARK)[2]:
         return False
     pid = int(pid_text)
     if pid == os.getpid():
@@ -72,7 +74,7 @@ def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
     their cleanup could run); those of live processes stay. Returns the removed paths."""
     path = Path(path)
     stem, suffix = _split(path)
-    prefix = f".{stem}{_TEMP_MARK}"
+    prefix = f".{stem}{TEMP_MARK}"
     removed: list[Path] = []
     try:
         siblings = list(path.parent.iterdir())
@@ -92,7 +94,7 @@ def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
 def is_temp_file(path: str | os.PathLike[str]) -> bool:
     """True for the name of a temporary file or directory made by this module."""
     name = Path(path).name
-    return name.startswith(".") and _TEMP_MARK in name
+    return name.startswith(".") and TEMP_MARK in name
 
 
 def fsync_file(path: Path) -> None:

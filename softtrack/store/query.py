@@ -36,34 +36,32 @@ file) raise :class:`QueryError` with a one-line message that says what to do.
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
-import textwrap
-from collections.abc import Sequence
-from dataclasses import dataclass
-from datetime import UTC, date, datetime, timedelta
-from decimal import Decimal
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Literal, Self
+from typing import TYPE_CHECKING, Any, Self
 
 import duckdb
-import numpy as np
-import pandas as pd
 import pyarrow as pa
-import pyarrow.parquet as pq
 
-from softtrack.store.runs import RunRecord, RunStore, RunStoreError, parse_time, resolve_runs_dir
-from softtrack.store.status import (
-    DEFAULT_FINAL_STAGE_FRACTION,
-    final_stage_fraction,
-    training_seconds,
+from softtrack.store.catalog import file_stamp, read_catalog
+from softtrack.store.errors import RunStoreError
+from softtrack.store.location import resolve_runs_dir
+from softtrack.store.query_output import (
+    OUTPUT_FORMATS,
+    format_result,
+    format_views,
+    write_cursor,
 )
-from softtrack.store.tables import list_tables
+from softtrack.store.table_index import table_item
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
-    "DEFAULT_FINAL_STAGE_FRACTION",
     "OUTPUT_FORMATS",
     "RUNS_COLUMNS",
     "TABLE_DESCRIPTIONS",
@@ -75,10 +73,8 @@ __all__ = [
     "format_result",
     "format_views",
     "query",
+    "write_cursor",
 ]
-
-OutputFormat = Literal["table", "csv", "json"]
-OUTPUT_FORMATS: tuple[OutputFormat, ...] = ("table", "csv", "json")
 
 #: Columns of the ``runs`` view: name, Arrow type and meaning. Times are UTC (TIMESTAMP
 #: without time zone).
@@ -217,9 +213,29 @@ class ViewInfo:
 
 @dataclass(frozen=True)
 class _TableFile:
+    path: str
     run_id: str
-    path: Path
+    schema: str
     has_run_id: bool
+
+
+@dataclass
+class _TableFiles:
+    """Every file of one table across the runs, as the catalog lists them."""
+
+    name: str
+    #: every readable file of the table
+    files: list[_TableFile] = field(default_factory=list)
+    #: why a file is not readable Parquet (the first such file), else ``None``
+    error: str | None = None
+
+    @property
+    def view(self) -> str:
+        return f"{self.name}_table" if self.name in _RESERVED else self.name
+
+    @property
+    def runs(self) -> int:
+        return len({f.run_id for f in self.files})
 
 
 def _lit(text: str) -> str:
@@ -232,117 +248,31 @@ def _ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
-def _utc(text: str | None) -> datetime | None:
-    try:
-        moment = parse_time(text)
-    except (TypeError, ValueError):
-        return None
-    if moment is None:
-        return None
-    if moment.tzinfo is not None:
-        moment = moment.astimezone(UTC).replace(tzinfo=None)
-    return moment
-
-
-def _train_seconds(record: RunRecord) -> float | None:
-    """The run's training clock (:func:`softtrack.store.status.training_seconds`), as the
-    report's runs table gives it."""
-    path = record.table_path("train_episodes")
-    try:
-        train = pq.read_table(path, columns=["wall_time"]).to_pandas() if path.is_file() else None
-    except (pa.ArrowInvalid, OSError, KeyError):
-        return None
-    return training_seconds(train)
-
-
-def _raw_spec(record: RunRecord) -> dict[str, Any]:
-    """``spec.yaml`` as plain data (``{}`` if missing or unreadable), parsed with libyaml when
-    available (the pure-Python parser costs ~10 ms a run)."""
-    import yaml
-
-    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-    try:
-        data = yaml.load(record.spec_path.read_text(encoding="utf-8"), Loader=loader)
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
-def _final_stage_fraction(record: RunRecord) -> float:
-    return final_stage_fraction(_raw_spec(record))
-
-
-def _per_second(steps: int, seconds: float | None) -> float | None:
-    return steps / seconds if seconds and steps else None
-
-
-def _runs_row(record: RunRecord) -> dict[str, Any]:
-    info = record.info
-    seconds = _train_seconds(record)
-    sweep = (info.notes or {}).get("sweep")
-    return {
-        "run_id": info.run_id,
-        "dir": record.path.name,
-        "name": info.name,
-        "algo": info.algo,
-        "controller": info.controller,
-        "seed": info.seed,
-        "status": info.status,
-        "total_timesteps": info.total_timesteps,
-        "arm_total_timesteps": info.arm_total_timesteps,
-        "global_step": info.global_step,
-        "steps_per_second": _per_second(info.global_step, seconds) or info.steps_per_second,
-        "train_seconds": seconds,
-        "final_stage_fraction": _final_stage_fraction(record),
-        "spec_hash": info.spec_hash,
-        "git_commit": info.git_commit,
-        "git_dirty": info.git_dirty,
-        "created": _utc(info.created),
-        "started": _utc(info.started),
-        "ended": _utc(info.ended),
-        "host": info.host,
-        "cpu": info.cpu,
-        "sweep": None if sweep is None else str(sweep),
-        "error": info.error,
-    }
-
-
-def _runs_table(records: Sequence[RunRecord]) -> pa.Table:
-    rows = [_runs_row(r) for r in records]
-    return pa.table(
-        {name: pa.array([row[name] for row in rows], type=kind) for name, kind, _ in RUNS_COLUMNS}
+def _utc_sql(column: str) -> str:
+    """An ISO-8601 text column as a UTC TIMESTAMP (its offset applied; NULL if unparsable)."""
+    offset = (
+        f"CASE WHEN regexp_matches({column}, '[+-][0-9][0-9]:[0-9][0-9]$') THEN "
+        f"(CASE WHEN substr({column}, -6, 1) = '+' THEN 1 ELSE -1 END) * "
+        f"(TRY_CAST(substr({column}, -5, 2) AS INTEGER) * 60 "
+        f"+ TRY_CAST(substr({column}, -2, 2) AS INTEGER)) ELSE 0 END"
     )
+    return f"TRY_CAST({column} AS TIMESTAMP) - to_minutes(CAST({offset} AS BIGINT))"
 
 
-def _table_files(record: RunRecord) -> dict[str, list[Path]]:
-    """``{table name: [parquet files]}`` of a run (a directory table: its part files)."""
-    found: dict[str, list[Path]] = {}
-    for name, path in list_tables(record.tables_dir).items():
-        if path.is_dir():
-            parts = sorted(
-                p
-                for p in path.rglob("*.parquet")
-                if p.is_file()
-                and not any(part.startswith((".", "_")) for part in p.relative_to(path).parts)
-            )
-            if parts:
-                found[name] = parts
-        elif path.is_file():
-            found[name] = [path]
-    return found
-
-
-def _view_sql(files: Sequence[_TableFile]) -> str:
-    """A SELECT over ``files`` (union by name) whose ``run_id`` is each file's run's id."""
-    paths = ", ".join(_lit(str(f.path)) for f in files)
-    mapping = ", ".join(f"({_lit(str(f.path))}, {_lit(f.run_id)})" for f in files)
-    drop = "run_id, __softtrack_file" if any(f.has_run_id for f in files) else "__softtrack_file"
-    return (
-        f"SELECT __softtrack_runs.run_id, __softtrack_t.* EXCLUDE ({drop}) "
-        f"FROM read_parquet([{paths}], union_by_name = true, filename = '__softtrack_file') "
-        f"AS __softtrack_t JOIN (VALUES {mapping}) AS __softtrack_runs(file, run_id) "
-        f"ON __softtrack_t.__softtrack_file = __softtrack_runs.file"
-    )
+#: The ``runs`` view from the catalog's columns (softtrack.store.catalog.ROW_SCHEMA).
+_RUNS_SQL = f"""
+CREATE TABLE runs AS
+SELECT run_id, dir, name, algo, controller, seed, status, total_timesteps,
+       arm_total_timesteps, global_step,
+       CASE WHEN global_step > 0 AND train_seconds > 0 THEN global_step / train_seconds
+            ELSE steps_per_second END AS steps_per_second,
+       train_seconds, final_stage_fraction, spec_hash, git_commit, git_dirty,
+       {_utc_sql("created")} AS created, {_utc_sql("started")} AS started,
+       {_utc_sql("ended")} AS ended, host, cpu, sweep, error
+FROM __softtrack_catalog
+WHERE unreadable IS NULL
+ORDER BY dir
+"""
 
 
 def _first_line(exc: BaseException) -> str:
@@ -377,14 +307,25 @@ def _check_read_only(sql: str) -> None:
 class ResultsDatabase:
     """An in-memory DuckDB database over the runs of ``runs_dir`` (see the module docstring).
 
+    The runs come from the runs directory's catalog (:mod:`softtrack.store.catalog`), so
+    opening it reads no run directory that has not changed; a table's view is created when a
+    query first names it, and DuckDB reads that table's files itself.
+
     Args:
         runs_dir: the runs directory (``None``: ``$SOFTTRACK_RUNS_DIR``, else ``runs/``).
+        progress: called as ``progress(done, total)`` while the catalog reads runs from their
+            directories (a new or out-of-date catalog).
 
     Raises:
         QueryError: the directory does not exist or holds no runs.
     """
 
-    def __init__(self, runs_dir: str | os.PathLike[str] | None = None) -> None:
+    def __init__(
+        self,
+        runs_dir: str | os.PathLike[str] | None = None,
+        *,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> None:
         root = resolve_runs_dir(runs_dir)
         self.root = root
         if not root.is_dir():
@@ -393,93 +334,101 @@ class ResultsDatabase:
                 f"query: runs directory {root} {what}; pass --runs-dir DIR or set "
                 "SOFTTRACK_RUNS_DIR (the shipped runs: --runs-dir models)"
             )
-        store = RunStore(root)
-        self.records = store.list_runs()
-        #: runs left out because their run.json is missing or unreadable
-        self.unreadable = store.list_unreadable()
-        if not self.records:
+        snapshot = read_catalog(root, progress=progress)
+        #: lines about the catalog itself (built, rebuilt, not writable)
+        self.notices = snapshot.notices
+        columns = snapshot.table.to_pydict()
+        #: runs left out because their run.json is missing or unreadable: (directory, reason)
+        self.unreadable = [
+            (root / d, reason)
+            for d, reason in zip(columns["dir"], columns["unreadable"], strict=True)
+            if reason is not None
+        ]
+        self.n_runs = len(columns["dir"]) - len(self.unreadable)
+        if not self.n_runs:
             raise QueryError(
                 f"query: {root} holds no runs (no sub-directory with a readable run.json); "
                 "pass the directory your runs are in with --runs-dir (the shipped runs: "
                 "--runs-dir models)"
             )
+        self._tables = _table_files(root.resolve(), columns, snapshot.schemas)
         self.connection = duckdb.connect(":memory:")
         try:
             self.connection.execute("SET enable_progress_bar = false")
             self._views: dict[str, ViewInfo] = {}
-            self._create_runs_views()
-            self._create_table_views()
-            self._sandbox()
+            self._create_runs_views(snapshot.table)
+            self._sandbox(root.resolve())
         except BaseException:
             self.connection.close()
             raise
 
     # ---- setup -------------------------------------------------------------------------
-    def _create_runs_views(self) -> None:
+    def _create_runs_views(self, catalog: pa.Table) -> None:
         con = self.connection
-        con.register("__softtrack_runs_arrow", _runs_table(self.records))
-        con.execute("CREATE TABLE runs AS SELECT * FROM __softtrack_runs_arrow")
-        con.unregister("__softtrack_runs_arrow")
+        con.register("__softtrack_catalog", catalog)
+        con.execute(_RUNS_SQL)
+        con.unregister("__softtrack_catalog")
         con.execute(_EXPERIMENTS_SQL)
-        n = len(self.records)
         self._add_view(
-            "runs", "one row per run: run.json fields, dir, train_seconds, final_stage_fraction", n
+            "runs",
+            "one row per run: run.json fields, dir, train_seconds, final_stage_fraction",
+            self.n_runs,
         )
         self._add_view(
             "experiments",
             "one row per experiment name (runs.name): runs, "
             "completed, seeds, algo, controller, specs",
-            n,
+            self.n_runs,
         )
 
-    def _create_table_views(self) -> None:
-        by_table: dict[str, list[_TableFile]] = {}
-        broken: dict[str, str] = {}
-        self._files: set[str] = set()
-        for record in self.records:
-            for name, paths in _table_files(record).items():
-                for path in paths:
-                    try:
-                        names = pq.read_schema(path).names
-                    except (pa.ArrowException, OSError) as exc:
-                        broken.setdefault(
-                            name,
-                            f"{path} (run {record.info.run_id}) is not readable Parquet "
-                            f"({_first_line(exc)})",
-                        )
-                        continue
-                    by_table.setdefault(name, []).append(
-                        _TableFile(record.info.run_id, path.resolve(), "run_id" in names)
-                    )
-        for name in sorted(set(by_table) | set(broken)):
-            view = f"{name}_table" if name in _RESERVED else name
-            description = TABLE_DESCRIPTIONS.get(name, f"the runs' tables/{name}.parquet")
-            files = by_table.get(name, [])
-            runs = len({f.run_id for f in files})
-            if name in broken:
-                self._views[view] = ViewInfo(view, description, (), runs, broken[name])
-                continue
-            self._files.update(str(f.path) for f in files)
-            try:
-                self.connection.execute(f"CREATE VIEW {_ident(view)} AS {_view_sql(files)}")
-            except duckdb.Error as exc:
-                self._views[view] = ViewInfo(
-                    view,
-                    description,
-                    (),
-                    runs,
-                    f"tables/{name}.parquet of {runs} runs cannot be read as one table "
-                    f"({_first_line(exc)})",
-                )
-                continue
-            self._add_view(view, description, runs)
+    def _create_table_view(self, table: _TableFiles) -> None:
+        """The view of one table (or, where a file is unreadable, its reason)."""
+        if table.view in self._views:
+            return
+        description = TABLE_DESCRIPTIONS.get(table.name, f"the runs' tables/{table.name}.parquet")
+        if table.error is not None:
+            self._views[table.view] = ViewInfo(table.view, description, (), table.runs, table.error)
+            return
+        files = f"__softtrack_files_{len(self._views)}"
+        mapping = pa.table(
+            {
+                "file": [f.path for f in table.files],
+                "run_id": [f.run_id for f in table.files],
+            }
+        )
+        self.connection.register("__softtrack_arrow", mapping)
+        try:
+            self.connection.execute(f"CREATE TABLE {_ident(files)} AS FROM __softtrack_arrow")
+        finally:
+            self.connection.unregister("__softtrack_arrow")
+        try:
+            self.connection.execute(
+                f"CREATE VIEW {_ident(table.view)} AS {_view_sql(table, files)}"
+            )
+        except duckdb.Error as exc:
+            self._views[table.view] = ViewInfo(
+                table.view,
+                description,
+                (),
+                table.runs,
+                f"tables/{table.name}.parquet of {table.runs} runs cannot be read as one table "
+                f"({_first_line(exc)})",
+            )
+            return
+        self._add_view(table.view, description, table.runs)
 
-    def _sandbox(self) -> None:
-        """No file access but reading the views' Parquet files, no extensions, locked settings."""
+    def _views_for(self, sql: str) -> None:
+        """Create the views of the tables that ``sql`` names (any word equal to one)."""
+        words = {word.lower() for word in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", sql)}
+        for table in self._tables.values():
+            if table.view.lower() in words:
+                self._create_table_view(table)
+
+    def _sandbox(self, root: Path) -> None:
+        """No file access but reading inside the runs directory, no extensions, locked
+        settings."""
         con = self.connection
-        files = sorted(self._files)
-        if files:
-            con.execute("SET allowed_paths = ?", [files])
+        con.execute("SET allowed_directories = ?", [[str(root) + os.sep]])
         for setting in (
             "enable_external_access",
             "autoinstall_known_extensions",
@@ -502,11 +451,15 @@ class ResultsDatabase:
     def views(self) -> list[ViewInfo]:
         """``runs``, ``experiments``, then the table views by name (unavailable ones with
         their ``error``)."""
-        return list(self._views.values())
+        for table in sorted(self._tables.values(), key=lambda t: t.name):
+            self._create_table_view(table)
+        fixed = [self._views[name] for name in _RESERVED]
+        tables = sorted((v for k, v in self._views.items() if k not in _RESERVED), key=_by_name)
+        return fixed + tables
 
-    def query(self, sql: str) -> pd.DataFrame:
+    def execute(self, sql: str) -> duckdb.DuckDBPyConnection:
         """Run ``sql`` (DuckDB's dialect; several statements: the last one's result) and
-        return the result (an empty DataFrame for a statement without one).
+        return the cursor to fetch the result from (``description`` None: no result).
 
         Raises:
             QueryError: bad SQL, an unknown view or column, an unreadable file.
@@ -515,18 +468,34 @@ class ResultsDatabase:
             raise QueryError('query: no SQL given; e.g. `softtrack query "SELECT * FROM runs"`')
         try:
             _check_read_only(sql)
-            cursor = self.connection.execute(sql)
-            if cursor.description is None:
-                return pd.DataFrame()
-            return cursor.df()
+            self._views_for(sql)
+            return self.connection.execute(sql)
         except duckdb.Error as exc:
             raise QueryError(self._explain(exc)) from None
+
+    def query(self, sql: str) -> pd.DataFrame:
+        """Run ``sql`` (:meth:`execute`) and return the result as a DataFrame (an empty one
+        for a statement without a result).
+
+        Raises:
+            QueryError: bad SQL, an unknown view or column, an unreadable file.
+        """
+        import pandas as pd  # only here: `softtrack query` prints without it
+
+        cursor = self.execute(sql)
+        try:
+            return pd.DataFrame() if cursor.description is None else cursor.df()
+        except duckdb.Error as exc:
+            raise QueryError(self._explain(exc)) from None
+
+    def explain(self, exc: duckdb.Error) -> str:
+        """A one-line message for a DuckDB error raised while fetching a result."""
+        return self._explain(exc)
 
     def _explain(self, exc: duckdb.Error) -> str:
         """A one-line message for a DuckDB error, with what to do."""
         lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
         first = lines[0] if lines else type(exc).__name__
-        available = ", ".join(v.name for v in self._views.values() if v.error is None)
         listing = "`softtrack query --views` lists the views and their columns"
         missing = re.search(r"Table with name (.+?) does not exist", first)
         if isinstance(exc, duckdb.CatalogException) and missing:
@@ -537,6 +506,9 @@ class ResultsDatabase:
                     f"query: view {name} is unavailable: {view.error}; move the file away "
                     "or rewrite it (e.g. `softtrack evaluate RUN` for eval_* tables)"
                 )
+            available = ", ".join(
+                [*_RESERVED, *sorted(t.view for t in self._tables.values() if t.error is None)]
+            )
             return (
                 f"query: no view {name} in {self.root} (no run has tables/{name}.parquet); "
                 f"available views: {available} ({listing})"
@@ -574,17 +546,72 @@ class ResultsDatabase:
         self.close()
 
 
+def _by_name(view: ViewInfo) -> str:
+    return view.name
+
+
+def _table_files(
+    root: Path, columns: dict[str, list[Any]], schemas: dict[str, str]
+) -> dict[str, _TableFiles]:
+    """Every table's files from the catalog's ``tables`` cells; a file changed since the
+    catalog read it (its stamp differs) has its schema read again."""
+    tables: dict[str, _TableFiles] = {}
+    for directory, run_id, cell, bad in zip(
+        columns["dir"], columns["run_id"], columns["tables"], columns["unreadable"], strict=True
+    ):
+        if bad is not None or not cell:
+            continue
+        run_path = root / directory
+        for item in json.loads(cell):
+            name, rel, schema, error, stamp = (*item, None)[:5]
+            path = f"{run_path}{os.sep}{rel}"
+            if stamp is None or file_stamp(path) != stamp:
+                name, rel, schema, error, stamp = table_item(name, Path(path), run_path, schemas)
+            table = tables.setdefault(name, _TableFiles(name))
+            if error is not None or schema is None:
+                table.error = table.error or (
+                    f"{path} (run {run_id}) is not readable Parquet ({error})"
+                )
+                continue
+            has_run_id = '"run_id": ' in schemas.get(schema, "")
+            table.files.append(_TableFile(path, run_id, schema, has_run_id))
+    return tables
+
+
+def _view_sql(table: _TableFiles, files_table: str) -> str:
+    """A SELECT over the table's files, one ``read_parquet`` per schema joined by name (so
+    DuckDB reads one footer per schema to bind, not one per file), whose ``run_id`` is each
+    file's run's id (``files_table``: file → run_id)."""
+    groups: dict[str, list[str]] = {}
+    for file in table.files:
+        groups.setdefault(file.schema, []).append(file.path)
+    scans = [
+        f"SELECT * FROM read_parquet([{', '.join(_lit(p) for p in paths)}], "
+        "filename = '__softtrack_file')"
+        for paths in groups.values()
+    ]
+    union = " UNION ALL BY NAME ".join(scans)
+    return (
+        f"SELECT __softtrack_runs.run_id, __softtrack_t.* EXCLUDE (__softtrack_file"
+        f"{', run_id' if any(f.has_run_id for f in table.files) else ''}) "
+        f"FROM ({union}) AS __softtrack_t JOIN {_ident(files_table)} AS __softtrack_runs "
+        f"ON __softtrack_t.__softtrack_file = __softtrack_runs.file"
+    )
+
+
 def connect(runs_dir: str | os.PathLike[str] | None = None) -> duckdb.DuckDBPyConnection:
-    """An in-memory DuckDB connection with the views over ``runs_dir`` (module docstring).
+    """An in-memory DuckDB connection with every view over ``runs_dir`` (module docstring).
 
     Its file access is limited to reading (and, a raw connection being unfiltered, writing)
-    the store's Parquet files; use :func:`query` or :class:`ResultsDatabase` for SQL you do not
-    control: they refuse every statement but a read.
+    inside the runs directory; use :func:`query` or :class:`ResultsDatabase` for SQL you do
+    not control: they refuse every statement but a read.
 
     Raises:
         QueryError: the directory does not exist or holds no runs.
     """
-    return ResultsDatabase(runs_dir).connection
+    db = ResultsDatabase(runs_dir)
+    db.views()
+    return db.connection
 
 
 def query(sql: str, runs_dir: str | os.PathLike[str] | None = None) -> pd.DataFrame:
@@ -607,159 +634,3 @@ def available_views(runs_dir: str | os.PathLike[str] | None = None) -> list[View
     """The views over ``runs_dir`` with their columns (see :meth:`ResultsDatabase.views`)."""
     with ResultsDatabase(runs_dir) as db:
         return db.views()
-
-
-# ---- output ---------------------------------------------------------------------------------
-def _is_null(value: Any) -> bool:
-    if value is None or value is pd.NaT or value is pd.NA:
-        return True
-    return isinstance(value, (float, np.floating)) and math.isnan(value)
-
-
-def _json_value(value: Any) -> Any:
-    """A JSON-serialisable version of a result cell (NULL, NaN and infinities → null)."""
-    if isinstance(value, np.ndarray):
-        return [_json_value(v) for v in value.tolist()]
-    if isinstance(value, (list, tuple)):
-        return [_json_value(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): _json_value(v) for k, v in value.items()}
-    if _is_null(value):
-        return None
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating, Decimal)):
-        number = float(value)
-        return number if math.isfinite(number) else None
-    if isinstance(value, (pd.Timestamp, datetime, date)):
-        return value.isoformat()
-    if isinstance(value, (pd.Timedelta, timedelta)):
-        return pd.Timedelta(value).total_seconds()
-    if isinstance(value, np.generic):
-        return _json_value(value.item())
-    if isinstance(value, bytes):
-        return value.hex()
-    return value if isinstance(value, str) else str(value)
-
-
-def _text_value(value: Any) -> str:
-    """A result cell as table text: NULL/NaN blank, floats to 6 significant digits."""
-    if isinstance(value, (np.ndarray, list, tuple, dict)):
-        return json.dumps(_json_value(value))
-    if _is_null(value):
-        return ""
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, (float, np.floating)):
-        if not math.isfinite(value):
-            return str(float(value))
-        return np.format_float_positional(
-            float(value), precision=6, unique=True, fractional=False, trim="-"
-        )
-    if isinstance(value, (pd.Timestamp, datetime)):
-        spec = (
-            "seconds"
-            if value.microsecond == 0
-            else ("milliseconds" if value.microsecond % 1000 == 0 else "microseconds")
-        )
-        return value.isoformat(sep=" ", timespec=spec)
-    return str(value)
-
-
-def _float_cells(values: Sequence[Any]) -> list[str]:
-    """A float column as text: 6 significant digits, padded to the same number of decimals
-    (at most 6) so the points line up; a value that would show as 0 keeps its own digits."""
-    texts = [_text_value(v) for v in values]
-    decimals = [len(t.partition(".")[2]) for t in texts if t and t[-1].isdigit()]
-    if not decimals:
-        return texts
-    places = min(max(decimals), 6)
-    cells = []
-    for value, text in zip(values, texts, strict=True):
-        fixed = f"{float(value):.{places}f}" if text and text[-1].isdigit() else text
-        cells.append(text if float(fixed or 0) == 0 and float(value or 0) != 0 else fixed)
-    return cells
-
-
-def _text_table(df: pd.DataFrame) -> str:
-    columns = [str(c) for c in df.columns]
-    cells = [
-        _float_cells(df.iloc[:, i].tolist())
-        if pd.api.types.is_float_dtype(df.dtypes.iloc[i])
-        else [_text_value(v) for v in df.iloc[:, i].tolist()]
-        for i in range(len(columns))
-    ]
-    numeric = [
-        pd.api.types.is_numeric_dtype(df.dtypes.iloc[i])
-        and not pd.api.types.is_bool_dtype(df.dtypes.iloc[i])
-        for i in range(len(columns))
-    ]
-    widths = [max([len(columns[i]), *(len(c) for c in cells[i])]) for i in range(len(columns))]
-
-    def line(values: Sequence[str]) -> str:
-        return "  ".join(
-            v.rjust(widths[i]) if numeric[i] else v.ljust(widths[i]) for i, v in enumerate(values)
-        ).rstrip()
-
-    rows = [line(columns)]
-    rows.extend(line([cells[i][r] for i in range(len(columns))]) for r in range(len(df)))
-    return "\n".join(rows)
-
-
-def format_result(df: pd.DataFrame, output_format: OutputFormat = "table") -> str:
-    """A query result as text: ``table`` (aligned columns with a header, no index; NULL is
-    blank), ``csv`` (with a header) or ``json`` (an array of records; NULL/NaN → null).
-
-    Lists and structs are written as JSON in ``table`` and ``csv``.
-    """
-    if output_format == "json":
-        records = [
-            {str(c): _json_value(v) for c, v in zip(df.columns, row, strict=True)}
-            for row in df.itertuples(index=False, name=None)
-        ]
-        return json.dumps(records, indent=2, ensure_ascii=False)
-    if output_format == "csv":
-        plain = df.copy()
-        for column in plain.columns:
-            if plain[column].dtype == object:
-                plain[column] = plain[column].map(
-                    lambda v: (
-                        json.dumps(_json_value(v))
-                        if isinstance(v, (np.ndarray, list, tuple, dict))
-                        else v
-                    )
-                )
-        return plain.to_csv(index=False).rstrip("\n")
-    if output_format == "table":
-        return _text_table(df)
-    raise ValueError(f"unknown output format {output_format!r}; one of {OUTPUT_FORMATS}")
-
-
-def format_views(views: Sequence[ViewInfo], width: int = 100) -> str:
-    """The views, each with its description and columns (``name TYPE``), as text."""
-    blocks = []
-    for view in views:
-        runs = f"{view.runs} run" + ("" if view.runs == 1 else "s")
-        head = f"{view.name} ({runs}): {view.description}"
-        lines = textwrap.wrap(head, width, subsequent_indent="    ")
-        if view.error is not None:
-            lines += textwrap.wrap(
-                f"UNAVAILABLE: {view.error}", width, initial_indent="  ", subsequent_indent="    "
-            )
-        else:
-            # break lines only between columns (\xa0: a space textwrap does not break at)
-            columns = ", ".join(f"{c} {t}".replace(" ", "\xa0") for c, t in view.columns)
-            lines += [
-                line.replace("\xa0", " ")
-                for line in textwrap.wrap(
-                    columns,
-                    width,
-                    initial_indent="  ",
-                    subsequent_indent="  ",
-                    break_on_hyphens=False,
-                )
-            ]
-        blocks.append("\n".join(lines))
-    return "\n\n".join(blocks)

@@ -9,23 +9,21 @@ also behind the report's final-stage table.
 
 from __future__ import annotations
 
-import os
-import socket
-from collections.abc import Sequence
 from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from softtrack.store.runs import (
-    RunRecord,
-    RunStore,
-    UnreadableRun,
-    lock_held,
-    parse_time,
-    pid_alive,
-    resolve_runs_dir,
+from softtrack.store.liveness import heartbeat_stale, is_lost_process, stale_after_s
+from softtrack.store.runs import RunRecord
+from softtrack.store.summaries import (
+    RUN_TABLE_COLUMNS,
+    format_failures,
+    format_runs_table,
+    list_run_summaries,
+    summary_from_row,
+    unreadable_summary,
 )
 from softtrack.store.tables import TableError, read_table
 
@@ -42,6 +40,7 @@ __all__ = [
     "final_stage_returns",
     "format_failures",
     "format_runs_table",
+    "heartbeat_interval",
     "is_lost",
     "list_run_summaries",
     "run_summary",
@@ -142,7 +141,7 @@ def training_seconds(train: pd.DataFrame | None) -> float | None:
 
 
 def final_stage_return(
-    record: RunRecord, fraction: float | None = None
+    record: RunRecord, fraction: float | None = None, train: pd.DataFrame | None = None
 ) -> tuple[float | None, int, int]:
     """Mean training-episode return over the last ``fraction`` of the run's budget (docs/environment.md).
 
@@ -156,13 +155,17 @@ def final_stage_return(
     not comparable with dual-arm ones). Rows without an arm (column absent, null or negative)
     are a centralized policy's.
 
+    ``train``: the run's ``train_episodes`` table if already read (else it is read here).
+
     Returns:
         ``(mean return or None if no episode qualifies, number of such episodes,
         env steps the table reaches: its largest global_step, summed over the arms, or 0)``.
     """
     if fraction is None:
         fraction = final_stage_fraction(record.raw_spec())
-    df = read_table(record.table_path("train_episodes"), missing_ok=True)
+    df = (
+        read_table(record.table_path("train_episodes"), missing_ok=True) if train is None else train
+    )
     if df.empty or not {"global_step", "return"} <= set(df.columns):
         return None, 0, 0
     info = record.info
@@ -179,35 +182,28 @@ def final_stage_return(
 
 
 # ---- status ---------------------------------------------------------------------------------
-def stale_after_s(heartbeat_interval: float) -> float:
-    """A running run's heartbeat older than this is stale: max(120 s, 10 heartbeat intervals)."""
-    return max(120.0, 10.0 * heartbeat_interval)
+def _is_stale(record: RunRecord, interval_s: float, now: datetime) -> bool:
+    info = record.info
+    return heartbeat_stale(
+        info.status, info.heartbeat or info.started or info.created, interval_s, now
+    )
 
 
-def _is_stale(record: RunRecord, heartbeat_interval: float, now: datetime) -> bool:
-    if record.info.status != "running":
-        return False
-    beat = parse_time(record.info.heartbeat or record.info.started or record.info.created)
-    if beat is None:
-        return False
-    return (now - beat).total_seconds() > stale_after_s(heartbeat_interval)
-
-
-def _heartbeat_interval(record: RunRecord) -> float:
-    return _training_value(record.raw_spec(), "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S)
+def heartbeat_interval(raw_spec: dict[str, Any]) -> float:
+    """``training.heartbeat_interval`` of a run's spec as plain data (s), or
+    :data:`DEFAULT_HEARTBEAT_INTERVAL_S` where it is absent."""
+    return _training_value(raw_spec, "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S)
 
 
 def is_lost(record: RunRecord, *, now: datetime | None = None, stale: bool | None = None) -> bool:
     """A ``running`` run whose process is gone: nobody holds its ``run.lock``, and its
     heartbeat is stale or (on this host) its pid is not alive."""
     info = record.info
-    if info.status != "running" or lock_held(record) is True:
+    if info.status != "running":
         return False
     if stale is None:
-        stale = _is_stale(record, _heartbeat_interval(record), now or datetime.now(UTC))
-    if stale:
-        return True
-    return info.host == socket.gethostname() and not pid_alive(info.pid)
+        stale = _is_stale(record, heartbeat_interval(record.raw_spec()), now or datetime.now(UTC))
+    return is_lost_process(record.path, stale=stale, host=info.host, pid=info.pid)
 
 
 def effective_status(record: RunRecord, *, now: datetime | None = None) -> str:
@@ -218,151 +214,19 @@ def effective_status(record: RunRecord, *, now: datetime | None = None) -> str:
 
 # ---- summaries ------------------------------------------------------------------------------
 def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
-    """One row of ``softtrack runs`` (JSON-serialisable)."""
+    """One row of ``softtrack runs`` (JSON-serialisable), read from the run's files."""
     raw = record.raw_spec()
-    info = record.info
     try:
         final, n_final, last_step = final_stage_return(record, final_stage_fraction(raw))
     except TableError:
         final, n_final, last_step = None, 0, 0
-    now = now or datetime.now(UTC)
-    stale = _is_stale(
-        record, _training_value(raw, "heartbeat_interval", DEFAULT_HEARTBEAT_INTERVAL_S), now
-    )
-    return {
-        "run_id": info.run_id,
-        "name": info.name,
-        "algo": info.algo,
-        "controller": info.controller,
-        "seed": info.seed,
-        "status": "lost" if is_lost(record, now=now, stale=stale) else info.status,
-        "stored_status": info.status,
-        "stale": stale,
-        "sweep": (info.notes or {}).get("sweep"),
-        "global_step": max(info.global_step, last_step),
-        "total_timesteps": info.total_timesteps,
+    sweep = (record.info.notes or {}).get("sweep")
+    row = {
+        **record.info.model_dump(),
+        "sweep": None if sweep is None else str(sweep),
+        "heartbeat_interval": heartbeat_interval(raw),
         "final_return": final,
         "final_return_episodes": n_final,
-        "steps_per_second": info.steps_per_second,
-        "cpu": info.cpu,
-        "created": info.created,
-        "started": info.started,
-        "ended": info.ended,
-        "spec_hash": info.spec_hash,
-        "git_commit": info.git_commit,
-        "git_dirty": info.git_dirty,
-        "error": info.error,
-        "traceback": info.traceback,
-        "path": str(record.path),
+        "last_step": last_step,
     }
-
-
-def list_run_summaries(
-    runs_dir: str | os.PathLike[str] | None = None, *, failed: bool = False
-) -> list[dict[str, Any]]:
-    """Summaries of every run under ``runs_dir`` (resolved with ``resolve_runs_dir``), oldest
-    first; with ``failed=True`` only the failed runs."""
-    store = RunStore(resolve_runs_dir(runs_dir))
-    now = datetime.now(UTC)
-    rows = [run_summary(record, now=now) for record in store.list_runs()]
-    if failed:
-        return [r for r in rows if r["status"] == "failed"]
-    return rows + [unreadable_summary(item) for item in store.list_unreadable()]
-
-
-def unreadable_summary(item: UnreadableRun) -> dict[str, Any]:
-    """The ``softtrack runs`` row of a run whose run.json is missing or unreadable: status
-    ``unreadable``, the directory name as its id and the reason as its error."""
-    return {
-        "run_id": item.path.name,
-        "name": "",
-        "algo": "",
-        "controller": "",
-        "seed": None,
-        "status": "unreadable",
-        "stored_status": None,
-        "stale": False,
-        "sweep": None,
-        "global_step": None,
-        "total_timesteps": None,
-        "final_return": None,
-        "final_return_episodes": 0,
-        "steps_per_second": None,
-        "cpu": None,
-        "created": None,
-        "started": None,
-        "ended": None,
-        "spec_hash": None,
-        "git_commit": None,
-        "git_dirty": None,
-        "error": f"{item.reason}; {item.fix}",
-        "traceback": None,
-        "path": str(item.path),
-    }
-
-
-# ---- text output ----------------------------------------------------------------------------
-def format_failures(summaries: Sequence[dict[str, Any]]) -> str:
-    """Each failed run's id, experiment, seed, error and stored traceback."""
-    blocks = []
-    for s in summaries:
-        head = f"== {s['run_id']}  {s['name']}  seed {s['seed']}: {s.get('error') or '(no error)'}"
-        body = (s.get("traceback") or "").rstrip()
-        blocks.append(
-            head + ("\n" + "\n".join("   " + line for line in body.splitlines()) if body else "")
-        )
-    return "\n".join(blocks)
-
-
-RUN_TABLE_COLUMNS = (
-    "ID",
-    "NAME",
-    "ALGO",
-    "CONTROLLER",
-    "SEED",
-    "STATUS",
-    "STEPS",
-    "FINAL RETURN",
-    "STARTED (UTC)",
-    "ENDED (UTC)",
-)
-
-
-def _time_cell(text: str | None) -> str:
-    moment = parse_time(text)
-    return moment.strftime("%Y-%m-%d %H:%M:%S") if moment else ""
-
-
-def format_runs_table(summaries: Sequence[dict[str, Any]]) -> str:
-    """A plain, aligned text table of run summaries (one line per run, with a header)."""
-    rows = [list(RUN_TABLE_COLUMNS)]
-    for s in summaries:
-        status = s["status"] + (" (stale)" if s.get("stale") and s["status"] != "lost" else "")
-        final = s.get("final_return")
-        rows.append(
-            [
-                s["run_id"],
-                s["name"],
-                s["algo"],
-                s["controller"],
-                "" if s["seed"] is None else str(s["seed"]),
-                status,
-                "" if s["global_step"] is None else f"{s['global_step']}/{s['total_timesteps']}",
-                "" if final is None else f"{final:.2f}",
-                _time_cell(s.get("started")),
-                _time_cell(s.get("ended")),
-            ]
-        )
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    right = {4, 6, 7}  # numeric columns
-    lines = []
-    for row in rows:
-        cells = [
-            cell.rjust(widths[i]) if i in right else cell.ljust(widths[i])
-            for i, cell in enumerate(row)
-        ]
-        lines.append("  ".join(cells).rstrip())
-    lines += [
-        f"{s['run_id']}: unreadable: {s['error']}" for s in summaries if s["status"] == "unreadable"
-    ]
-    return "\n".join(lines)
+    return summary_from_row(row, record.path, now or datetime.now(UTC))

@@ -35,10 +35,11 @@ from softtrack.store.atomic import (
     atomic_path,
     fsync_dir,
     fsync_file,
-    is_temp_file,
     remove_stale_temp_files,
     temp_name,
 )
+from softtrack.store.catalog import note_run
+from softtrack.store.table_index import list_tables
 
 __all__ = [
     "TRAIN_EPISODES_COLUMNS",
@@ -123,6 +124,15 @@ def _write(path: Path, table: pa.Table) -> None:
     remove_stale_temp_files(path)
     with atomic_path(path) as tmp:
         _write_parquet(table, tmp)
+    _note_runs([path])
+
+
+def _note_runs(paths: Iterable[Path]) -> None:
+    """Tell the catalog (:mod:`softtrack.store.catalog`) about the runs whose
+    ``tables/`` these files are in."""
+    for run_path in {p.parent.parent for p in paths if p.parent.name == "tables"}:
+        if (run_path / "run.json").is_file():
+            note_run(run_path)
 
 
 def write_tables(tables: Mapping[Path, pd.DataFrame | pa.Table | None]) -> None:
@@ -157,6 +167,7 @@ def write_tables(tables: Mapping[Path, pd.DataFrame | pa.Table | None]) -> None:
         for tmp, _ in written:
             tmp.unlink(missing_ok=True)
         raise
+    _note_runs(tables)
 
 
 def write_table(
@@ -243,19 +254,6 @@ def read_table(
         if missing_ok:
             return pd.DataFrame({c: [] for c in columns or ()})
         raise
-
-
-def list_tables(tables_dir: str | os.PathLike[str]) -> dict[str, Path]:
-    """The tables in a directory: ``{name: path}`` for each ``<name>.parquet``, sorted by name,
-    skipping temporary files."""
-    tables_dir = Path(tables_dir)
-    if not tables_dir.is_dir():
-        return {}
-    return {
-        p.name[: -len(".parquet")]: p
-        for p in sorted(tables_dir.iterdir())
-        if p.name.endswith(".parquet") and not is_temp_file(p) and not p.name.startswith(".")
-    }
 
 
 def element_peaks_frame(run_id: str, trajectory: str, peaks: np.ndarray) -> pd.DataFrame:

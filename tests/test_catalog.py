@@ -1,0 +1,275 @@
+"""The catalog of a runs directory: equal to the directories after every kind of change,
+rebuilt when missing or tampered with, never corrupted by concurrent writers killed at random."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import random
+import shutil
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pytest
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+from softtrack.spec import ExperimentSpec
+from softtrack.store import catalog
+from softtrack.store.catalog import CATALOG_DIR, FORMAT_VERSION, catalog_path, read_catalog
+from softtrack.store.catalog_rows import run_row
+from softtrack.store.runs import RunStore
+from softtrack.store.summaries import run_listing
+from softtrack.store.tables import append_rows, write_table
+
+runner = CliRunner()
+
+
+def _spec(name: str = "exp") -> ExperimentSpec:
+    return ExperimentSpec.model_validate(
+        {"name": name, "seeds": [0], "training": {"total_timesteps": 100_000}}
+    )
+
+
+def _make_run(store: RunStore, name: str = "exp", seed: int = 0, episodes: int = 3) -> Path:
+    record = store.create_run(_spec(name), seed, ["softtrack", "train"])
+    rows = [
+        {
+            "run_id": record.run_id,
+            "episode": i,
+            "global_step": 100 * (i + 1),
+            "return": float(i),
+            "length": 100,
+            "wall_time": 1.0 + i,
+        }
+        for i in range(episodes)
+    ]
+    append_rows(record.table_path("train_episodes"), rows)
+    write_table(
+        record.table_path("eval_metrics"),
+        [
+            {"run_id": record.run_id, "trajectory": "circle", "arm": a, "rmse_3d": 0.1}
+            for a in (0, 1)
+        ],
+    )
+    return record.path
+
+
+def _without_stamps(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    out = []
+    for row in rows:
+        row = {k: v for k, v in row.items() if k != "stamp"}
+        if row.get("tables"):  # per-file stamps too
+            row["tables"] = [item[:4] for item in json.loads(row["tables"])]
+        out.append(row)
+    return out
+
+
+def _truth(root: Path) -> list[dict[str, Any]]:
+    """Every run's row read from its directory now (what the catalog must equal)."""
+    rows = []
+    for path in sorted(root.iterdir()):
+        if path.name == CATALOG_DIR:
+            continue
+        found = run_row(path)
+        if found is not None:
+            rows.append(found.row)
+    return _without_stamps(rows)
+
+
+def _assert_current(root: Path) -> catalog.CatalogSnapshot:
+    snapshot = read_catalog(root)
+    assert _without_stamps(snapshot.rows()) == _truth(root)
+    return snapshot
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> RunStore:
+    store = RunStore(tmp_path / "runs")
+    for seed in range(3):
+        _make_run(store, "exp-a", seed)
+    _make_run(store, "exp-b", 0)
+    return store
+
+
+def test_writers_keep_the_catalog_current_without_reading_the_runs(store: RunStore) -> None:
+    first = _assert_current(store.root)
+    assert first.table.num_rows == 4
+    assert catalog_path(store.root).is_file()
+    assert first.reread == 0  # every row came from the entries the writers left
+    assert not list((store.root / CATALOG_DIR / "entries").iterdir())  # merged and removed
+    path = _make_run(store, "exp-c")
+    store.heartbeat(path.name, 500)
+    append_rows(path / "tables" / "train_episodes.parquet", [{"episode": 9, "return": 5.0}])
+    snapshot = _assert_current(store.root)
+    assert snapshot.reread == 0 and snapshot.notices == []
+    assert _assert_current(store.root).reread == 0
+
+
+def test_changes_behind_softtracks_back_are_read_again(store: RunStore) -> None:
+    _assert_current(store.root)
+    runs = sorted(p for p in store.root.iterdir() if p.name != CATALOG_DIR)
+    shutil.copytree(runs[0], store.root / "copied-run")  # added by hand
+    shutil.rmtree(runs[1])  # deleted by hand
+    info = json.loads((runs[2] / "run.json").read_text())
+    (runs[2] / "run.json").write_text(json.dumps({**info, "status": "failed"}))  # edited in place
+    time.sleep(catalog._RACY_S + 0.1)  # the edits are no longer too fresh to trust
+    snapshot = _assert_current(store.root)
+    assert snapshot.reread == 2
+    assert snapshot.notices == [
+        f"catalog of {store.root}: run directories 1 added, 1 changed, 1 removed outside "
+        "softtrack; read from the directories"
+    ]
+    assert _assert_current(store.root).notices == []  # said once: the catalog is current now
+
+
+def test_a_table_rewritten_in_place_is_seen_by_query(store: RunStore) -> None:
+    _assert_current(store.root)
+    run = next(p for p in sorted(store.root.iterdir()) if p.name != CATALOG_DIR)
+    metrics = run / "tables" / "eval_metrics.parquet"
+    size = metrics.stat().st_size
+    time.sleep(0.05)  # past the file system's clock tick
+    with open(metrics, "r+b") as fh:  # same inode, same directory: no stamp of the run moves
+        fh.write(b"x" * size)
+    result = runner.invoke(
+        app, ["query", "SELECT count(*) FROM eval_metrics", "--runs-dir", str(store.root)]
+    )
+    assert result.exit_code == 2 and str(metrics) in result.stderr
+    assert "not readable Parquet" in result.stderr
+
+
+@pytest.mark.faults("held")
+@pytest.mark.parametrize("damage", ["garbage", "edited", "directory", "empty"])
+def test_a_damaged_catalog_is_rebuilt_with_one_line(store: RunStore, damage: str) -> None:
+    _assert_current(store.root)
+    path = catalog_path(store.root)
+    if damage == "garbage":
+        path.write_bytes(b"\x00not an arrow file")
+    elif damage == "empty":
+        path.write_bytes(b"")
+    elif damage == "directory":
+        path.unlink()
+        path.mkdir()
+    else:  # a hand edit that keeps the file valid: a value changed, the digest kept
+        with pa.memory_map(str(path)) as source:
+            table = pa.ipc.open_file(source).read_all()
+        names = table.column("name").to_pylist()
+        names[0] = "tampered"
+        table = table.set_column(table.schema.get_field_index("name"), "name", pa.array(names))
+        with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
+            writer.write_table(table)
+    result = runner.invoke(app, ["runs", "--runs-dir", str(store.root)])
+    assert result.exit_code == 0, result.output
+    notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "rebuilt from 4 run directories" in notes[0]
+    assert "tampered" not in result.stdout and result.stdout.count("exp-a") == 3
+    if damage != "directory":
+        assert _assert_current(store.root).notices == []
+
+
+@pytest.mark.faults("held")
+def test_a_newer_catalog_is_left_alone(store: RunStore) -> None:
+    _assert_current(store.root)
+    path = catalog_path(store.root)
+    with pa.memory_map(str(path)) as source:
+        table = pa.ipc.open_file(source).read_all()
+    meta = dict(table.schema.metadata)
+    meta[b"softtrack_catalog_version"] = str(FORMAT_VERSION + 1).encode()
+    with pa.OSFile(str(path), "wb") as sink:
+        schema = table.schema.with_metadata(meta)
+        with pa.ipc.new_file(sink, schema) as writer:
+            writer.write_table(table.replace_schema_metadata(meta))
+    before = path.read_bytes()
+    _make_run(store, "exp-new")  # a writer of this version leaves no entry for it
+    listing = run_listing(store.root)
+    assert [s["name"] for s in listing.summaries].count("exp-new") == 1
+    assert len(listing.notices) == 1 and "newer softtrack" in listing.notices[0]
+    assert path.read_bytes() == before
+    assert not (store.root / CATALOG_DIR / "entries").exists() or not any(
+        (store.root / CATALOG_DIR / "entries").iterdir()
+    )
+
+
+@pytest.mark.faults("held")
+def test_a_read_only_runs_directory_is_answered_from_the_directories(
+    store: RunStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    shutil.rmtree(store.root / CATALOG_DIR)
+
+    def read_only(*args: Any, **kwargs: Any) -> None:
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(catalog.Path, "mkdir", read_only)
+    result = runner.invoke(app, ["runs", "--runs-dir", str(store.root)])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.count("exp-a") == 3
+    notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
+    assert any("cannot be written" in note for note in notes), notes
+    assert not (store.root / CATALOG_DIR).exists()
+
+
+def test_deleting_the_catalog_loses_nothing(store: RunStore) -> None:
+    rows = _without_stamps(read_catalog(store.root).rows())
+    shutil.rmtree(store.root / CATALOG_DIR)
+    again = read_catalog(store.root)
+    assert _without_stamps(again.rows()) == rows
+    assert again.notices == [f"catalog of {store.root} built from 4 run directories"]
+
+
+def test_runs_limit_shows_the_runs_created_last(store: RunStore) -> None:
+    result = runner.invoke(app, ["runs", "--runs-dir", str(store.root), "--limit", "1"])
+    assert result.exit_code == 0, result.output
+    assert result.stdout.count("\n") == 2 and "exp-b" in result.stdout
+    assert "(the 1 runs created last of 4; --limit 0 lists all)" in result.stderr
+
+
+# ---- concurrency ----------------------------------------------------------------------------
+def _writer(root: str, seed: int) -> None:
+    """A training process in miniature: creates a run, appends episodes, beats, finishes."""
+    store = RunStore(root)
+    rng = random.Random(seed)
+    path = _make_run(store, f"exp-{seed % 4}", seed, episodes=1)
+    for i in range(20):
+        append_rows(
+            path / "tables" / "train_episodes.parquet",
+            [{"episode": i + 1, "global_step": 200 + i, "return": rng.random(), "wall_time": 2.0}],
+        )
+        store.heartbeat(path.name, 200 + i)
+    store.mark_finished(path.name, "completed")
+
+
+def _reader(root: str) -> None:
+    for _ in range(30):
+        read_catalog(Path(root))
+
+
+@pytest.mark.faults("held")
+def test_32_concurrent_writers_killed_at_random_never_corrupt_it(tmp_path: Path) -> None:
+    root = tmp_path / "runs"
+    RunStore(root)
+    _make_run(RunStore(root), "seed-run")
+    context = multiprocessing.get_context("fork")
+    workers = [context.Process(target=_writer, args=(str(root), s)) for s in range(32)]
+    workers += [context.Process(target=_reader, args=(str(root),)) for _ in range(4)]
+    for worker in workers:
+        worker.start()
+    time.sleep(0.5)
+    killed = random.Random(0).sample(range(36), 8)
+    for index in killed:
+        if workers[index].pid is not None:
+            os.kill(workers[index].pid, signal.SIGKILL)
+    for worker in workers:
+        worker.join(timeout=120)
+        assert not worker.is_alive()
+    survivors = [w for i, w in enumerate(workers) if i not in killed]
+    assert all(w.exitcode == 0 for w in survivors), [w.exitcode for w in survivors]
+    snapshot = _assert_current(root)
+    assert not any("edited" in note or "unreadable" in note for note in snapshot.notices)
+    finished = [r for r in snapshot.rows() if r["status"] == "completed"]
+    assert len(finished) >= len([w for w in survivors if w in workers[:32]])
+    again = read_catalog(root)  # the merged file itself reads back, digest and all
+    assert again.notices == [] and again.reread == 0
