@@ -102,6 +102,7 @@ __all__ = [
     "spec_defaults_yaml",
     "spec_schema_json",
     "sweep",
+    "sync_mlflow",
     "train",
     "tune",
     "tune_best",
@@ -551,6 +552,20 @@ def compare(
     from softtrack.report.compare import compare_selection
 
     return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random)
+
+
+def sync_mlflow(
+    selection: Sequence[str] = (),
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    tracking_uri: str | None = None,
+    on_run: Callable[[str, str], None] | None = None,
+) -> Any:
+    """:func:`softtrack.report.to_mlflow.sync_mlflow`: write the runs (params, metrics,
+    curves, report and policy) to an MLflow tracking store; returns a ``SyncOutcome``."""
+    from softtrack.report.to_mlflow import sync_mlflow as sync
+
+    return sync(selection, runs_dir=runs_dir, tracking_uri=tracking_uri, on_run=on_run)
 
 
 def compare_figure(comparison: Any, path: str | os.PathLike[str]) -> Path:

@@ -1321,6 +1321,61 @@ def compare(
             typer.echo(f"figure: {api.compare_figure(comparison, figure)}")
 
 
+sync_app = typer.Typer(
+    name="sync",
+    help="Copy runs to the tools people already use (MLflow).",
+    no_args_is_help=True,
+    cls=Group,
+)
+app.add_typer(sync_app)
+
+
+@sync_app.command("mlflow", cls=Command)
+def sync_mlflow(
+    selection: Annotated[
+        list[str] | None,
+        typer.Argument(
+            metavar="[RUN_OR_NAME]...",
+            show_default=False,
+            help="Experiment names, run ids (or prefixes) or spec files [default: every run].",
+        ),
+    ] = None,
+    runs_dir: RunsDirOption = None,
+    tracking_uri: Annotated[
+        str | None,
+        typer.Option(
+            "--tracking-uri",
+            metavar="URI",
+            show_default=False,
+            help="The MLflow store [default: $MLFLOW_TRACKING_URI, else sqlite:///mlflow.db "
+            "in the current directory].",
+        ),
+    ] = None,
+) -> None:
+    """Write runs to an MLflow tracking store: the spec as params, the evaluation metrics,
+    the training and validation curves as metric histories, a summary report and the policy
+    as artifacts; one MLflow experiment per experiment name.
+
+    Idempotent: a run unchanged since its last sync is skipped, a changed one replaced.
+    Needs MLflow: pip install 'softtrack[mlflow]'. Example:
+    softtrack sync mlflow td3-sbx-128-mirror-tta --runs-dir models --tracking-uri
+    sqlite:///mlflow.db, then mlflow ui --backend-store-uri sqlite:///mlflow.db
+    """
+
+    def progress(run_id: str, what: str) -> None:
+        typer.echo(f"{run_id}: {what}", err=True)
+
+    with _user_errors(runs_dir):
+        outcome = api.sync_mlflow(
+            selection or [], runs_dir=runs_dir, tracking_uri=tracking_uri, on_run=progress
+        )
+    typer.echo(
+        f"mlflow {outcome.tracking_uri}: {len(outcome.created)} runs created, "
+        f"{len(outcome.replaced)} replaced (changed since the last sync), "
+        f"{len(outcome.unchanged)} unchanged"
+    )
+
+
 @app.command(cls=Command)
 def quickstart(
     overrides: SetOption = None,

@@ -457,6 +457,10 @@ class ResultsDatabase:
         tables = sorted((v for k, v in self._views.items() if k not in _RESERVED), key=_by_name)
         return fixed + tables
 
+    def table_names(self) -> list[str]:
+        """The names of the table views some run has files for (readable or not)."""
+        return sorted(t.view for t in self._tables.values())
+
     def execute(self, sql: str) -> duckdb.DuckDBPyConnection:
         """Run ``sql`` (DuckDB's dialect; several statements: the last one's result) and
         return the cursor to fetch the result from (``description`` None: no result).
