@@ -723,9 +723,8 @@ def runs(
         listing = summaries.run_listing(
             runs_dir, failed=failed, limit=limit or None, progress=_catalog_progress
         )
-    for notice in listing.notices:
-        typer.echo(f"note: {notice}", err=True)
     shown = listing.summaries
+    _print_notes(listing.notices)
     if output_format is OutputFormat.json:
         typer.echo(json.dumps(shown, indent=2, ensure_ascii=False))
         return
@@ -800,22 +799,26 @@ def query_command(
         _fail('query: give either SQL or --views; e.g. `softtrack query "SELECT * FROM runs"`')
 
     with _user_errors(), results_db.ResultsDatabase(runs_dir, progress=_catalog_progress) as db:
-        for notice in db.notices:
-            typer.echo(f"note: {notice}", err=True)
         for path, reason in db.unreadable:
             fix = summaries.unreadable_fix(path)
             typer.echo(f"warning: run {path.name} left out: {reason}; {fix}", err=True)
         if views:
             typer.echo(results_db.format_views(db.views()))
-            return
-        assert sql is not None
-        cursor = db.execute(sql)
-        if cursor.description is None:
-            return
-        try:
-            results_db.write_cursor(cursor, output_format.value, _write_stdout)
-        except duckdb.Error as exc:
-            _fail(db.explain(exc))
+        else:
+            assert sql is not None
+            cursor = db.execute(sql)
+            if cursor.description is not None:
+                try:
+                    results_db.write_cursor(cursor, output_format.value, _write_stdout)
+                except duckdb.Error as exc:
+                    _fail(db.explain(exc))
+        _print_notes(db.notices)
+
+
+def _print_notes(notices: list[str]) -> None:
+    """Lines about the catalog, after a command's answer (an error stays one line)."""
+    for notice in notices:
+        typer.echo(f"note: {notice}", err=True)
 
 
 def _write_stdout(text: str) -> None:

@@ -221,13 +221,17 @@ class _TableFile:
 
 @dataclass
 class _TableFiles:
-    """Every file of one table across the runs, as the catalog lists them."""
+    """Every file of one table across the runs, as the catalog lists them; checked against
+    the files (:meth:`resolve`) only when a query names the table."""
 
     name: str
-    #: every readable file of the table
+    #: (run directory, run id, catalog item: [table, path, schema id, error, file stamp])
+    items: list[tuple[str, str, list[Any]]] = field(default_factory=list)
+    #: every readable file of the table (after :meth:`resolve`)
     files: list[_TableFile] = field(default_factory=list)
     #: why a file is not readable Parquet (the first such file), else ``None``
     error: str | None = None
+    resolved: bool = False
 
     @property
     def view(self) -> str:
@@ -236,6 +240,27 @@ class _TableFiles:
     @property
     def runs(self) -> int:
         return len({f.run_id for f in self.files})
+
+    def resolve(self, schemas: dict[str, str]) -> None:
+        """The files and their schemas, each file stat-ed: one changed since the catalog
+        read it (rewritten in place) has its schema read again."""
+        if self.resolved:
+            return
+        for run_path, run_id, item in self.items:
+            name, rel, schema, error, stamp = (*item, None)[:5]
+            path = f"{run_path}{os.sep}{rel}"
+            if stamp is None or file_stamp(path) != stamp:
+                name, rel, schema, error, stamp = table_item(
+                    name, Path(path), Path(run_path), schemas
+                )
+            if error is not None or schema is None:
+                self.error = self.error or (
+                    f"{path} (run {run_id}) is not readable Parquet ({error})"
+                )
+                continue
+            has_run_id = '"run_id": ' in schemas.get(schema, "")
+            self.files.append(_TableFile(path, run_id, schema, has_run_id))
+        self.resolved = True
 
 
 def _lit(text: str) -> str:
@@ -337,7 +362,7 @@ class ResultsDatabase:
         snapshot = read_catalog(root, progress=progress)
         #: lines about the catalog itself (built, rebuilt, not writable)
         self.notices = snapshot.notices
-        columns = snapshot.table.to_pydict()
+        columns = snapshot.table.select(["dir", "run_id", "tables", "unreadable"]).to_pydict()
         #: runs left out because their run.json is missing or unreadable: (directory, reason)
         self.unreadable = [
             (root / d, reason)
@@ -351,7 +376,8 @@ class ResultsDatabase:
                 "pass the directory your runs are in with --runs-dir (the shipped runs: "
                 "--runs-dir models)"
             )
-        self._tables = _table_files(root.resolve(), columns, snapshot.schemas)
+        self._schemas = snapshot.schemas
+        self._tables = _table_files(root.resolve(), columns)
         self.connection = duckdb.connect(":memory:")
         try:
             self.connection.execute("SET enable_progress_bar = false")
@@ -385,6 +411,7 @@ class ResultsDatabase:
         """The view of one table (or, where a file is unreadable, its reason)."""
         if table.view in self._views:
             return
+        table.resolve(self._schemas)
         description = TABLE_DESCRIPTIONS.get(table.name, f"the runs' tables/{table.name}.parquet")
         if table.error is not None:
             self._views[table.view] = ViewInfo(table.view, description, (), table.runs, table.error)
@@ -554,31 +581,17 @@ def _by_name(view: ViewInfo) -> str:
     return view.name
 
 
-def _table_files(
-    root: Path, columns: dict[str, list[Any]], schemas: dict[str, str]
-) -> dict[str, _TableFiles]:
-    """Every table's files from the catalog's ``tables`` cells; a file changed since the
-    catalog read it (its stamp differs) has its schema read again."""
+def _table_files(root: Path, columns: dict[str, list[Any]]) -> dict[str, _TableFiles]:
+    """Every table's files from the catalog's ``tables`` cells, unchecked."""
     tables: dict[str, _TableFiles] = {}
     for directory, run_id, cell, bad in zip(
         columns["dir"], columns["run_id"], columns["tables"], columns["unreadable"], strict=True
     ):
         if bad is not None or not cell:
             continue
-        run_path = root / directory
+        run_path = f"{root}{os.sep}{directory}"
         for item in json.loads(cell):
-            name, rel, schema, error, stamp = (*item, None)[:5]
-            path = f"{run_path}{os.sep}{rel}"
-            if stamp is None or file_stamp(path) != stamp:
-                name, rel, schema, error, stamp = table_item(name, Path(path), run_path, schemas)
-            table = tables.setdefault(name, _TableFiles(name))
-            if error is not None or schema is None:
-                table.error = table.error or (
-                    f"{path} (run {run_id}) is not readable Parquet ({error})"
-                )
-                continue
-            has_run_id = '"run_id": ' in schemas.get(schema, "")
-            table.files.append(_TableFile(path, run_id, schema, has_run_id))
+            tables.setdefault(item[0], _TableFiles(item[0])).items.append((run_path, run_id, item))
     return tables
 
 
