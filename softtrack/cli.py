@@ -798,6 +798,9 @@ def query_command(
     if views == (sql is not None):
         _fail('query: give either SQL or --views; e.g. `softtrack query "SELECT * FROM runs"`')
 
+    with _user_errors():
+        if sql is not None:  # a refused statement is refused before anything is read
+            results_db.check_read_only(sql)
     with _user_errors(), results_db.ResultsDatabase(runs_dir, progress=_catalog_progress) as db:
         for path, reason in db.unreadable:
             fix = summaries.unreadable_fix(path)

@@ -29,6 +29,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.store.atomic import is_temp_file
+from softtrack.store.catalog import read_catalog
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table
 
@@ -138,6 +139,7 @@ def _raise_oserror(code: int, where: Path) -> Any:
 def test_query_cannot_write_read_outside_or_install(runs: tuple[Path, str], sql: str) -> None:
     root, run_id = runs
     run = root / run_id
+    read_catalog(root)  # the catalog a first read builds (a cache of the directories)
     before = _snapshot(root)
     result = _cli("query", sql.format(run=run), "--runs-dir", str(root))
     assert result.exit_code == 2

@@ -69,6 +69,7 @@ __all__ = [
     "ResultsDatabase",
     "ViewInfo",
     "available_views",
+    "check_read_only",
     "connect",
     "format_result",
     "format_views",
@@ -310,7 +311,7 @@ def _first_line(exc: BaseException) -> str:
 _READ_STATEMENTS = frozenset({"SELECT", "EXPLAIN"})
 
 
-def _check_read_only(sql: str) -> None:
+def check_read_only(sql: str) -> None:
     """Raise :class:`QueryError` for a statement that is not a read (COPY, ATTACH, SET, ...);
     a syntax error is left to the query itself."""
     try:
@@ -378,17 +379,42 @@ class ResultsDatabase:
             )
         self._schemas = snapshot.schemas
         self._tables = _table_files(root.resolve(), columns)
+        self._catalog = snapshot.table
+        self._views: dict[str, ViewInfo] = {}
+        self._locked = False
+        self.connection = self._open()
+
+    # ---- setup -------------------------------------------------------------------------
+    def _open(self) -> duckdb.DuckDBPyConnection:
+        """A new connection with the ``runs`` and ``experiments`` views, not yet locked."""
+        self._views = {}
+        self._locked = False
         self.connection = duckdb.connect(":memory:")
         try:
             self.connection.execute("SET enable_progress_bar = false")
-            self._views: dict[str, ViewInfo] = {}
-            self._create_runs_views(snapshot.table)
-            self._sandbox(root.resolve())
+            self._create_runs_views(self._catalog)
         except BaseException:
             self.connection.close()
             raise
+        return self.connection
 
-    # ---- setup -------------------------------------------------------------------------
+    def _prepare(self, tables: list[_TableFiles]) -> None:
+        """The views of ``tables`` exist and the connection is sandboxed to their files. The
+        sandbox is set once a connection's views are known (DuckDB locks it then): a later
+        query that names another table gets a new connection with every view so far."""
+        wanted = [t for t in tables if t.view not in self._views]
+        if self._locked and not wanted:
+            return
+        if self._locked:
+            earlier = [t for t in self._tables.values() if t.view in self._views]
+            self.connection.close()
+            self._open()
+            wanted = earlier + wanted
+        for table in wanted:
+            self._create_table_view(table)
+        files = [f.path for t in self._tables.values() if t.view in self._views for f in t.files]
+        self._sandbox(files)
+
     def _create_runs_views(self, catalog: pa.Table) -> None:
         con = self.connection
         con.register("__softtrack_catalog", catalog)
@@ -444,18 +470,17 @@ class ResultsDatabase:
             return
         self._add_view(table.view, description, table.runs)
 
-    def _views_for(self, sql: str) -> None:
-        """Create the views of the tables that ``sql`` names (any word equal to one)."""
+    def _named_in(self, sql: str) -> list[_TableFiles]:
+        """The tables that ``sql`` names (any word equal to a view's name)."""
         words = {word.lower() for word in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", sql)}
-        for table in self._tables.values():
-            if table.view.lower() in words:
-                self._create_table_view(table)
+        return [t for t in self._tables.values() if t.view.lower() in words]
 
-    def _sandbox(self, root: Path) -> None:
-        """No file access but reading inside the runs directory, no extensions, locked
+    def _sandbox(self, files: list[str]) -> None:
+        """No file access but reading the views' Parquet files, no extensions, locked
         settings."""
         con = self.connection
-        con.execute("SET allowed_directories = ?", [[str(root) + os.sep]])
+        if files:
+            con.execute("SET allowed_paths = ?", [sorted(files)])
         for setting in (
             "enable_external_access",
             "autoinstall_known_extensions",
@@ -464,6 +489,7 @@ class ResultsDatabase:
         ):
             con.execute(f"SET {setting} = false")
         con.execute("SET lock_configuration = true")
+        self._locked = True
 
     def _add_view(self, name: str, description: str, runs: int) -> None:
         rows = self.connection.execute(
@@ -478,8 +504,7 @@ class ResultsDatabase:
     def views(self) -> list[ViewInfo]:
         """``runs``, ``experiments``, then the table views by name (unavailable ones with
         their ``error``)."""
-        for table in sorted(self._tables.values(), key=lambda t: t.name):
-            self._create_table_view(table)
+        self._prepare(sorted(self._tables.values(), key=lambda t: t.name))
         fixed = [self._views[name] for name in _RESERVED]
         tables = sorted((v for k, v in self._views.items() if k not in _RESERVED), key=_by_name)
         return fixed + tables
@@ -498,8 +523,8 @@ class ResultsDatabase:
         if not sql.strip():
             raise QueryError('query: no SQL given; e.g. `softtrack query "SELECT * FROM runs"`')
         try:
-            _check_read_only(sql)
-            self._views_for(sql)
+            check_read_only(sql)
+            self._prepare(self._named_in(sql))
             return self.connection.execute(sql)
         except duckdb.Error as exc:
             raise QueryError(self._explain(exc)) from None
@@ -643,6 +668,7 @@ def query(sql: str, runs_dir: str | os.PathLike[str] | None = None) -> pd.DataFr
         QueryError: no runs directory or runs, bad SQL, an unknown view or column, an
             unreadable file (a one-line message).
     """
+    check_read_only(sql)  # before the catalog is even read: a refused query touches nothing
     with ResultsDatabase(runs_dir) as db:
         return db.query(sql)
 
