@@ -99,12 +99,14 @@ def make_store(root: Path, n_runs: int, tables: tuple[str, ...]) -> None:
 
 
 def _run(command: list[str], env: dict[str, str], timeout: float) -> Timing:
-    """One call of ``command`` (``/usr/bin/time`` gives the peak memory)."""
+    """One call of ``command`` in the code's own directory (``python -m`` imports from the
+    working directory first); ``/usr/bin/time`` gives the peak memory."""
     start = time.perf_counter()
     try:
         done = subprocess.run(
             ["/usr/bin/time", "-f", "%M", *command],
             env=env,
+            cwd=env["PYTHONPATH"],
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -163,6 +165,7 @@ def _write_seconds(code: Path, root: Path) -> float:
     out = subprocess.run(
         [sys.executable, "-c", _WRITE_SCRIPT, str(run), str(TEMPLATE)],
         env=_code_env(code),
+        cwd=code,
         capture_output=True,
         text=True,
         check=True,

@@ -274,3 +274,38 @@ def test_32_concurrent_writers_killed_at_random_never_corrupt_it(tmp_path: Path)
     assert len(finished) >= len([w for w in survivors if w in workers[:32]])
     again = read_catalog(root)  # the merged file itself reads back, digest and all
     assert again.notices == [] and again.reread == 0
+
+
+# ---- the consolidated table copies ------------------------------------------------------------
+def _rmse_sum(root: Path) -> float:
+    result = runner.invoke(
+        app,
+        [
+            "query",
+            "SELECT sum(rmse_3d) AS s FROM eval_metrics",
+            "--runs-dir",
+            str(root),
+            "-f",
+            "csv",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    return float(result.stdout.splitlines()[1])
+
+
+def test_a_query_reads_the_table_copy_and_sees_every_change(store: RunStore) -> None:
+    copy = store.root / CATALOG_DIR / "tables" / "eval_metrics.parquet"
+    assert _rmse_sum(store.root) == pytest.approx(0.8)  # 4 runs x 2 arms x 0.1
+    assert copy.is_file()  # written by the first query
+    run = next(p for p in sorted(store.root.iterdir()) if p.name != CATALOG_DIR)
+    write_table(  # one run evaluated again
+        run / "tables" / "eval_metrics.parquet",
+        [{"run_id": "x", "trajectory": "circle", "arm": a, "rmse_3d": 1.0} for a in (0, 1)],
+    )
+    assert _rmse_sum(store.root) == pytest.approx(2.6)
+    shutil.rmtree(run)  # one run deleted
+    assert _rmse_sum(store.root) == pytest.approx(0.6)
+    copy.write_bytes(copy.read_bytes()[:-20] + b"x" * 20)  # the copy damaged: ignored, rewritten
+    assert _rmse_sum(store.root) == pytest.approx(0.6)
+    shutil.rmtree(store.root / CATALOG_DIR)  # the cache deleted: nothing lost
+    assert _rmse_sum(store.root) == pytest.approx(0.6)

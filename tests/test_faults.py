@@ -28,6 +28,7 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
+from softtrack.store import catalog
 from softtrack.store.atomic import is_temp_file
 from softtrack.store.catalog import read_catalog
 from softtrack.store.runs import RunStore
@@ -136,9 +137,12 @@ def _raise_oserror(code: int, where: Path) -> Any:
         "CREATE TABLE sneaky AS SELECT 1",
     ],
 )
-def test_query_cannot_write_read_outside_or_install(runs: tuple[Path, str], sql: str) -> None:
+def test_query_cannot_write_read_outside_or_install(
+    runs: tuple[Path, str], sql: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     root, run_id = runs
     run = root / run_id
+    monkeypatch.setattr(catalog, "_RACY_S", 0.0)  # the copy's files count as settled at once
     read_catalog(root)  # the catalog a first read builds (a cache of the directories)
     before = _snapshot(root)
     result = _cli("query", sql.format(run=run), "--runs-dir", str(root))

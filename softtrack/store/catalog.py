@@ -60,6 +60,9 @@ FORMAT_VERSION = 1
 _FILE = "catalog.arrow"
 _ENTRIES = "entries"
 _LOCK = "lock"
+#: ``mtime_ns.size.inode`` of the catalog file as its writer left it: while the file still
+#: matches, its digest need not be computed again (a hand edit changes the stamp).
+_VERIFIED = "verified"
 #: A row read from a file changed less than this long ago is not trusted to stay current
 #: (a second change within the file system's clock tick would keep the stamp): it is stored
 #: without a stamp, so it is read again next time.
@@ -67,6 +70,7 @@ _RACY_S = 2.0
 _META_VERSION = b"softtrack_catalog_version"
 _META_DIGEST = b"softtrack_catalog_digest"
 _META_SCHEMAS = b"softtrack_catalog_schemas"
+_META_TABLES = b"softtrack_catalog_tables"
 
 
 #: The catalog's columns, in order. ``tables`` is JSON: ``[[table, path relative to the run,
@@ -125,22 +129,17 @@ def file_stamp(path: str) -> str:
 
 def run_stamp(run_path: Path | str) -> str | None:
     """What changes whenever softtrack, or anyone replacing files, changes a run: the
-    modification time, size and inode of the run directory, its ``run.json``, its
-    ``tables/`` directory and its ``train_episodes`` table (which ``softtrack runs``
-    summarises). ``None`` when the run directory is gone. (Plain strings and ``os.stat``:
-    at 100,000 runs every microsecond here is a tenth of a second.)"""
+    modification time, size and inode of the run directory (a file renamed into it:
+    ``run.json``, ``spec.yaml``, ``model.zip``), its ``run.json`` (an edit in place) and its
+    ``tables/`` directory (a table replaced or added). ``None`` when the run directory is
+    gone. (Plain strings and ``os.stat``: at 100,000 runs every microsecond here is a tenth
+    of a second.) A table rewritten in place is caught where it is read: ``softtrack query``
+    compares each file it reads with its own stamp."""
     path = os.fspath(run_path)
     directory = file_stamp(path)
     if directory == "-":
         return None
-    return "|".join(
-        (
-            directory,
-            file_stamp(path + "/run.json"),
-            file_stamp(path + "/tables"),
-            file_stamp(path + "/tables/train_episodes.parquet"),
-        )
-    )
+    return f"{directory}|{file_stamp(path + '/run.json')}|{file_stamp(path + '/tables')}"
 
 
 def catalog_path(root: Path) -> Path:
@@ -157,6 +156,7 @@ class CatalogSnapshot:
         table: one row per run directory, sorted by ``dir``
             (:data:`ROW_SCHEMA`).
         schemas: ``{schema id: schema text}`` for the ids in the ``tables`` cells.
+        table_names: every table name the ``tables`` cells name, sorted.
         notices: one line each about the catalog itself (built, rebuilt, not writable).
         reread: directories read again from their files in this call.
     """
@@ -164,6 +164,7 @@ class CatalogSnapshot:
     root: Path
     table: pa.Table
     schemas: dict[str, str]
+    table_names: list[str]
     notices: list[str] = field(default_factory=list)
     reread: int = 0
 
@@ -289,6 +290,8 @@ class _Base:
     schemas: dict[str, str]
     problem: str | None
     newer: bool = False
+    table_names: list[str] = field(default_factory=list)
+    stale_metadata: bool = False  # readable, but to be written again in the current layout
 
 
 def _load_base(root: Path) -> _Base:
@@ -306,13 +309,28 @@ def _load_base(root: Path) -> _Base:
         return _Base(None, {}, f"written by a newer softtrack (format {version})", newer=True)
     if version != FORMAT_VERSION or table.schema.remove_metadata() != ROW_SCHEMA:
         return _Base(None, {}, f"of an older layout (format {version})")
-    if meta.get(_META_DIGEST, b"").decode() != _table_digest(table):
+    if not _verified(root) and meta.get(_META_DIGEST, b"").decode() != _table_digest(table):
         return _Base(None, {}, "edited outside softtrack (its digest does not match)")
     try:
         schemas = json.loads(meta.get(_META_SCHEMAS, b"{}"))
+        names = json.loads(meta[_META_TABLES]) if _META_TABLES in meta else None
     except ValueError:
-        return _Base(None, {}, "edited outside softtrack (unreadable schemas)")
-    return _Base(table.replace_schema_metadata(None), schemas, None)
+        return _Base(None, {}, "edited outside softtrack (unreadable metadata)")
+    table = table.replace_schema_metadata(None)
+    if names is None:  # written before the catalog listed its tables
+        return _Base(
+            table, schemas, None, table_names=_used_schemas(table, schemas)[1], stale_metadata=True
+        )
+    return _Base(table, schemas, None, table_names=names)
+
+
+def _verified(root: Path) -> bool:
+    """Whether the catalog file is the one its writer verified (:data:`_VERIFIED`)."""
+    try:
+        recorded = (root / CATALOG_DIR / _VERIFIED).read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        return False
+    return recorded == file_stamp(str(catalog_path(root)))
 
 
 def _load_entries(root: Path) -> dict[str, _Entry]:
@@ -395,7 +413,9 @@ def read_catalog(
             continue
         stale.append(name)
     fresh.extend(_reread(root, stale, schemas, progress))
-    changed = base.table is None or bool(fresh) or len(keep) != len(base_index)
+    changed = (
+        base.table is None or bool(fresh) or len(keep) != len(base_index) or base.stale_metadata
+    )
     if base.table is not None and not changed:
         table = base.table
     else:
@@ -404,10 +424,10 @@ def read_catalog(
             kept = base.table.take(pa.array(keep, type=pa.int64()))
             table = pa.concat_tables([kept, table])
         table = table.sort_by("dir")
-    used = _used_schemas(table, schemas) if changed else schemas
-    snapshot = CatalogSnapshot(root, table, used, notices, len(stale))
+    used, names = _used_schemas(table, schemas) if changed else (schemas, base.table_names)
+    snapshot = CatalogSnapshot(root, table, used, names, notices, len(stale))
     notices.extend(_notices(root, base, stale, base_index, stamps, base_stamps))
-    if changed and not base.newer and not _write_back(root, table, used, merged):
+    if changed and not base.newer and not _write_back(root, table, used, names, merged):
         notices.append(
             f"catalog of {root} cannot be written (a read-only file system?): "
             "answered from the run directories"
@@ -476,17 +496,26 @@ def _reread(
     return rows
 
 
-def _used_schemas(table: pa.Table, schemas: dict[str, str]) -> dict[str, str]:
+def _used_schemas(table: pa.Table, schemas: dict[str, str]) -> tuple[dict[str, str], list[str]]:
+    """The schemas the ``tables`` cells name by id, and the table names they list."""
     used: dict[str, str] = {}
+    names: set[str] = set()
     for cell in table.column("tables").to_pylist():
         for item in json.loads(cell or "[]"):
+            names.add(item[0])
             key = item[2]
             if key is not None and key in schemas:
                 used[key] = schemas[key]
-    return used
+    return used, sorted(names)
 
 
-def _write_back(root: Path, table: pa.Table, schemas: dict[str, str], merged: list[_Entry]) -> bool:
+def _write_back(
+    root: Path,
+    table: pa.Table,
+    schemas: dict[str, str],
+    names: list[str],
+    merged: list[_Entry],
+) -> bool:
     """Write the catalog and remove the merged entries (those not rewritten meanwhile);
     ``False`` where the directory cannot be written or another process is compacting."""
     directory = root / CATALOG_DIR
@@ -506,6 +535,7 @@ def _write_back(root: Path, table: pa.Table, schemas: dict[str, str], merged: li
             _META_VERSION: str(FORMAT_VERSION).encode(),
             _META_DIGEST: _table_digest(table).encode(),
             _META_SCHEMAS: json.dumps(schemas, sort_keys=True).encode(),
+            _META_TABLES: json.dumps(names).encode(),
         }
         path = catalog_path(root)
         tmp = temp_name(path)
@@ -517,6 +547,7 @@ def _write_back(root: Path, table: pa.Table, schemas: dict[str, str], merged: li
                 with pa.ipc.new_file(sink, table.schema.with_metadata(meta), options=options) as w:
                     w.write_table(table)
             os.replace(tmp, path)
+            (directory / _VERIFIED).write_text(file_stamp(str(path)), encoding="utf-8")
         except OSError:
             tmp.unlink(missing_ok=True)
             return False

@@ -56,6 +56,15 @@ from softtrack.store.query_output import (
     format_views,
     write_cursor,
 )
+from softtrack.store.table_cache import (
+    FILE_COLUMN,
+    MAP_FILE,
+    MAP_RUN_ID,
+    MAP_STAMP,
+    CachedTable,
+    TableFile,
+    create_file_map,
+)
 from softtrack.store.table_index import table_item
 
 if TYPE_CHECKING:
@@ -217,7 +226,7 @@ class _TableFile:
     path: str
     run_id: str
     schema: str
-    has_run_id: bool
+    stamp: str
 
 
 @dataclass
@@ -259,8 +268,7 @@ class _TableFiles:
                     f"{path} (run {run_id}) is not readable Parquet ({error})"
                 )
                 continue
-            has_run_id = '"run_id": ' in schemas.get(schema, "")
-            self.files.append(_TableFile(path, run_id, schema, has_run_id))
+            self.files.append(_TableFile(path, run_id, schema, stamp))
         self.resolved = True
 
 
@@ -287,7 +295,7 @@ def _utc_sql(column: str) -> str:
 
 #: The ``runs`` view from the catalog's columns (softtrack.store.catalog.ROW_SCHEMA).
 _RUNS_SQL = f"""
-CREATE TABLE runs AS
+CREATE VIEW runs AS
 SELECT run_id, dir, name, algo, controller, seed, status, total_timesteps,
        arm_total_timesteps, global_step,
        CASE WHEN global_step > 0 AND train_seconds > 0 THEN global_step / train_seconds
@@ -378,7 +386,10 @@ class ResultsDatabase:
                 "--runs-dir models)"
             )
         self._schemas = snapshot.schemas
-        self._tables = _table_files(root.resolve(), columns)
+        self._table_names = snapshot.table_names
+        self._cells = columns
+        self._root_resolved = root.resolve()
+        self._parsed: dict[str, _TableFiles] | None = None
         self._catalog = snapshot.table
         self._views: dict[str, ViewInfo] = {}
         self._locked = False
@@ -388,6 +399,7 @@ class ResultsDatabase:
     def _open(self) -> duckdb.DuckDBPyConnection:
         """A new connection with the ``runs`` and ``experiments`` views, not yet locked."""
         self._views = {}
+        self._allowed: set[str] = set()
         self._locked = False
         self.connection = duckdb.connect(":memory:")
         try:
@@ -406,20 +418,18 @@ class ResultsDatabase:
         if self._locked and not wanted:
             return
         if self._locked:
-            earlier = [t for t in self._tables.values() if t.view in self._views]
+            earlier = [t for t in (self._parsed or {}).values() if t.view in self._views]
             self.connection.close()
             self._open()
             wanted = earlier + wanted
         for table in wanted:
             self._create_table_view(table)
-        files = [f.path for t in self._tables.values() if t.view in self._views for f in t.files]
-        self._sandbox(files)
+        self._sandbox(sorted(self._allowed))
 
     def _create_runs_views(self, catalog: pa.Table) -> None:
         con = self.connection
         con.register("__softtrack_catalog", catalog)
-        con.execute(_RUNS_SQL)
-        con.unregister("__softtrack_catalog")
+        con.execute(_RUNS_SQL)  # a view over the catalog kept registered: computed when read
         con.execute(_EXPERIMENTS_SQL)
         self._add_view(
             "runs",
@@ -442,21 +452,20 @@ class ResultsDatabase:
         if table.error is not None:
             self._views[table.view] = ViewInfo(table.view, description, (), table.runs, table.error)
             return
-        files = f"__softtrack_files_{len(self._views)}"
-        mapping = pa.table(
-            {
-                "file": [f.path for f in table.files],
-                "run_id": [f.run_id for f in table.files],
-            }
-        )
-        self.connection.register("__softtrack_arrow", mapping)
-        try:
-            self.connection.execute(f"CREATE TABLE {_ident(files)} AS FROM __softtrack_arrow")
-        finally:
-            self.connection.unregister("__softtrack_arrow")
+        files_table = f"__softtrack_files_{len(self._views)}"
+        files = [TableFile(f.path, f.stamp, f.schema, f.run_id) for f in table.files]
+        cache = CachedTable(self._root_resolved, table.name, files)
+        fresh, stale = cache.split(self.connection)
+        if stale and cache.refresh(fresh, stale):
+            fresh, stale = cache.split(self.connection)
+        create_file_map(self.connection, _ident(files_table), files)
+        self._allowed.update(f.path for f in stale)
+        if fresh:
+            self._allowed.add(str(cache.path))
+        source = cache.source_sql(fresh, stale, _ident(files_table))
         try:
             self.connection.execute(
-                f"CREATE VIEW {_ident(table.view)} AS {_view_sql(table, files)}"
+                f"CREATE VIEW {_ident(table.view)} AS {_view_sql(source, _ident(files_table))}"
             )
         except duckdb.Error as exc:
             self._views[table.view] = ViewInfo(
@@ -470,9 +479,20 @@ class ResultsDatabase:
             return
         self._add_view(table.view, description, table.runs)
 
+    @property
+    def _tables(self) -> dict[str, _TableFiles]:
+        """Every table's files, parsed from the catalog's cells at the first need (a query
+        over ``runs`` alone parses none)."""
+        if self._parsed is None:
+            self._parsed = _table_files(self._root_resolved, self._cells)
+        return self._parsed
+
     def _named_in(self, sql: str) -> list[_TableFiles]:
         """The tables that ``sql`` names (any word equal to a view's name)."""
         words = {word.lower() for word in re.findall(r"[A-Za-z_][A-Za-z0-9_]*", sql)}
+        views = {(f"{n}_table" if n in _RESERVED else n).lower() for n in self._table_names}
+        if not words & views:
+            return []
         return [t for t in self._tables.values() if t.view.lower() in words]
 
     def _sandbox(self, files: list[str]) -> None:
@@ -511,7 +531,7 @@ class ResultsDatabase:
 
     def table_names(self) -> list[str]:
         """The names of the table views some run has files for (readable or not)."""
-        return sorted(t.view for t in self._tables.values())
+        return sorted(f"{n}_table" if n in _RESERVED else n for n in self._table_names)
 
     def execute(self, sql: str) -> duckdb.DuckDBPyConnection:
         """Run ``sql`` (DuckDB's dialect; several statements: the last one's result) and
@@ -620,24 +640,14 @@ def _table_files(root: Path, columns: dict[str, list[Any]]) -> dict[str, _TableF
     return tables
 
 
-def _view_sql(table: _TableFiles, files_table: str) -> str:
-    """A SELECT over the table's files, one ``read_parquet`` per schema joined by name (so
-    DuckDB reads one footer per schema to bind, not one per file), whose ``run_id`` is each
-    file's run's id (``files_table``: file → run_id)."""
-    groups: dict[str, list[str]] = {}
-    for file in table.files:
-        groups.setdefault(file.schema, []).append(file.path)
-    scans = [
-        f"SELECT * FROM read_parquet([{', '.join(_lit(p) for p in paths)}], "
-        "filename = '__softtrack_file')"
-        for paths in groups.values()
-    ]
-    union = " UNION ALL BY NAME ".join(scans)
+def _view_sql(source: str, files_table: str) -> str:
+    """The view of a table's rows (``source``, with the file of each row) whose ``run_id`` is
+    each file's run's id (``files_table``: a :func:`~softtrack.store.table_cache.create_file_map` table),
+    first, then the table's own columns."""
+    hidden = ", ".join(_lit(c) for c in ("run_id", FILE_COLUMN, MAP_FILE, MAP_STAMP, MAP_RUN_ID))
     return (
-        f"SELECT __softtrack_runs.run_id, __softtrack_t.* EXCLUDE (__softtrack_file"
-        f"{', run_id' if any(f.has_run_id for f in table.files) else ''}) "
-        f"FROM ({union}) AS __softtrack_t JOIN {_ident(files_table)} AS __softtrack_runs "
-        f"ON __softtrack_t.__softtrack_file = __softtrack_runs.file"
+        f"SELECT m.{MAP_RUN_ID} AS run_id, COLUMNS(lambda c: c NOT IN ({hidden})) "
+        f"FROM ({source}) AS t JOIN {files_table} AS m ON t.{FILE_COLUMN} = m.{MAP_FILE}"
     )
 
 
