@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import os
 import subprocess
@@ -589,6 +590,7 @@ def test_spec_hash_of_shipped_runs_is_stable(run_dir: Path) -> None:
 SHIPPED_RUNS = sorted(p.parent for p in (REPO / "models").glob("*/run.json"))
 
 
+@functools.cache
 def _experiment_files_by_name() -> dict[str, Path]:
     """Experiment name (the spec's ``name``, run.json's ``name``) → its file in experiments/."""
     return {load_spec(path).name: path for path in EXPERIMENTS}
