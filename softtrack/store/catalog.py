@@ -158,7 +158,7 @@ class CatalogSnapshot:
         schemas: ``{schema id: schema text}`` for the ids in the ``tables`` cells.
         table_names: every table name the ``tables`` cells name, sorted.
         notices: one line each about the catalog itself (built, rebuilt, not writable).
-        reread: directories read again from their files in this call.
+        reread: runs read again from their directories in this call.
     """
 
     root: Path
@@ -412,7 +412,9 @@ def read_catalog(
             keep.append(index)
             continue
         stale.append(name)
-    fresh.extend(_reread(root, stale, schemas, progress))
+    reread = _reread(root, stale, schemas, progress)
+    fresh.extend(reread)
+    runs_reread = {row["dir"] for row in reread}  # not the directories that hold no run
     changed = (
         base.table is None or bool(fresh) or len(keep) != len(base_index) or base.stale_metadata
     )
@@ -425,8 +427,17 @@ def read_catalog(
             table = pa.concat_tables([kept, table])
         table = table.sort_by("dir")
     used, names = _used_schemas(table, schemas) if changed else (schemas, base.table_names)
-    snapshot = CatalogSnapshot(root, table, used, names, notices, len(stale))
-    notices.extend(_notices(root, base, stale, base_index, stamps, base_stamps))
+    snapshot = CatalogSnapshot(root, table, used, names, notices, len(reread))
+    notices.extend(
+        _notices(
+            root,
+            base,
+            [n for n in stale if n in runs_reread or n in base_index],
+            base_index,
+            stamps,
+            base_stamps,
+        )
+    )
     if changed and not base.newer and not _write_back(root, table, used, names, merged):
         notices.append(
             f"catalog of {root} cannot be written (a read-only file system?): "
