@@ -6,15 +6,7 @@
 
 import gymnasium as gym
 
-from softtrack.env.config import TrackingConfig, make_config
-from softtrack.env.core import NonFiniteActionError, TrackingCore
-from softtrack.env.reward import RewardConfig
-from softtrack.env.targets import TargetConfig
-from softtrack.env.tracking_env import (
-    DualArmTrackingEnv,
-    DualArmTransportEnv,
-    SingleArmTrackingEnv,
-)
+from softtrack.lazy import lazy_exports
 
 __all__ = [
     "DualArmTrackingEnv",
@@ -27,6 +19,22 @@ __all__ = [
     "TrackingCore",
     "make_config",
 ]
+
+# imported at first use: the spec models import softtrack.env.targets, and the engine and
+# environments behind these names (numba, SciPy's splines) would cost every command a second
+_HOME = {
+    "DualArmTrackingEnv": "softtrack.env.tracking_env",
+    "DualArmTransportEnv": "softtrack.env.tracking_env",
+    "NonFiniteActionError": "softtrack.env.core",
+    "RewardConfig": "softtrack.env.reward",
+    "SingleArmTrackingEnv": "softtrack.env.tracking_env",
+    "TargetConfig": "softtrack.env.targets",
+    "TrackingConfig": "softtrack.env.config",
+    "TrackingCore": "softtrack.env.core",
+    "make_config": "softtrack.env.config",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)
 
 for _name, _entry in (
     ("softtrack/DualArmTracking-v0", "softtrack.env.tracking_env:DualArmTrackingEnv"),

@@ -38,7 +38,7 @@ from softtrack.evaluation.tables import CARRY_SCORE, with_carry_score
 from softtrack.evaluation.transport_metrics import TRANSPORT_STATISTICS
 from softtrack.report.data import RunData, load_runs
 from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
-from softtrack.report.select import select_report_runs
+from softtrack.report.select import RunIndex, select_report_runs
 from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
 from softtrack.trajectories import EVAL_TRAJECTORIES
 
@@ -284,9 +284,10 @@ def compare_selection(
         RunStoreError: an item's runs have no stored ``metric``.
     """
     store = RunStore(resolve_runs_dir(runs_dir))
+    index = RunIndex.of(store)
     tables = []
     for item in selection:
-        runs = load_runs(select_report_runs(store, [item]))
+        runs = load_runs(select_report_runs(store, [item], index))
         tables.append([(run.seed, scored_rows(run, random)) for run in runs])
     if random:
         episodes = {

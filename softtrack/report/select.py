@@ -11,7 +11,7 @@ from softtrack.spec import load_spec, spec_hash
 from softtrack.store.catalog import read_catalog
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore, RunStoreError
 
-__all__ = ["EmptySelectionError", "select_report_runs"]
+__all__ = ["EmptySelectionError", "RunIndex", "select_report_runs"]
 
 _SPEC_SUFFIXES = (".yaml", ".yml")
 
@@ -24,7 +24,9 @@ def _looks_like_spec(item: str) -> bool:
     return item.lower().endswith(_SPEC_SUFFIXES) or Path(item).is_file()
 
 
-def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRecord]:
+def select_report_runs(
+    store: RunStore, selection: Sequence[str], index: RunIndex | None = None
+) -> list[RunRecord]:
     """The runs a report covers, in selection order, each once.
 
     Each item of ``selection`` is, in this order of precedence:
@@ -34,7 +36,8 @@ def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRec
     * an experiment name (``run.json`` ``name``): every run of that experiment;
     * a run id or a unique, case-insensitive prefix of one.
 
-    Runs of one item are ordered by (experiment name, seed, id).
+    Runs of one item are ordered by (experiment name, seed, id). ``index``: the store's
+    :class:`RunIndex`, read once by a caller that selects several times.
 
     Raises:
         EmptySelectionError: ``selection`` is empty, or an item matches no run.
@@ -47,7 +50,7 @@ def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRec
             "nothing to report: give one or more experiment names, run ids or spec files "
             f"(list the runs with `softtrack runs --runs-dir {store.root}`)"
         )
-    index = _RunIndex.of(store)
+    index = index or RunIndex.of(store)
     chosen: dict[str, RunRecord] = {}
     for item in items:
         found = _match(store, index, item)
@@ -57,7 +60,7 @@ def select_report_runs(store: RunStore, selection: Sequence[str]) -> list[RunRec
 
 
 @dataclass(frozen=True)
-class _RunIndex:
+class RunIndex:
     """The catalog's columns that select runs (:mod:`softtrack.store.catalog`): reading the
     chosen runs' ``run.json`` only, not every run's."""
 
@@ -67,7 +70,7 @@ class _RunIndex:
     spec_hashes: list[str | None]
 
     @classmethod
-    def of(cls, store: RunStore) -> _RunIndex:
+    def of(cls, store: RunStore) -> RunIndex:
         if not store.root.is_dir():
             return cls([], [], [], [])
         columns = read_catalog(store.root).table.to_pydict()
@@ -87,7 +90,7 @@ class _RunIndex:
         return found
 
 
-def _match(store: RunStore, index: _RunIndex, item: str) -> list[RunRecord]:
+def _match(store: RunStore, index: RunIndex, item: str) -> list[RunRecord]:
     if _looks_like_spec(item):
         spec = load_spec(item)
         digest = spec_hash(spec)

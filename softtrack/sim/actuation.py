@@ -11,7 +11,6 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import make_interp_spline
 
 __all__ = ["N_CONTROL_POINTS", "actions_to_element_torques", "spline_matrix"]
 
@@ -20,6 +19,10 @@ N_CONTROL_POINTS = 6
 
 @lru_cache(maxsize=8)
 def _spline_matrix_cached(n_elem: int) -> np.ndarray:
+    # SciPy's splines are imported here, once (lru_cache): at the module's top they cost every
+    # command that only needs N_CONTROL_POINTS (the spec models) half a second
+    from scipy.interpolate import make_interp_spline
+
     knots_s = np.linspace(0.0, 1.0, N_CONTROL_POINTS + 2)
     centres = (np.arange(n_elem) + 0.5) / n_elem
     matrix = np.empty((n_elem, N_CONTROL_POINTS))
@@ -33,6 +36,7 @@ def _spline_matrix_cached(n_elem: int) -> np.ndarray:
 
 def spline_matrix(n_elem: int = 20) -> np.ndarray:
     """The (n_elem, 6) read-only matrix B mapping control values to unit-scale element torques."""
+
     return _spline_matrix_cached(int(n_elem))
 
 
