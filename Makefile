@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup quickstart test test-all bench faults
+.PHONY: setup quickstart test test-slow test-all bench faults
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,11 @@ test: setup
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(BIN)/python -m pytest -q -n 2 -m "not slow"
+
+# the tests marked slow (long trainings, sweeps killed, the README tour, the wheel installed
+# outside the checkout: tests/conftest.py LONG_TESTS); CI runs them after `make test`
+test-slow: setup
+	$(BIN)/python -m pytest -q -n 2 -m slow
 
 test-all: setup
 	$(BIN)/python -m pytest -q -n 2

@@ -8,6 +8,40 @@ from typing import Any
 
 import pytest
 
+#: The longest tests of the suite (each ≥ 15 s of one core, ``pytest --durations=0`` on two idle
+#: cores, 2026-12-06): whole trainings interrupted and resumed, sweeps and pools killed, the wheel
+#: installed outside the checkout, reports of many controllers. They carry the ``slow`` mark, so
+#: ``make test`` (what a contributor runs before each commit) leaves them to ``make test-slow``,
+#: which CI runs after it; every module they exercise keeps faster tests in ``make test``.
+LONG_TESTS = frozenset(
+    {
+        "tests/test_install.py::test_the_wheel_runs_quickstart_and_a_shipped_policy_outside_the_checkout",
+        "tests/test_train.py::test_interrupt_and_resume[td3-sbx]",
+        "tests/test_report.py::test_a_report_of_many_controllers_draws_a_few_unless_all_figures",
+        "tests/test_sweep.py::test_two_sweeps_share_a_runs_dir",
+        "tests/test_report.py::test_the_command_line_chooses_the_drawn_controllers",
+        "tests/test_sweep.py::test_sigterm_sweep_then_resume_with_corrupt_checkpoint",
+        "tests/test_robustness.py::test_robustness_as_slurm_array_via_submitit_local",
+        "tests/test_train_independent.py::test_independent_interrupt_and_resume[arm1-sigterm]",
+        "tests/test_sweep.py::test_sweep_failing_job_and_siblings",
+        "tests/test_robustness.py::test_robustness_in_worker_processes",
+        "tests/test_train.py::test_same_seed_trains_the_same_run[td3-sbx]",
+        "tests/test_transport.py::test_train_evaluate_and_report_a_transport_run",
+        "tests/test_sweep.py::test_slurm_preemption_requeues_and_resumes",
+        "tests/test_tune.py::test_two_workers_pull_from_one_study",
+        "tests/test_report.py::test_old_metrics_tables_without_action_columns_still_build",
+        "tests/test_entropy_algos.py::test_trains_evaluates_exports_and_loads_with_the_plain_class[sac-sbx]",
+        "tests/test_report.py::test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash",
+        "tests/test_evaluate.py::test_quickstart_reports_the_shipped_policy_beside_its_own_run",
+        "tests/test_tune.py::test_interrupted_study_resumes_its_run",
+        "tests/test_train.py::test_quickstart_reports_the_shipped_policy_as_it_just_measured_it",
+        "tests/test_entropy_algos.py::test_trains_evaluates_exports_and_loads_with_the_plain_class[crossq-sbx-mirror]",
+        "tests/test_validation.py::test_validation_leaves_training_unchanged[td3-sbx]",
+        "tests/test_sweep.py::test_kill9_worker_then_resume",
+        "tests/test_train_independent.py::test_independent_interrupt_and_resume[arm0-sigint]",
+    }
+)
+
 #: what an injected fault did before softtrack handled it (``@pytest.mark.faults(kind)``)
 FAULT_KINDS = ("lost", "traceback", "degraded", "held")
 
@@ -33,9 +67,12 @@ def _private_default_runs_dir(
     monkeypatch.setenv("SOFTTRACK_RUNS_DIR", str(tmp_path_factory.mktemp("default-runs")))
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m "not slow" deselects
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         _kind(item)  # an unknown kind is a usage error at once
+        if item.nodeid in LONG_TESTS:
+            item.add_marker(pytest.mark.slow)
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
