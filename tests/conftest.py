@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-#: The longest tests of the suite (each ≥ 15 s of one core, ``pytest --durations=0`` on two idle
+#: The longest tests of the suite (each ≥ 11 s of one core, ``pytest --durations=0`` on two idle
 #: cores, 2026-12-06): whole trainings interrupted and resumed, sweeps and pools killed, the wheel
 #: installed outside the checkout, reports of many controllers. They carry the ``slow`` mark, so
 #: ``make test`` (what a contributor runs before each commit) leaves them to ``make test-slow``,
@@ -39,6 +39,16 @@ LONG_TESTS = frozenset(
         "tests/test_validation.py::test_validation_leaves_training_unchanged[td3-sbx]",
         "tests/test_sweep.py::test_kill9_worker_then_resume",
         "tests/test_train_independent.py::test_independent_interrupt_and_resume[arm0-sigint]",
+        "tests/test_validation.py::test_interrupted_run_validates_every_checkpoint_once",
+        "tests/test_faults.py::test_resume_with_a_broken_spec_keeps_the_status[missing]",
+        "tests/test_train_independent.py::test_independent_interrupt_and_resume[arm1-sigkill]",
+        "tests/test_train.py::test_sigkill_then_resume",
+        "tests/test_per_arm_td3.py::test_per_arm_networks_give_each_arm_its_own_actions_and_q_values",
+        "tests/test_validation.py::test_validation_keeps_the_best_model_and_evaluation_uses_it",
+        "tests/test_sweep.py::test_slurm_executor_via_submitit_local",
+        "tests/test_faults.py::test_resume_with_a_broken_spec_keeps_the_status[latin-1]",
+        "tests/test_learner_options.py::test_n_step_returns_build_sb3s_n_step_buffer",
+        "tests/test_bounded_actor.py::test_train_evaluate_and_export_a_run",
     }
 )
 

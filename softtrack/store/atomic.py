@@ -20,6 +20,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from softtrack.store.liveness import pid_alive
+
 __all__ = [
     "TEMP_MARK",
     "atomic_dir",
@@ -57,16 +59,7 @@ def _writer_alive(name: str) -> bool:
     pid_text = name.partition(TEMP_MARK)[2].split("-", 1)[0]
     if not pid_text.isdigit() or "-" not in name.partition(TEMP_MARK)[2]:
         return False
-    pid = int(pid_text)
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    return pid_alive(int(pid_text))
 
 
 def remove_stale_temp_files(path: str | os.PathLike[str]) -> list[Path]:
