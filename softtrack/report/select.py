@@ -73,7 +73,11 @@ class RunIndex:
     def of(cls, store: RunStore) -> RunIndex:
         if not store.root.is_dir():
             return cls([], [], [], [])
-        columns = read_catalog(store.root).table.to_pydict()
+        columns = (
+            read_catalog(store.root)
+            .table.select(["dir", "run_id", "name", "spec_hash", "unreadable"])
+            .to_pydict()
+        )
         readable = [i for i, bad in enumerate(columns["unreadable"]) if bad is None]
         return cls(
             *([columns[key][i] for i in readable] for key in ("dir", "run_id", "name", "spec_hash"))
