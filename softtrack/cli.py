@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 
-from softtrack.cli_classes import Command, Group
+from softtrack.cli_classes import App, Command, Group
 from softtrack.lazy import lazy_module
 from softtrack.store import provenance
 from softtrack.store.disk import storage_problem
@@ -44,13 +44,13 @@ else:
     results_db = lazy_module("softtrack.store.query")
     summaries = lazy_module("softtrack.store.summaries")
 
-app = typer.Typer(
+app = App(
     name="softtrack",
     help="Train, evaluate and compare controllers for two soft arms tracking a moving target.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_show_locals=False,
-    rich_markup_mode="markdown",
+    rich_markup_mode=None,
     cls=Group,
 )
 

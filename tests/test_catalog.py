@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
@@ -157,13 +158,11 @@ def test_a_damaged_catalog_is_rebuilt_with_one_line(store: RunStore, damage: str
         path.unlink()
         path.mkdir()
     else:  # a hand edit that keeps the file valid: a value changed, the digest kept
-        with pa.memory_map(str(path)) as source:
-            table = pa.ipc.open_file(source).read_all()
+        table = pq.read_table(path)
         names = table.column("name").to_pylist()
         names[0] = "tampered"
         table = table.set_column(table.schema.get_field_index("name"), "name", pa.array(names))
-        with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, table.schema) as writer:
-            writer.write_table(table)
+        pq.write_table(table, path)
     result = runner.invoke(app, ["runs", "--runs-dir", str(store.root)])
     assert result.exit_code == 0, result.output
     notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
@@ -173,18 +172,50 @@ def test_a_damaged_catalog_is_rebuilt_with_one_line(store: RunStore, damage: str
         assert _assert_current(store.root).notices == []
 
 
+def test_an_unchanged_catalog_leaves_its_rows_in_the_file(store: RunStore) -> None:
+    _assert_current(store.root)
+    snapshot = read_catalog(store.root)
+    assert snapshot.file == catalog_path(store.root) and snapshot.notices == []
+    assert snapshot.columns(["name"], start=3) == {"name": ["exp-b"]}
+    assert snapshot.table.column("name").to_pylist() == ["exp-a"] * 3 + ["exp-b"]
+    _make_run(store, "exp-c")  # a change: the rows are merged in memory and written back
+    changed = read_catalog(store.root)
+    assert changed.file is None and changed.columns(["name"])["name"][-1] == "exp-c"
+    assert _assert_current(store.root).file == catalog_path(store.root)
+
+
+def test_a_format_1_catalog_is_converted_without_reading_the_runs(store: RunStore) -> None:
+    _assert_current(store.root)
+    path = catalog_path(store.root)
+    table = pq.read_table(path)
+    meta = dict(table.schema.metadata)
+    meta[b"softtrack_catalog_version"] = b"1"
+    older = path.with_name("catalog.arrow")
+    with pa.OSFile(str(older), "wb") as sink:
+        with pa.ipc.new_file(sink, table.schema.with_metadata(meta)) as writer:
+            writer.write_table(table)
+    path.unlink()
+    (path.parent / "verified").write_text(catalog.file_stamp(str(older)))
+
+    def no_run_read(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("a run was read from its directory")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(catalog, "_reread", lambda root, names, *a: [] if not names else no_run_read())
+        snapshot = read_catalog(store.root)
+    assert snapshot.notices == [] and snapshot.n_rows == 4
+    assert path.is_file() and not older.exists()
+    assert _assert_current(store.root).notices == []
+
+
 @pytest.mark.faults("held")
 def test_a_newer_catalog_is_left_alone(store: RunStore) -> None:
     _assert_current(store.root)
     path = catalog_path(store.root)
-    with pa.memory_map(str(path)) as source:
-        table = pa.ipc.open_file(source).read_all()
+    table = pq.read_table(path)
     meta = dict(table.schema.metadata)
     meta[b"softtrack_catalog_version"] = str(FORMAT_VERSION + 1).encode()
-    with pa.OSFile(str(path), "wb") as sink:
-        schema = table.schema.with_metadata(meta)
-        with pa.ipc.new_file(sink, schema) as writer:
-            writer.write_table(table.replace_schema_metadata(meta))
+    pq.write_table(table.replace_schema_metadata(meta), path)
     before = path.read_bytes()
     _make_run(store, "exp-new")  # a writer of this version leaves no entry for it
     listing = run_listing(store.root)

@@ -22,6 +22,7 @@ from softtrack.store.query import (
     format_result,
     query,
 )
+from softtrack.store.query_output import _significant
 from softtrack.store.runs import RunInfo
 from softtrack.store.tables import write_table
 
@@ -294,6 +295,27 @@ def test_table_format_nulls_and_lists() -> None:
 
     df = pd.DataFrame({"a": [1.5, float("nan")], "b": [None, "x"], "c": [[1, 2], None]})
     assert format_result(df).splitlines() == ["  a  b  c", "1.5     [1, 2]", "     x"]
+
+
+def test_floats_print_as_numpy_would_without_numpy() -> None:
+    """Six significant digits, positional: NumPy's format_float_positional, which the
+    output module no longer imports (ties, tiny and huge values, negative zero)."""
+    rng = np.random.default_rng(0)
+    values = [0.0, -0.0, 0.1 + 0.2, 1e-300, 1e300, 123456789.0, 999999.5, 0.0001234565, 5e-324]
+    values += [float(v) for v in rng.uniform(-1, 1, 2000) * 10.0 ** rng.integers(-12, 12, 2000)]
+    values += [
+        round(float(v), int(d))
+        for v, d in zip(rng.uniform(0, 100, 2000), rng.integers(0, 9, 2000), strict=True)
+    ]
+    values += [
+        float(f"{int(m)}5e{int(e)}")
+        for m, e in zip(rng.integers(1, 999999, 2000), rng.integers(-10, 5, 2000), strict=True)
+    ]
+    for value in values:
+        expected = np.format_float_positional(
+            value, precision=6, unique=True, fractional=False, trim="-"
+        )
+        assert _significant(value) == expected, value
 
 
 def test_cli_views(runs_dir: Path) -> None:

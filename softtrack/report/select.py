@@ -73,10 +73,8 @@ class RunIndex:
     def of(cls, store: RunStore) -> RunIndex:
         if not store.root.is_dir():
             return cls([], [], [], [])
-        columns = (
-            read_catalog(store.root)
-            .table.select(["dir", "run_id", "name", "spec_hash", "unreadable"])
-            .to_pydict()
+        columns = read_catalog(store.root).columns(
+            ["dir", "run_id", "name", "spec_hash", "unreadable"]
         )
         readable = [i for i, bad in enumerate(columns["unreadable"]) if bad is None]
         return cls(

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
 import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -50,7 +49,7 @@ def temp_name(path: Path) -> Path:
     """A fresh temporary sibling of ``path`` keeping its suffix and naming the writing
     process: ``.model.tmp-4711-3fa29c1b.zip`` (pid 4711)."""
     stem, suffix = _split(path)
-    return path.with_name(f".{stem}{TEMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{suffix}")
+    return path.with_name(f".{stem}{TEMP_MARK}{os.getpid()}-{os.urandom(4).hex()}{suffix}")
 
 
 def _writer_alive(name: str) -> bool:

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from softtrack.store.atomic import is_temp_file
-from softtrack.store.catalog import ROW_SCHEMA, run_stamp
+from softtrack.store.catalog import ROW_COLUMNS, run_stamp
 from softtrack.store.runs import RunStore, RunStoreError
 from softtrack.store.status import (
     final_stage_fraction,
@@ -66,7 +66,7 @@ def _tables_json(run_path: Path, schemas: dict[str, str]) -> str:
 
 @dataclass(frozen=True)
 class RunRow:
-    """A run's catalog row (:data:`ROW_SCHEMA` keys) and the schema texts its ``tables`` cell
+    """A run's catalog row (:data:`~softtrack.store.catalog.ROW_COLUMNS` keys) and the schema texts its ``tables`` cell
     names by id."""
 
     row: dict[str, Any]
@@ -74,12 +74,12 @@ class RunRow:
 
 
 def run_row(run_path: Path) -> RunRow | None:
-    """The catalog row of one directory of a runs directory (:data:`ROW_SCHEMA`), or ``None``
+    """The catalog row of one directory of a runs directory (:data:`~softtrack.store.catalog.ROW_COLUMNS`), or ``None``
     when it holds no run (no ``run.json``, no ``spec.yaml``; a temporary or a file)."""
     if is_temp_file(run_path) or not run_path.is_dir():
         return None
     stamp = run_stamp(run_path)
-    row: dict[str, Any] = dict.fromkeys(ROW_SCHEMA.names)
+    row: dict[str, Any] = dict.fromkeys(name for name, _ in ROW_COLUMNS)
     row.update(dir=run_path.name, stamp=stamp)
     schemas: dict[str, str] = {}
     if not (run_path / "run.json").is_file():

@@ -4,10 +4,7 @@ and the CPU."""
 from __future__ import annotations
 
 import functools
-import importlib.metadata
 import os
-import platform
-import subprocess
 from pathlib import Path
 
 __all__ = [
@@ -114,6 +111,8 @@ def git_info(directory: str | None = None) -> tuple[str | None, bool | None]:
     exported runs, reports, documentation), which cannot change what a run trains. Read-only:
     ``--no-optional-locks`` keeps ``git status`` from touching the index.
     """
+    import subprocess  # here, like platform and importlib.metadata: a query needs none
+
     cwd = directory or str(Path(__file__).resolve().parents[1])
     try:
         commit = subprocess.run(
@@ -153,6 +152,9 @@ def library_versions() -> dict[str, str]:
 
     Uses package metadata only (no imports, so torch is not loaded); absent ones are left out.
     """
+    import importlib.metadata
+    import platform
+
     versions = {"python": platform.python_version()}
     for name in _TRACKED_LIBRARIES:
         try:
@@ -196,6 +198,8 @@ def cpu_kind(cpuinfo: str = "/proc/cpuinfo") -> str:
 
 
 def _cpu_model_and_extension(cpuinfo: str) -> tuple[str, str | None]:
+    import platform
+
     model = ""
     flags: set[str] = set()
     try:

@@ -45,7 +45,6 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, Self
 
 import duckdb
-import pyarrow as pa
 
 from softtrack.store.catalog import file_stamp, read_catalog
 from softtrack.store.errors import RunStoreError
@@ -70,6 +69,8 @@ from softtrack.store.table_index import table_item
 if TYPE_CHECKING:
     import pandas as pd
 
+    from softtrack.store.catalog import CatalogSnapshot
+
 __all__ = [
     "OUTPUT_FORMATS",
     "RUNS_COLUMNS",
@@ -86,30 +87,30 @@ __all__ = [
     "write_cursor",
 ]
 
-#: Columns of the ``runs`` view: name, Arrow type and meaning. Times are UTC (TIMESTAMP
+#: Columns of the ``runs`` view: name, DuckDB type and meaning. Times are UTC (TIMESTAMP
 #: without time zone).
-RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
-    ("run_id", pa.string(), "ULID of the run (run.json run_id); every table view's run_id"),
-    ("dir", pa.string(), "the run's directory name inside the runs directory"),
-    ("name", pa.string(), "experiment name (spec name): group the seeds of an experiment by it"),
-    ("algo", pa.string(), "algorithm (spec algo.name)"),
-    ("controller", pa.string(), "centralized or independent"),
-    ("seed", pa.int64(), "random seed of the run"),
+RUNS_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("run_id", "VARCHAR", "ULID of the run (run.json run_id); every table view's run_id"),
+    ("dir", "VARCHAR", "the run's directory name inside the runs directory"),
+    ("name", "VARCHAR", "experiment name (spec name): group the seeds of an experiment by it"),
+    ("algo", "VARCHAR", "algorithm (spec algo.name)"),
+    ("controller", "VARCHAR", "centralized or independent"),
+    ("seed", "BIGINT", "random seed of the run"),
     (
         "status",
-        pa.string(),
+        "VARCHAR",
         (
             "run.json status: queued, running, completed, failed, interrupted "
             "(`softtrack runs` also shows a running run whose process is gone "
             "as lost)"
         ),
     ),
-    ("total_timesteps", pa.int64(), "training budget, env steps (independent: both arms)"),
-    ("arm_total_timesteps", pa.int64(), "independent runs: budget per arm, env steps"),
-    ("global_step", pa.int64(), "env steps done (independent: over both arms)"),
+    ("total_timesteps", "BIGINT", "training budget, env steps (independent: both arms)"),
+    ("arm_total_timesteps", "BIGINT", "independent runs: budget per arm, env steps"),
+    ("global_step", "BIGINT", "env steps done (independent: over both arms)"),
     (
         "steps_per_second",
-        pa.float64(),
+        "DOUBLE",
         (
             "training throughput, env steps/s: global_step / "
             "train_seconds, as in the report's runs table"
@@ -117,7 +118,7 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ),
     (
         "train_seconds",
-        pa.float64(),
+        "DOUBLE",
         (
             "training wall time, s: the run's training clock at its "
             "last logged episode (train_episodes.wall_time), as in the "
@@ -126,23 +127,23 @@ RUNS_COLUMNS: tuple[tuple[str, pa.DataType, str], ...] = (
     ),
     (
         "final_stage_fraction",
-        pa.float64(),
+        "DOUBLE",
         (
             "spec training.final_stage_fraction (default 0.1): "
             "the final-stage return averages the episodes after "
             "(1 - it) x the budget"
         ),
     ),
-    ("spec_hash", pa.string(), "spec hash without the seed: the runs of an experiment share it"),
-    ("git_commit", pa.string(), "commit of the code when the run was created"),
-    ("git_dirty", pa.bool_(), "the checkout had uncommitted changes"),
-    ("created", pa.timestamp("us"), "creation time (UTC)"),
-    ("started", pa.timestamp("us"), "time training first started (UTC)"),
-    ("ended", pa.timestamp("us"), "time the run ended (UTC)"),
-    ("host", pa.string(), "host of the (last) training process"),
-    ("cpu", pa.string(), "CPU of the (last) training process"),
-    ("sweep", pa.string(), "id of the sweep that created the run, if any"),
-    ("error", pa.string(), "one-line error of a failed run"),
+    ("spec_hash", "VARCHAR", "spec hash without the seed: the runs of an experiment share it"),
+    ("git_commit", "VARCHAR", "commit of the code when the run was created"),
+    ("git_dirty", "BOOLEAN", "the checkout had uncommitted changes"),
+    ("created", "TIMESTAMP", "creation time (UTC)"),
+    ("started", "TIMESTAMP", "time training first started (UTC)"),
+    ("ended", "TIMESTAMP", "time the run ended (UTC)"),
+    ("host", "VARCHAR", "host of the (last) training process"),
+    ("cpu", "VARCHAR", "CPU of the (last) training process"),
+    ("sweep", "VARCHAR", "id of the sweep that created the run, if any"),
+    ("error", "VARCHAR", "one-line error of a failed run"),
 )
 
 #: What the tables written by softtrack hold (one row per ...). Other tables get a generic
@@ -293,7 +294,7 @@ def _utc_sql(column: str) -> str:
     return f"TRY_CAST({column} AS TIMESTAMP) - to_minutes(CAST({offset} AS BIGINT))"
 
 
-#: The ``runs`` view from the catalog's columns (softtrack.store.catalog.ROW_SCHEMA).
+#: The ``runs`` view from the catalog's columns (softtrack.store.catalog.ROW_COLUMNS).
 _RUNS_SQL = f"""
 CREATE VIEW runs AS
 SELECT run_id, dir, name, algo, controller, seed, status, total_timesteps,
@@ -371,14 +372,9 @@ class ResultsDatabase:
         snapshot = read_catalog(root, progress=progress)
         #: lines about the catalog itself (built, rebuilt, not writable)
         self.notices = snapshot.notices
-        columns = snapshot.table.select(["dir", "run_id", "tables", "unreadable"]).to_pydict()
         #: runs left out because their run.json is missing or unreadable: (directory, reason)
-        self.unreadable = [
-            (root / d, reason)
-            for d, reason in zip(columns["dir"], columns["unreadable"], strict=True)
-            if reason is not None
-        ]
-        self.n_runs = len(columns["dir"]) - len(self.unreadable)
+        self.unreadable = [(root / d, reason) for d, reason in snapshot.unreadable()]
+        self.n_runs = snapshot.n_rows - len(self.unreadable)
         if not self.n_runs:
             raise QueryError(
                 f"query: {root} holds no runs (no sub-directory with a readable run.json); "
@@ -387,10 +383,9 @@ class ResultsDatabase:
             )
         self._schemas = snapshot.schemas
         self._table_names = snapshot.table_names
-        self._cells = columns
         self._root_resolved = root.resolve()
         self._parsed: dict[str, _TableFiles] | None = None
-        self._catalog = snapshot.table
+        self._catalog = snapshot
         self._views: dict[str, ViewInfo] = {}
         self._locked = False
         self.connection = self._open()
@@ -426,9 +421,14 @@ class ResultsDatabase:
             self._create_table_view(table)
         self._sandbox(sorted(self._allowed))
 
-    def _create_runs_views(self, catalog: pa.Table) -> None:
+    def _create_runs_views(self, catalog: CatalogSnapshot) -> None:
         con = self.connection
-        con.register("__softtrack_catalog", catalog)
+        if catalog.file is not None:  # the rows are still in the catalog file: DuckDB reads it
+            path = str(catalog.file.resolve())
+            con.execute(f"CREATE VIEW __softtrack_catalog AS FROM read_parquet({_lit(path)})")
+            self._allowed.add(path)
+        else:
+            con.register("__softtrack_catalog", catalog.table)
         con.execute(_RUNS_SQL)  # a view over the catalog kept registered: computed when read
         con.execute(_EXPERIMENTS_SQL)
         self._add_view(
@@ -484,7 +484,8 @@ class ResultsDatabase:
         """Every table's files, parsed from the catalog's cells at the first need (a query
         over ``runs`` alone parses none)."""
         if self._parsed is None:
-            self._parsed = _table_files(self._root_resolved, self._cells)
+            cells = self._catalog.columns(["dir", "run_id", "tables", "unreadable"])
+            self._parsed = _table_files(self._root_resolved, cells)
         return self._parsed
 
     def _named_in(self, sql: str) -> list[_TableFiles]:

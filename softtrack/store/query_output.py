@@ -15,10 +15,8 @@ import math
 import textwrap
 from collections.abc import Callable, Iterable, Sequence
 from datetime import date, datetime, timedelta
-from decimal import Decimal
+from decimal import ROUND_HALF_EVEN, Decimal
 from typing import TYPE_CHECKING, Any, Literal
-
-import numpy as np
 
 if TYPE_CHECKING:
     import duckdb
@@ -49,35 +47,55 @@ _INTEGER_TYPES = frozenset(
 )
 
 
+def _plain(value: Any) -> Any:
+    """A NumPy value (a DataFrame's cell) as the Python value it holds; others unchanged
+    (no NumPy import: `softtrack query` answers without it)."""
+    if type(value).__module__ == "numpy":
+        return value.tolist()
+    return value
+
+
 def _is_null(value: Any) -> bool:
+    value = _plain(value)
     if value is None or type(value).__name__ in ("NaTType", "NAType"):
         return True
-    return isinstance(value, (float, np.floating)) and math.isnan(value)
+    return isinstance(value, float) and math.isnan(value)
+
+
+def _significant(value: float) -> str:
+    """A finite float with at most 6 significant digits, positional, trailing zeros trimmed:
+    NumPy's ``format_float_positional(value, precision=6, unique=True, fractional=False,
+    trim="-")`` (the shortest round-trip digits if they are few enough, else the exact
+    binary value rounded half to even)."""
+    if value == 0:
+        return "-0" if math.copysign(1.0, value) < 0 else "0"
+    shortest = Decimal(repr(value))
+    exact = shortest if len(shortest.as_tuple().digits) <= 6 else Decimal(value)
+    rounded = exact.quantize(Decimal(1).scaleb(exact.adjusted() - 5), rounding=ROUND_HALF_EVEN)
+    text = format(rounded, "f")
+    return text.rstrip("0").rstrip(".") if "." in text else text
 
 
 def _json_value(value: Any) -> Any:
     """A JSON-serialisable version of a result cell (NULL, NaN and infinities → null)."""
-    if isinstance(value, np.ndarray):
-        return [_json_value(v) for v in value.tolist()]
+    value = _plain(value)
     if isinstance(value, (list, tuple)):
         return [_json_value(v) for v in value]
     if isinstance(value, dict):
         return {str(k): _json_value(v) for k, v in value.items()}
     if _is_null(value):
         return None
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
         return int(value)
-    if isinstance(value, (float, np.floating, Decimal)):
+    if isinstance(value, (float, Decimal)):
         number = float(value)
         return number if math.isfinite(number) else None
     if isinstance(value, (datetime, date)):
         return value.isoformat()
     if isinstance(value, timedelta):
         return value.total_seconds()
-    if isinstance(value, np.generic):
-        return _json_value(value.item())
     if isinstance(value, bytes):
         return value.hex()
     return value if isinstance(value, str) else str(value)
@@ -85,18 +103,17 @@ def _json_value(value: Any) -> Any:
 
 def _text_value(value: Any) -> str:
     """A result cell as table text: NULL/NaN blank, floats to 6 significant digits."""
-    if isinstance(value, (np.ndarray, list, tuple, dict)):
+    value = _plain(value)
+    if isinstance(value, (list, tuple, dict)):
         return json.dumps(_json_value(value))
     if _is_null(value):
         return ""
-    if isinstance(value, (bool, np.bool_)):
+    if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, (float, np.floating, Decimal)):
+    if isinstance(value, (float, Decimal)):
         if not math.isfinite(value):
             return str(float(value))
-        return np.format_float_positional(
-            float(value), precision=6, unique=True, fractional=False, trim="-"
-        )
+        return _significant(float(value))
     if isinstance(value, datetime):
         spec = (
             "seconds"
@@ -143,11 +160,12 @@ def _text_table(columns: Sequence[str], kinds: Sequence[ColumnKind], rows: Seque
 
 
 def _csv_value(value: Any) -> Any:
-    if isinstance(value, (np.ndarray, list, tuple, dict)):
+    value = _plain(value)
+    if isinstance(value, (list, tuple, dict)):
         return json.dumps(_json_value(value))
     if _is_null(value):
         return ""
-    if isinstance(value, (float, np.floating, Decimal)):
+    if isinstance(value, (float, Decimal)):
         return repr(float(value))
     if isinstance(value, datetime):
         return _text_value(value)

@@ -417,7 +417,7 @@ class RunStore:
             if key and p.name.upper().startswith(key) and (p / "run.json").is_file()
         ]
         if not matches and key:  # a directory named otherwise (models/<name>): its run.json id
-            columns = read_catalog(self.root).table.select(["dir", "run_id"]).to_pydict()
+            columns = read_catalog(self.root).columns(["dir", "run_id"])
             matches = [
                 self.root / directory
                 for directory, found in zip(columns["dir"], columns["run_id"], strict=True)

@@ -48,7 +48,7 @@ RUN_TABLE_COLUMNS = (
 
 def summary_from_row(row: Mapping[str, Any], run_path: Path, now: datetime) -> dict[str, Any]:
     """One row of ``softtrack runs`` (JSON-serialisable) from a catalog row
-    (:data:`~softtrack.store.catalog.ROW_SCHEMA`) of the run in ``run_path``."""
+    (:data:`~softtrack.store.catalog.ROW_COLUMNS`) of the run in ``run_path``."""
     if row.get("unreadable"):
         return unreadable_summary(run_path, str(row["unreadable"]))
     status = str(row["status"])
@@ -159,21 +159,19 @@ def run_listing(
         return RunListing([], 0)
     snapshot = read_catalog(root, progress=progress)
     now = datetime.now(UTC)
-    table = snapshot.table
-    statuses = table.column("status").to_pylist()
-    unreadable = table.column("unreadable").to_pylist()
+    head = snapshot.columns(["status", "unreadable", "created"])
+    statuses, unreadable = head["status"], head["unreadable"]
     readable = [i for i, bad in enumerate(unreadable) if bad is None]
     if failed:
         readable = [i for i in readable if statuses[i] == "failed"]
     bad = [] if failed else [i for i, reason in enumerate(unreadable) if reason is not None]
     total = len(readable) + len(bad)
     if limit:
-        created = table.column("created").to_pylist()
+        created = head["created"]
         readable = sorted(sorted(readable, key=lambda i: created[i] or "")[-limit:])
     chosen = readable + bad
     start = min(chosen, default=0)
-    # columns as lists, from the first chosen row on (pyarrow's take() would import pandas)
-    columns = table.slice(start).to_pydict()
+    columns = snapshot.columns(start=start)  # from the first chosen row on
     rows = [{name: values[i - start] for name, values in columns.items()} for i in chosen]
     summaries = [summary_from_row(row, root / row["dir"], now) for row in rows]
     return RunListing(summaries, total, snapshot.notices)

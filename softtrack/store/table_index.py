@@ -9,9 +9,6 @@ import json
 import os
 from pathlib import Path
 
-import pyarrow as pa
-import pyarrow.parquet as pq
-
 from softtrack.store.atomic import is_temp_file
 from softtrack.store.catalog import file_stamp
 
@@ -59,6 +56,9 @@ def table_item(name: str, path: Path, run_path: Path, schemas: dict[str, str]) -
     """One item of a ``tables`` cell: ``[table, path relative to the run, schema id or None,
     error or None, file stamp]``; adds the file's schema text to ``schemas`` by id."""
     rel = str(path.relative_to(run_path))
+    import pyarrow as pa  # here: a query that reads no run's files loads no Arrow
+    import pyarrow.parquet as pq
+
     stamp = file_stamp(str(path))  # before reading: a change meanwhile shows as stale
     try:
         schema = pq.read_schema(path).remove_metadata()
