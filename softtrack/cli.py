@@ -1318,13 +1318,15 @@ def compare(
             raise api.SpecError(
                 "compare", "needs at least two controllers", "name two or more, e.g. A B"
             )
-        comparison = api.compare(
+        from softtrack.report import compare as comparing  # not api: it loads the simulator
+
+        comparison = comparing.compare_selection(
             selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random
         )
         for line in comparison.lines():
             typer.echo(line)
         if figure:
-            typer.echo(f"figure: {api.compare_figure(comparison, figure)}")
+            typer.echo(f"figure: {comparing.profile_figure([('', comparison)], figure)}")
 
 
 sync_app = typer.Typer(

@@ -201,7 +201,9 @@ def test_a_format_1_catalog_is_converted_without_reading_the_runs(store: RunStor
         raise AssertionError("a run was read from its directory")
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(catalog, "_reread", lambda root, names, *a: [] if not names else no_run_read())
+        patch.setattr(
+            catalog, "_reread", lambda root, names, *a: [] if not names else no_run_read()
+        )
         snapshot = read_catalog(store.root)
     assert snapshot.notices == [] and snapshot.n_rows == 4
     assert path.is_file() and not older.exists()

@@ -4,8 +4,9 @@
   random target (:func:`run_episode`, :class:`Episode`), the dual-arm policy of two single-arm
   ones (:func:`independent_policy`) and the seeds of held-out episodes.
 * :mod:`softtrack.evaluation.metrics`: the tracking and actuation metrics of docs/environment.md (pure NumPy).
-* :mod:`softtrack.evaluation.tables`: the tables of an episode (trajectory, metrics, moments)
-  and the validation score of a checkpoint's metrics rows.
+* :mod:`softtrack.evaluation.tables`: the tables of an episode (trajectory, metrics, moments).
+* :mod:`softtrack.evaluation.scores`: the validation score of a checkpoint's metrics rows and
+  the transport task's carry score (pandas only: the report and ``compare`` use it).
 * :mod:`softtrack.evaluation.runs`: evaluate a stored run's policy and write its ``eval_*``
   tables, with the policy loader the caller passes in (``softtrack.rl.policy.load_policy``):
   this package sits below :mod:`softtrack.rl`, which uses it for validation, and never
@@ -60,7 +61,7 @@ _HOME = {
     "run_episode": "softtrack.evaluation.episodes",
     "run_episodes": "softtrack.evaluation.episodes",
     "trajectory_table": "softtrack.evaluation.tables",
-    "validation_score": "softtrack.evaluation.tables",
+    "validation_score": "softtrack.evaluation.scores",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)

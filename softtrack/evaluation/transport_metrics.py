@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from softtrack.evaluation.metrics import tracking_metrics
-
 __all__ = ["TRANSPORT_ARM_STATISTICS", "TRANSPORT_STATISTICS", "transport_statistics"]
 
 #: Columns of the whole scene (the same in both arms' rows).
@@ -55,6 +53,8 @@ def transport_statistics(
         fraction of steps both arms touched the sphere); per arm ``object_contact`` (the
         fraction of steps it touched it) and ``object_force_mean``, ``object_force_max`` (N).
     """
+    from softtrack.evaluation.metrics import tracking_metrics  # numba: not for its constants
+
     metrics = tracking_metrics(object_position, goal)
     scene: dict[str, float | bool] = {f"object_{key}": value for key, value in metrics.items()}
     scene["dropped"] = bool(dropped)

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from softtrack.evaluation.scores import CARRY_SCORE, with_carry_score
 from softtrack.evaluation.seed_statistics import (
     BOOTSTRAP_REPS,
     Interval,
@@ -34,10 +35,9 @@ from softtrack.evaluation.seed_statistics import (
     probability_of_improvement,
     stratified_bootstrap,
 )
-from softtrack.evaluation.tables import CARRY_SCORE, with_carry_score
 from softtrack.evaluation.transport_metrics import TRANSPORT_STATISTICS
 from softtrack.report.data import RunData, load_runs
-from softtrack.report.figures import new_figure, save_figure, suptitle, trajectory_title
+from softtrack.report.reference import TRAJECTORY_TITLES
 from softtrack.report.select import RunIndex, select_report_runs
 from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
 from softtrack.trajectories import EVAL_TRAJECTORIES
@@ -156,7 +156,7 @@ class Comparison:
 
 def _cell_name(trajectory: str, arm: int, scene: bool, separator: str) -> str:
     """``circle, arm 1`` (or, for a metric of the whole scene, ``circle``)."""
-    title = trajectory_title(trajectory)
+    title = TRAJECTORY_TITLES.get(trajectory, trajectory)
     return title if scene else f"{title}{separator}arm {arm + 1}"
 
 
@@ -287,7 +287,9 @@ def compare_selection(
     index = RunIndex.of(store)
     tables = []
     for item in selection:
-        runs = load_runs(select_report_runs(store, [item], index))
+        runs = load_runs(
+            select_report_runs(store, [item], index), ["random" if random else "metrics"]
+        )
         tables.append([(run.seed, scored_rows(run, random)) for run in runs])
     if random:
         episodes = {
@@ -329,6 +331,8 @@ def profile_figure(
     """Performance profiles, one panel per (title, comparison): the fraction of (run, cell)
     scores at or below each threshold, one line per controller (``names``: the legend's name
     of a label, default the label)."""
+    from softtrack.report.figures import new_figure, save_figure, suptitle  # matplotlib
+
     fig = new_figure(7.5 if len(panels) == 1 else 12.0, 4.2 * math.ceil(len(panels) / 2) + 0.8)
     cols = 1 if len(panels) == 1 else 2
     axes = fig.subplots(math.ceil(len(panels) / cols), cols, squeeze=False).ravel()

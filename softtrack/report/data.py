@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS
+from softtrack.evaluation.scores import VALIDATION_SCORED_COLUMNS
 from softtrack.store.runs import RunRecord
 from softtrack.store.status import episodes_by_arm, eval_duration, final_stage_fraction
 from softtrack.store.tables import TableError, read_table
@@ -27,6 +27,7 @@ __all__ = [
     "AXIS_METRICS",
     "DIRECTIONS",
     "METRIC_COLUMNS",
+    "RUN_TABLES",
     "Group",
     "RunData",
     "episode_peaks",
@@ -224,32 +225,49 @@ def episode_peaks(
     return out if len(out) else None
 
 
-def load_run(record: RunRecord) -> RunData:
-    """Read a run's tables (missing ones are ``None``; unreadable ones are noted in problems)."""
+#: :class:`RunData` fields read from tables, and the tables they are read from.
+RUN_TABLES: dict[str, tuple[str, tuple[str, ...] | None]] = {
+    "moments": ("eval_moments", _MOMENT_COLUMNS),
+    "train": ("train_episodes", None),
+    "trajectories": ("eval_trajectories", None),
+    "metrics": ("eval_metrics", None),
+    "random": ("eval_random", _RANDOM_COLUMNS),
+    "validation": ("validation", VALIDATION_SCORED_COLUMNS),
+    "robustness": ("eval_robustness", _ROBUSTNESS_COLUMNS),
+    "snapshots": ("eval_snapshots", None),
+}
+
+
+def load_run(record: RunRecord, fields: Collection[str] | None = None) -> RunData:
+    """Read a run's tables (missing ones are ``None``; unreadable ones are noted in problems);
+    with ``fields`` (names of :data:`RUN_TABLES` and ``"peaks"``) only those, the others
+    ``None`` (``softtrack compare`` reads one table of each run, not every table)."""
+    wanted = set(RUN_TABLES) | {"peaks"} if fields is None else set(fields)
     problems: list[str] = []
     raw_spec = record.raw_spec()
-    moments = _read(record, "eval_moments", problems, _MOMENT_COLUMNS)
-    element_peaks = _read(record, "eval_moment_peaks", problems, _PEAK_COLUMNS)
+    tables: dict[str, pd.DataFrame | None] = {}
+    peaks = None
+    for name, (table, columns) in RUN_TABLES.items():
+        needed = name in wanted or (name == "moments" and "peaks" in wanted)
+        tables[name] = _read(record, table, problems, columns) if needed else None
+        if name == "moments" and "peaks" in wanted:
+            element_peaks = _read(record, "eval_moment_peaks", problems, _PEAK_COLUMNS)
+            peaks = episode_peaks(tables["moments"], element_peaks)
+    if "moments" not in wanted:
+        tables["moments"] = None
     return RunData(
         record=record,
         final_stage_fraction=final_stage_fraction(raw_spec),
         eval_duration=eval_duration(raw_spec),
-        train=_read(record, "train_episodes", problems),
-        trajectories=_read(record, "eval_trajectories", problems),
-        metrics=_read(record, "eval_metrics", problems),
-        moments=moments,
-        random=_read(record, "eval_random", problems, _RANDOM_COLUMNS),
-        validation=_read(record, "validation", problems, VALIDATION_SCORED_COLUMNS),
-        peaks=episode_peaks(moments, element_peaks),
-        robustness=_read(record, "eval_robustness", problems, _ROBUSTNESS_COLUMNS),
-        snapshots=_read(record, "eval_snapshots", problems),
+        peaks=peaks,
         problems=tuple(problems),
+        **tables,
     )
 
 
-def load_runs(records: Iterable[RunRecord]) -> list[RunData]:
+def load_runs(records: Iterable[RunRecord], fields: Collection[str] | None = None) -> list[RunData]:
     """:func:`load_run` for each record, in order."""
-    return [load_run(r) for r in records]
+    return [load_run(r, fields) for r in records]
 
 
 # ---- groups ---------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ import pandas as pd
 from matplotlib.patches import Circle
 
 from softtrack.env.targets import EVAL_TRAJECTORIES
-from softtrack.evaluation.tables import CARRY_SCORE, with_carry_score
+from softtrack.evaluation.scores import CARRY_SCORE, with_carry_score
 from softtrack.report import figures as fg
 from softtrack.report.compare import compare_controllers, controller_scores, scored_rows
 from softtrack.report.contact import draw_arm
