@@ -26,6 +26,7 @@ from softtrack.evaluation.runs import (
 )
 from softtrack.executors import dispatch
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
+from softtrack.report.video import VideoError
 from softtrack.rl.export import export_policy_run, relayout_exported_run
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy import (
@@ -119,6 +120,7 @@ USER_ERRORS: tuple[type[Exception], ...] = (
     TableError,
     InvalidParameterError,
     TuneError,
+    VideoError,
 )
 
 

@@ -1329,6 +1329,89 @@ def compare(
             typer.echo(f"figure: {comparing.profile_figure([('', comparison)], figure)}")
 
 
+AnimateTrajectory = enum.StrEnum(  # type: ignore[misc]
+    "AnimateTrajectory", [(name, name) for name in EVAL_TRAJECTORIES]
+)
+CIRCLE = AnimateTrajectory("circle")
+
+
+@app.command("animate", cls=Command)
+def animate(
+    references: Annotated[
+        list[str],
+        typer.Argument(
+            metavar="RUN_ID_OR_DIR...",
+            help="One run, or several drawn side by side on the same target.",
+            show_default=False,
+        ),
+    ],
+    trajectory: Annotated[
+        AnimateTrajectory,  # type: ignore[valid-type]
+        typer.Option("--trajectory", "-t", help="Target trajectory.", case_sensitive=False),
+    ] = CIRCLE,
+    random: Annotated[
+        int | None,
+        typer.Option(
+            "--random",
+            metavar="K",
+            min=0,
+            show_default=False,
+            help="Instead, the K-th held-out random-target episode (as evaluate --random).",
+        ),
+    ] = None,
+    out: Annotated[
+        str,
+        typer.Option("--out", "-o", metavar="FILE", help="The animation: .mp4, .gif or .html."),
+    ] = "animation.mp4",
+    strip: Annotated[
+        str | None,
+        typer.Option(
+            "--strip",
+            metavar="PNG",
+            show_default=False,
+            help="Also a film strip of six instants (a PNG for papers).",
+        ),
+    ] = None,
+    fps: Annotated[
+        float, typer.Option("--fps", min=1.0, max=120.0, help="Frames per second.")
+    ] = 30.0,
+    width: Annotated[
+        int, typer.Option("--width", min=160, max=1920, help="Panel width, px.")
+    ] = 640,
+    height: Annotated[
+        int, typer.Option("--height", min=120, max=1080, help="Panel height, px.")
+    ] = 480,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """Draw runs tracking a target: replays each run's policy and writes an MP4, a GIF or a
+    self-contained HTML player (nothing written into the runs: shipped runs work read-only).
+
+    Each replay's tips are compared with the run's stored evaluation (one line says whether
+    they are equal to the last bit). Example:
+    softtrack animate models/td3-sbx-128-mirror-val-confirm-seed0 --out circle.mp4
+    """
+    from softtrack.evaluation.runs import resolve_run
+    from softtrack.report.animation import animate_runs
+    from softtrack.rl.policy import load_policy
+
+    with _user_errors(runs_dir):
+        records = [resolve_run(reference, runs_dir) for reference in references]
+        written = animate_runs(
+            records,
+            str(trajectory),
+            out,
+            load=load_policy,
+            fps=fps,
+            size=(width, height),
+            strip=strip,
+            random=random,
+            on_note=lambda line: typer.echo(f"note: {line}", err=True),
+        )
+        typer.echo(f"animation: {written} ({written.stat().st_size / 1e6:.1f} MB)")
+        if strip:
+            typer.echo(f"film strip: {strip}")
+
+
 sync_app = typer.Typer(
     name="sync",
     help="Copy runs to the tools people already use (MLflow).",

@@ -9,7 +9,9 @@ import numpy as np
 
 from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.render import core_frame
 from softtrack.sim.params import CONTACT_ON
+from softtrack.viz.scene import SceneRenderer
 
 __all__ = ["DualArmTrackingEnv", "DualArmTransportEnv", "SingleArmTrackingEnv"]
 
@@ -17,13 +19,22 @@ __all__ = ["DualArmTrackingEnv", "DualArmTransportEnv", "SingleArmTrackingEnv"]
 class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
     """A single-environment view of :class:`TrackingCore` (shared by both envs)."""
 
-    # declared as gym.Env declares it (not ClassVar: mypy rejects that override)
-    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012
+    # declared as gym.Env declares it (not ClassVar: mypy rejects that override); each
+    # instance sets ``render_fps`` to its control rate (one frame per step, real time)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 500}  # noqa: RUF012
 
-    def __init__(self, config: TrackingConfig) -> None:
+    def __init__(self, config: TrackingConfig, render_mode: str | None = None) -> None:
         super().__init__()
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(
+                f"render_mode={render_mode!r} is not supported; use render_mode='rgb_array' "
+                "(frames as (480, 640, 3) uint8 arrays) or leave it out"
+            )
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / config.sim.control_dt)}
         self.config = config
         self.core = TrackingCore(1, config)
+        self._renderer: SceneRenderer | None = None
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.core.action_dim,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(
             -np.inf, np.inf, (self.core.obs_dim,), dtype=np.float32
@@ -38,6 +49,16 @@ class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
             self.core.engine.tip_position[0] - self.core.goal_positions()[0], axis=-1
         )[None]
         return obs, self.core.info(0, distances)
+
+    def render(self) -> np.ndarray | None:  # type: ignore[override]
+        """With ``render_mode="rgb_array"``: (480, 640, 3) uint8, the arms, clamps, target and
+        contact forces now, the time and the tips' errors in a corner
+        (:mod:`softtrack.viz`); ``None`` otherwise."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = SceneRenderer()
+        return self._renderer.render(core_frame(self.core, 0))
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         result = self.core.step(np.asarray(action, dtype=np.float64).reshape(1, -1))
@@ -128,8 +149,8 @@ class DualArmTrackingEnv(_TrackingEnv):
       viewpoints task are arguments whose defaults keep that setting.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(make_config(n_arms=2, **kwargs))
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        super().__init__(make_config(n_arms=2, **kwargs), render_mode)
 
 
 class SingleArmTrackingEnv(_TrackingEnv):
@@ -160,9 +181,9 @@ class SingleArmTrackingEnv(_TrackingEnv):
     * v0: the study's setting (docs/physics.md, docs/environment.md).
     """
 
-    def __init__(self, arm: int = 0, **kwargs: Any) -> None:
+    def __init__(self, arm: int = 0, render_mode: str | None = None, **kwargs: Any) -> None:
         self.arm = arm
-        super().__init__(make_config(n_arms=1, arm=arm, **kwargs))
+        super().__init__(make_config(n_arms=1, arm=arm, **kwargs), render_mode)
 
 
 class DualArmTransportEnv(_TrackingEnv):
@@ -215,6 +236,6 @@ class DualArmTransportEnv(_TrackingEnv):
     * v0: first version (docs/environment.md, "Transport").
     """
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         settings: dict[str, Any] = {**CONTACT_ON, "sphere": {}, **kwargs, "task": "transport"}
-        super().__init__(make_config(n_arms=2, **settings))
+        super().__init__(make_config(n_arms=2, **settings), render_mode)

@@ -17,7 +17,9 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 
 from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.render import core_frame
 from softtrack.env.reward import reward_shares
+from softtrack.viz.scene import SceneRenderer
 
 __all__ = ["REWARD_SHARES_KEY", "TrackingVecEnv"]
 
@@ -46,7 +48,8 @@ class TrackingVecEnv(VecEnv):
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
     """
 
-    render_mode: str | None = None  # no rendering; read by VecEnv.__init__ via get_attr
+    #: read by VecEnv.__init__ via get_attr; ``"rgb_array"``: :meth:`get_images` draws
+    render_mode: str | None = None
 
     def __init__(
         self,
@@ -55,8 +58,15 @@ class TrackingVecEnv(VecEnv):
         *,
         full_info: bool = False,
         reward_shares: bool = False,
+        render_mode: str | None = None,
         **env_kwargs: Any,
     ) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(
+                f"render_mode={render_mode!r} is not supported; use 'rgb_array' or leave it out"
+            )
+        self.render_mode = render_mode
+        self._renderer: SceneRenderer | None = None
         self.config = config if config is not None else make_config(**env_kwargs)
         self.core = TrackingCore(n_envs, self.config)
         self.full_info = full_info
@@ -141,4 +151,10 @@ class TrackingVecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
     def get_images(self) -> Sequence[np.ndarray | None]:
-        return [None for _ in range(self.num_envs)]
+        """Each environment's frame now ((480, 640, 3) uint8) with ``render_mode="rgb_array"``,
+        else ``None`` each."""
+        if self.render_mode != "rgb_array":
+            return [None for _ in range(self.num_envs)]
+        if self._renderer is None:
+            self._renderer = SceneRenderer()
+        return [self._renderer.render(core_frame(self.core, i)) for i in range(self.num_envs)]

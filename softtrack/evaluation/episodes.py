@@ -143,7 +143,12 @@ def independent_policy(arm_policies: Sequence[Policy]) -> Policy:
 
 
 def run_episode(
-    policy: Policy, config: TrackingConfig, trajectory: str, duration: float = 10.0, seed: int = 0
+    policy: Policy,
+    config: TrackingConfig,
+    trajectory: str,
+    duration: float = 10.0,
+    seed: int = 0,
+    snapshot_steps: Sequence[int] | None = None,
 ) -> Episode:
     """Run ``policy`` from the straight initial state while the target follows ``trajectory``.
 
@@ -158,8 +163,11 @@ def run_episode(
             training target of ``config``: random start and redirections).
         duration: episode length, s.
         seed: seed of the episode's random numbers (only the ``random`` target uses them).
+        snapshot_steps: the 0-based control steps after which the arms' nodes are kept
+            (``Episode.snapshots``; an animation's frames); default the ends of the
+            episode's quarters.
     """
-    return run_episodes(policy, config, trajectory, duration, [seed])[0]
+    return run_episodes(policy, config, trajectory, duration, [seed], snapshot_steps)[0]
 
 
 def accepts_batches(policy: Policy) -> bool:
@@ -175,6 +183,7 @@ def run_episodes(
     trajectory: str,
     duration: float = 10.0,
     seeds: Sequence[int] = (0,),
+    snapshot_steps: Sequence[int] | None = None,
 ) -> list[Episode]:
     """Run one episode per seed of ``seeds`` together, in one batch of environments: the
     episodes of :func:`run_episode` with those seeds, number for number.
@@ -185,7 +194,7 @@ def run_episodes(
     row, and the closed loop would amplify that), or once per control step with every
     episode's observation (n, obs_dim) when it :func:`accepts_batches`. An episode that ends
     early (non-finite state, a dropped object) stops recording; the batch steps on until
-    every episode has ended.
+    every episode has ended. ``snapshot_steps``: as :func:`run_episode`'s.
 
     Raises:
         ValueError: ``seeds`` is empty, or several seeds with a controller that plans on the
@@ -220,7 +229,10 @@ def run_episodes(
     radius = [float(eval_config.sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
     penetration = np.full((n, n_steps), np.nan)
     contact_force = np.zeros((n, n_steps))
-    snapshot_at = _snapshot_steps(n_steps)
+    if snapshot_steps is None:
+        snapshot_at = _snapshot_steps(n_steps)
+    else:
+        snapshot_at = np.unique(np.clip(np.asarray(snapshot_steps, dtype=int), 0, n_steps - 1))
     snapshots = np.full((n, len(snapshot_at), n_arms, 3, eval_config.sim.n_nodes), np.nan)
     contact_on = core.engine.contact_on
     planning = None

@@ -1,0 +1,175 @@
+"""``softtrack animate``: a run's evaluation replayed and drawn, as a video, GIF, HTML player
+or film strip.
+
+The rods' nodes are not stored at every step, so the run's deterministic policy is replayed
+on the trajectory with the nodes kept at the animation's frame rate; the replay's tips are
+then compared with the run's stored ``eval_trajectories`` (float32, to the last bit on the
+CPU that evaluated it), and any difference is reported, never hidden. Nothing is written into
+the run: a shipped run animates read-only.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from softtrack.evaluation.episodes import Episode, run_episode
+from softtrack.evaluation.frames import episode_frames
+from softtrack.evaluation.runs import RANDOM_TARGET_SEED, PolicyLoader
+from softtrack.report.video import VideoError, film_strip, video_format, write_video
+from softtrack.spec.env_config import env_config
+from softtrack.store.runs import RunRecord, RunStoreError
+from softtrack.store.tables import TableError, read_table
+from softtrack.viz.scene import SceneRenderer
+
+__all__ = ["Replay", "animate_runs", "replay_run"]
+
+#: Frames of a film strip, evenly spaced over the episode, the last at its end.
+STRIP_FRAMES = 6
+
+
+@dataclass(frozen=True)
+class Replay:
+    """One run's episode, replayed with the arms' nodes at the animation's frames.
+
+    Attributes:
+        record: the run.
+        episode: the replayed episode (``snapshots``: the frames' nodes).
+        check: one line on how the replay's tips compare with the stored evaluation.
+        matches: whether they are equal to the last stored bit (``None``: nothing stored).
+    """
+
+    record: RunRecord
+    episode: Episode
+    check: str
+    matches: bool | None
+
+
+def frame_steps(duration: float, control_dt: float, fps: float) -> np.ndarray:
+    """(F,) the 0-based control steps after which frames are taken at ``fps`` over
+    ``duration`` s (the first after 1/fps s, the last at the end)."""
+    n_steps = round(duration / control_dt)
+    n_frames = max(1, round(duration * fps))
+    times = np.arange(1, n_frames + 1) / fps
+    return np.unique(np.clip(np.round(times / control_dt).astype(int) - 1, 0, n_steps - 1))
+
+
+def replay_run(
+    record: RunRecord, trajectory: str, fps: float, load: PolicyLoader, random: int | None = None
+) -> Replay:
+    """Replay ``record``'s policy on ``trajectory`` (or, with ``random`` = k, the k-th
+    held-out random-target episode of ``softtrack evaluate --random``) with the nodes kept
+    at ``fps``.
+
+    Raises:
+        RunStoreError: no readable model.
+    """
+    spec = record.load_spec()
+    config = env_config(spec)
+    duration = float(spec.training.eval_duration)
+    policy = load(record, spec, "policy")
+    steps = frame_steps(duration, config.sim.control_dt, fps).tolist()
+    if random is not None:
+        seed = RANDOM_TARGET_SEED + int(random)
+        episode = run_episode(policy, config, "random", duration, seed, snapshot_steps=steps)
+        note = (
+            f"{record.info.name}: random-target episode {random} (seed {seed}); "
+            "eval_random keeps no path to compare the replay with"
+        )
+        return Replay(record, episode, note, None)
+    episode = run_episode(policy, config, trajectory, duration, snapshot_steps=steps)
+    check, matches = _compare_with_stored(record, trajectory, episode)
+    return Replay(record, episode, check, matches)
+
+
+def _compare_with_stored(
+    record: RunRecord, trajectory: str, episode: Episode
+) -> tuple[str, bool | None]:
+    path = record.table_path("eval_trajectories")
+    name = record.info.name
+    if not path.is_file():
+        return f"{name}: no stored evaluation to compare the replay with", None
+    try:
+        table = read_table(path, ["trajectory", "step", "arm", "tip_x", "tip_y", "tip_z"])
+    except TableError as exc:
+        return f"{name}: the stored evaluation is unreadable ({exc}); replay not compared", None
+    rows = table[table["trajectory"] == trajectory].sort_values(["step", "arm"])
+    if rows.empty:
+        return f"{name}: no stored {trajectory} evaluation to compare the replay with", None
+    n_arms = episode.tips.shape[1]
+    stored = rows[["tip_x", "tip_y", "tip_z"]].to_numpy(np.float32).reshape(-1, n_arms, 3)
+    replayed = episode.tips.astype(np.float32)
+    if stored.shape != replayed.shape:
+        return (
+            f"{name}: the replay ran {len(replayed)} steps, the stored evaluation {len(stored)}",
+            False,
+        )
+    if np.array_equal(stored, replayed, equal_nan=True):
+        return f"{name}: the replay's tips equal the stored evaluation's to the last bit", True
+    worst = float(np.nanmax(np.abs(stored.astype(np.float64) - replayed)))
+    return (
+        f"{name}: the replay's tips differ from the stored evaluation by up to {worst:.2e} m "
+        "(evaluated on another CPU kind? docs/performance.md)",
+        False,
+    )
+
+
+def animate_runs(
+    records: Sequence[RunRecord],
+    trajectory: str,
+    out: str | os.PathLike[str],
+    *,
+    load: PolicyLoader,
+    fps: float = 30.0,
+    size: tuple[int, int] = (640, 480),
+    strip: str | os.PathLike[str] | None = None,
+    labels: Sequence[str] | None = None,
+    random: int | None = None,
+    on_note: Callable[[str], None] | None = None,
+) -> Path:
+    """Replay and draw ``records`` on ``trajectory`` (``random``: the k-th held-out random
+    target) side by side (one panel each, the same target) into ``out`` (.mp4, .gif or
+    .html); with ``strip``, also a PNG film strip of :data:`STRIP_FRAMES` instants.
+
+    Raises:
+        VideoError: bad ``out``/``strip`` or no encoder (checked before any replay);
+        RunStoreError: a run without a readable model or evaluation settings.
+    """
+    video_format(out)
+    if strip is not None and Path(strip).suffix.lower() != ".png":
+        raise VideoError(f"{strip}: a film strip is a PNG; name it *.png")
+    for path in (out, strip):
+        if path is not None and not Path(path).parent.is_dir():
+            raise VideoError(f"{path}: its directory does not exist; create it first")
+    if not records:
+        raise RunStoreError("animate: no run given; name a run id, a run directory or a name")
+    replays = [replay_run(record, trajectory, fps, load, random) for record in records]
+    for replay in replays:
+        if on_note is not None:
+            on_note(replay.check)
+    width, height = size
+    renderer = SceneRenderer(width, height)
+    names = labels or [_label(replay.record) for replay in replays]
+    streams = [
+        list(episode_frames(replay.episode, env_config(replay.record.load_spec()), name))
+        for replay, name in zip(replays, names, strict=True)
+    ]
+    n_frames = min(len(frames) for frames in streams)
+
+    def panels(k: int) -> np.ndarray:
+        return np.concatenate([renderer.render(frames[k]) for frames in streams], axis=1)
+
+    written = write_video((panels(k) for k in range(n_frames)), out, fps, title=" vs ".join(names))
+    if strip is not None:
+        picks = np.linspace(0, n_frames - 1, STRIP_FRAMES).round().astype(int)
+        film_strip([panels(int(k)) for k in picks], strip, columns=3 if len(streams) == 1 else 1)
+    return written
+
+
+def _label(record: RunRecord) -> str:
+    info = record.info
+    return f"{info.name} (seed {info.seed})"
