@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup quickstart test test-slow test-all bench faults
+.PHONY: setup quickstart test test-slow test-all bench faults readme-animation
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -39,3 +39,10 @@ faults: setup
 bench: setup
 	taskset -c 0 $(BIN)/python benchmarks/bench_engine.py
 	taskset -c 0 $(BIN)/python benchmarks/bench_env.py
+
+# the README's first picture: the best shipped controller with contact on the circle, as a
+# GIF and a film strip (docs/rendering.md); read-only on the shipped run
+README_RUN := models/td3-sbx-128-mirror-tta-solid-3e6-seed4
+readme-animation: setup
+	$(BIN)/softtrack animate $(README_RUN) --trajectory circle --width 400 --height 300 \
+		--fps 15 --out docs/images/readme-circle.gif --strip docs/images/readme-circle-strip.png

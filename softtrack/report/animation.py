@@ -22,6 +22,7 @@ from softtrack.evaluation.frames import episode_frames
 from softtrack.evaluation.runs import RANDOM_TARGET_SEED, PolicyLoader
 from softtrack.report.video import VideoError, film_strip, video_format, write_video
 from softtrack.spec.env_config import env_config
+from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord, RunStoreError
 from softtrack.store.tables import TableError, read_table
 from softtrack.viz.scene import SceneRenderer
@@ -111,11 +112,28 @@ def _compare_with_stored(
     if np.array_equal(stored, replayed, equal_nan=True):
         return f"{name}: the replay's tips equal the stored evaluation's to the last bit", True
     worst = float(np.nanmax(np.abs(stored.astype(np.float64) - replayed)))
+    here, there = cpu_kind(), _evaluation_cpu(record, trajectory)
+    if there is not None and there != here:
+        why = (
+            f"the stored evaluation ran on {there}, this replay on {here}: the closed loop "
+            "amplifies last-bit differences between CPU kinds (docs/performance.md)"
+        )
+    else:
+        why = "on this CPU kind: the code or the model changed since; `softtrack evaluate RUN` renews it"
     return (
-        f"{name}: the replay's tips differ from the stored evaluation by up to {worst:.2e} m "
-        "(evaluated on another CPU kind? docs/performance.md)",
+        f"{name}: the replay's tips differ from the stored evaluation by up to {worst:.2e} m; {why}",
         False,
     )
+
+
+def _evaluation_cpu(record: RunRecord, trajectory: str) -> str | None:
+    """The CPU kind the run's stored ``trajectory`` evaluation ran on (eval_metrics.cpu)."""
+    try:
+        metrics = read_table(record.table_path("eval_metrics"), ["trajectory", "cpu"])
+    except (TableError, KeyError, ValueError):
+        return None
+    kinds = metrics.loc[metrics["trajectory"] == trajectory, "cpu"].dropna().unique()
+    return str(kinds[0]) if len(kinds) else None
 
 
 def animate_runs(
@@ -151,7 +169,7 @@ def animate_runs(
     for replay in replays:
         if on_note is not None:
             on_note(replay.check)
-    width, height = size
+    width, height = (max(2, int(v) - int(v) % 2) for v in size)  # H.264: even sizes
     renderer = SceneRenderer(width, height)
     names = labels or [_label(replay.record) for replay in replays]
     streams = [

@@ -101,7 +101,7 @@ def _append_frames(imageio: Any, frames: Iterable[np.ndarray], path: Path, fps: 
         fps=fps,
         codec="libx264",
         quality=7,
-        macro_block_size=16,
+        macro_block_size=2,  # H.264 with yuv420p needs even sizes only
         pixelformat="yuv420p",
         ffmpeg_log_level="error",
     )

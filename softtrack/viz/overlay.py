@@ -102,13 +102,14 @@ def _glyph(char: str, size: int) -> np.ndarray:
     """One character's coverage (0–1) in a cell one line high and one advance wide."""
     font = _font(size)
     height, advance = _line_height(size), max(1, round(font.getlength(char)))
-    cell = np.zeros((height, advance), dtype=np.float32)
     mask = font.getmask(char, mode="L")
     width, rows = mask.size
-    if width and rows:
+    left, top = (max(0, int(v)) for v in font.getbbox(char)[:2])
+    cell = np.zeros((height, max(advance, left + width)), dtype=np.float32)
+    kept = max(0, min(rows, height - top))
+    if width and kept:
         pixels = np.asarray(mask, dtype=np.uint8).reshape(rows, width).astype(np.float32) / 255.0
-        left, top = font.getbbox(char)[:2]
-        cell[top : top + rows, left : left + width] = pixels[: height - top, : advance - left]
+        cell[top : top + kept, left : left + width] = pixels[:kept]
     return cell
 
 

@@ -34,8 +34,9 @@ _TEXT_COLOR = (20, 20, 24)
 _SKY_TOP, _SKY_BOTTOM = np.array([236, 240, 246]), np.array([206, 212, 222])
 _FLOOR_LINE = (178, 184, 196)
 _PATH_COLOR = (226, 120, 120)
-#: Metres of arrow per newton of contact force (an arrow's length is capped at 0.25 m).
-ARROW_M_PER_N = 0.04
+#: An arrow's length: this many metres times the square root of its force in newtons (a
+#: sphere's few newtons and the arms' tens both readable), at most 0.25 m.
+ARROW_M_PER_SQRT_N = 0.03
 _ARROW_MAX_M = 0.25
 
 
@@ -172,7 +173,7 @@ class SceneRenderer:
             magnitude = float(np.linalg.norm(force))
             if not np.isfinite(magnitude) or magnitude <= 0.0:
                 continue
-            length = min(_ARROW_MAX_M, ARROW_M_PER_N * magnitude)
+            length = min(_ARROW_MAX_M, ARROW_M_PER_SQRT_N * float(np.sqrt(magnitude)))
             start = np.asarray(point, float)
             end = start + force / magnitude * length
             (u0, v0, z0), (u1, v1, z1) = self._project(np.stack([start, end]))

@@ -1,0 +1,70 @@
+"""softtrack animate: a shipped run drawn read-only, side by side, with its replay checked
+against the stored evaluation; bad input refused before anything is replayed or written."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import imageio.v2 as imageio
+import pytest
+from typer.testing import CliRunner
+
+from softtrack.cli import app
+
+runner = CliRunner()
+MODELS = Path(__file__).resolve().parents[1] / "models"
+CENTRAL = MODELS / "td3-sbx-128-mirror-val-confirm-4e6-seed0"
+INDEPENDENT = MODELS / "independent-td3-sbx-2e6-val-confirm-seed0"
+
+
+def _digest(directory: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(directory.rglob("*"))
+        if p.is_file()
+    }
+
+
+def test_two_shipped_runs_side_by_side_read_only(tmp_path: Path) -> None:
+    before = {run: _digest(run) for run in (CENTRAL, INDEPENDENT)}
+    out, strip = tmp_path / "pair.gif", tmp_path / "pair.png"
+    args = ["animate", str(CENTRAL), str(INDEPENDENT), "--out", str(out), "--strip", str(strip)]
+    result = runner.invoke(app, [*args, "--width", "160", "--height", "120", "--fps", "3"])
+    assert result.exit_code == 0, result.output
+    notes = [line for line in result.stderr.splitlines() if line.startswith("note:")]
+    assert len(notes) == 2 and all("stored evaluation" in note for note in notes)
+    assert all(("to the last bit" in n) or ("differ" in n and "m;" in n) for n in notes)
+    frames = imageio.mimread(out, memtest=False)
+    assert len(frames) == 30 and frames[0].shape[:2] == (120, 320)
+    assert imageio.imread(strip).shape[:2] == (6 * 120, 320)
+    assert {run: _digest(run) for run in (CENTRAL, INDEPENDENT)} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pair.gif", "pair.png"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--out", "{tmp}/a.avi"], "unknown animation format .avi"),
+        (["--out", "{tmp}/missing/a.mp4"], "does not exist"),
+        (["--out", "{tmp}/a.gif", "--strip", "{tmp}/s.jpg"], "a film strip is a PNG"),
+    ],
+)
+def test_bad_output_is_one_line_and_nothing_is_written(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    filled = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    result = runner.invoke(app, ["animate", str(CENTRAL), *filled])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unknown_run_is_one_line(tmp_path: Path) -> None:
+    result = runner.invoke(
+        app,
+        ["animate", "no-such-run", "--out", str(tmp_path / "a.gif"), "--runs-dir", str(tmp_path)],
+    )
+    assert result.exit_code == 2 and "no-such-run" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
