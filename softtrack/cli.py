@@ -1346,7 +1346,7 @@ def animate(
         ),
     ],
     trajectory: Annotated[
-        AnimateTrajectory,  # type: ignore[valid-type]
+        AnimateTrajectory,
         typer.Option("--trajectory", "-t", help="Target trajectory.", case_sensitive=False),
     ] = CIRCLE,
     random: Annotated[
@@ -1410,6 +1410,41 @@ def animate(
         typer.echo(f"animation: {written} ({written.stat().st_size / 1e6:.1f} MB)")
         if strip:
             typer.echo(f"film strip: {strip}")
+
+
+@app.command("watch", cls=Command)
+def watch_command(
+    selection: Annotated[
+        list[str] | None,
+        typer.Argument(
+            metavar="[RUN_OR_NAME]...",
+            show_default=False,
+            help="Run ids, id prefixes or experiment names (default: running and recent runs).",
+        ),
+    ] = None,
+    interval: Annotated[
+        float, typer.Option("--interval", metavar="S", min=0.2, help="Seconds between refreshes.")
+    ] = 2.0,
+    recent: Annotated[
+        int, typer.Option("--recent", metavar="N", min=0, help="Ended runs shown, the last N.")
+    ] = 8,
+    once: Annotated[
+        bool, typer.Option("--once", metavar="", help="Print the view once and exit.")
+    ] = False,
+    runs_dir: RunsDirOption = None,
+) -> None:
+    """A live view of running and recent runs: status, env steps, steps/s, time left, the
+    validation scores as a sparkline with the last and best, the CPU. Reads the store without
+    changing it; works over SSH and on a SLURM login node. Ctrl-C stops it.
+    Example: softtrack watch --runs-dir runs
+    """
+    from softtrack.report.watch import watch
+
+    with _user_errors(runs_dir):
+        try:
+            watch(runs_dir, selection or (), interval=interval, recent=recent, once=once)
+        except KeyboardInterrupt:
+            return
 
 
 sync_app = typer.Typer(

@@ -50,7 +50,7 @@ class _TrackingEnv(gym.Env[np.ndarray, np.ndarray]):
         )[None]
         return obs, self.core.info(0, distances)
 
-    def render(self) -> np.ndarray | None:  # type: ignore[override]
+    def render(self) -> np.ndarray | None:
         """With ``render_mode="rgb_array"``: (480, 640, 3) uint8, the arms, clamps, target and
         contact forces now, the time and the tips' errors in a corner
         (:mod:`softtrack.viz`); ``None`` otherwise."""

@@ -576,7 +576,7 @@ def _settled(stamp: str | None, now_ns: int) -> str | None:
 
 
 def read_catalog(
-    root: Path, *, progress: Callable[[int, int], None] | None = None
+    root: Path, *, progress: Callable[[int, int], None] | None = None, write: bool = True
 ) -> CatalogSnapshot:
     """Every run of ``root`` from the catalog, brought up to date with the directories (module
     docstring) and written back where anything changed and the directory is writable.
@@ -584,6 +584,8 @@ def read_catalog(
     Args:
         root: an existing runs directory.
         progress: called as ``progress(done, total)`` while runs are read from their files.
+        write: ``False``: never write the catalog or remove entries (``softtrack watch``,
+            which must leave the store as it found it).
     """
     root = Path(root)
     stamps = _current_stamps(root)
@@ -632,7 +634,7 @@ def read_catalog(
         )
     )
     if not changed:
-        if not base.newer:
+        if not base.newer and write:
             _remove_entries(seen)  # none was current: the file's rows are
         return CatalogSnapshot(
             root, schemas, base.table_names, len(base.dirs), notices, 0, base.file, base.table
@@ -641,7 +643,7 @@ def read_catalog(
     used, names = _used_schemas(table.column("tables").to_pylist(), schemas)
     snapshot = CatalogSnapshot(root, used, names, table.num_rows, notices, len(reread), None, table)
     digest = _stamps_digest(stamps) if _all_current(table, stamps) else ""
-    written = base.newer or _write_back(root, table, used, names, seen, digest)
+    written = base.newer or not write or _write_back(root, table, used, names, seen, digest)
     only_metadata = present and not fresh and len(keep) == len(base.dirs)
     if not written and not only_metadata:
         notices.append(

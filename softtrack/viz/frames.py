@@ -71,7 +71,7 @@ def contact_arrows(
 def scene_frame(
     rods: np.ndarray,
     radius: float,
-    bases: np.ndarray,
+    bases: np.ndarray | Sequence[Sequence[float]],
     time: float,
     tips: np.ndarray,
     target: np.ndarray,
