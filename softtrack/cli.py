@@ -1330,7 +1330,7 @@ def compare(
 
 
 AnimateTrajectory = enum.StrEnum(  # type: ignore[misc]
-    "AnimateTrajectory", [(name, name) for name in EVAL_TRAJECTORIES]
+    "AnimateTrajectory", [(name, name) for name in (*EVAL_TRAJECTORIES, "all")]
 )
 CIRCLE = AnimateTrajectory("circle")
 
@@ -1347,7 +1347,12 @@ def animate(
     ],
     trajectory: Annotated[
         AnimateTrajectory,
-        typer.Option("--trajectory", "-t", help="Target trajectory.", case_sensitive=False),
+        typer.Option(
+            "--trajectory",
+            "-t",
+            help="Target trajectory (all: every one, for an .html page).",
+            case_sensitive=False,
+        ),
     ] = CIRCLE,
     random: Annotated[
         int | None,
@@ -1361,7 +1366,12 @@ def animate(
     ] = None,
     out: Annotated[
         str,
-        typer.Option("--out", "-o", metavar="FILE", help="The animation: .mp4, .gif or .html."),
+        typer.Option(
+            "--out",
+            "-o",
+            metavar="FILE",
+            help="The animation: .mp4, .gif, or .html (a page that plays the runs in 3-D).",
+        ),
     ] = "animation.mp4",
     strip: Annotated[
         str | None,
@@ -1384,7 +1394,8 @@ def animate(
     runs_dir: RunsDirOption = None,
 ) -> None:
     """Draw runs tracking a target: replays each run's policy and writes an MP4, a GIF or a
-    self-contained HTML player (nothing written into the runs: shipped runs work read-only).
+    self-contained HTML page that plays them in 3-D (play, pause, scrub, speed, controller and
+    trajectory; offline). Nothing is written into the runs: shipped runs work read-only.
 
     Each replay's tips are compared with the run's stored evaluation (one line says whether
     they are equal to the last bit). Example:
@@ -1396,9 +1407,10 @@ def animate(
 
     with _user_errors(runs_dir):
         records = [resolve_run(reference, runs_dir) for reference in references]
+        chosen = list(EVAL_TRAJECTORIES) if str(trajectory) == "all" else [str(trajectory)]
         written = animate_runs(
             records,
-            str(trajectory),
+            chosen,
             out,
             load=load_policy,
             fps=fps,

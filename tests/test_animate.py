@@ -4,6 +4,7 @@ against the stored evaluation; bad input refused before anything is replayed or 
 from __future__ import annotations
 
 import hashlib
+import json
 from pathlib import Path
 
 import imageio.v2 as imageio
@@ -40,6 +41,27 @@ def test_two_shipped_runs_side_by_side_read_only(tmp_path: Path) -> None:
     assert imageio.imread(strip).shape[:2] == (6 * 120, 320)
     assert {run: _digest(run) for run in (CENTRAL, INDEPENDENT)} == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pair.gif", "pair.png"]
+
+
+def test_an_html_page_plays_every_trajectory(tmp_path: Path) -> None:
+    out = tmp_path / "viewer.html"
+    result = runner.invoke(
+        app, ["animate", str(CENTRAL), "-t", "all", "--out", str(out), "--fps", "5"]
+    )
+    assert result.exit_code == 0, result.output
+    page = out.read_text(encoding="utf-8")
+    data = json.loads(page.split('type="application/json">', 1)[1].split("</script>", 1)[0])
+    assert sorted(r["trajectory"] for r in data["rollouts"]) == ["circle", "figure8", "rectangle"]
+    assert all(r["frames"] == 50 and r["arms"] == 2 and r["nodes"] == 21 for r in data["rollouts"])
+    assert "http://" not in page and "https://" not in page  # nothing fetched at view time
+
+
+def test_a_video_shows_one_trajectory(tmp_path: Path) -> None:
+    result = runner.invoke(
+        app, ["animate", str(CENTRAL), "-t", "all", "--out", str(tmp_path / "a.mp4")]
+    )
+    assert result.exit_code == 2 and "one trajectory" in result.stderr
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,8 @@ import numpy as np
 from softtrack.evaluation.episodes import Episode, run_episode
 from softtrack.evaluation.frames import episode_frames
 from softtrack.evaluation.runs import RANDOM_TARGET_SEED, PolicyLoader
-from softtrack.report.video import VideoError, film_strip, video_format, write_video
+from softtrack.report.video import VideoError, film_strip, video_format, write_page, write_video
+from softtrack.report.viewer import Rollout, viewer_page
 from softtrack.spec.env_config import env_config
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord, RunStoreError
@@ -42,12 +43,14 @@ class Replay:
         episode: the replayed episode (``snapshots``: the frames' nodes).
         check: one line on how the replay's tips compare with the stored evaluation.
         matches: whether they are equal to the last stored bit (``None``: nothing stored).
+        random: the held-out random-target episode replayed, if that.
     """
 
     record: RunRecord
     episode: Episode
     check: str
     matches: bool | None
+    random: int | None = None
 
 
 def frame_steps(duration: float, control_dt: float, fps: float) -> np.ndarray:
@@ -81,7 +84,7 @@ def replay_run(
             f"{record.info.name}: random-target episode {random} (seed {seed}); "
             "eval_random keeps no path to compare the replay with"
         )
-        return Replay(record, episode, note, None)
+        return Replay(record, episode, note, None, int(random))
     episode = run_episode(policy, config, trajectory, duration, snapshot_steps=steps)
     check, matches = _compare_with_stored(record, trajectory, episode)
     return Replay(record, episode, check, matches)
@@ -138,7 +141,7 @@ def _evaluation_cpu(record: RunRecord, trajectory: str) -> str | None:
 
 def animate_runs(
     records: Sequence[RunRecord],
-    trajectory: str,
+    trajectories: Sequence[str],
     out: str | os.PathLike[str],
     *,
     load: PolicyLoader,
@@ -149,43 +152,92 @@ def animate_runs(
     random: int | None = None,
     on_note: Callable[[str], None] | None = None,
 ) -> Path:
-    """Replay and draw ``records`` on ``trajectory`` (``random``: the k-th held-out random
-    target) side by side (one panel each, the same target) into ``out`` (.mp4, .gif or
-    .html); with ``strip``, also a PNG film strip of :data:`STRIP_FRAMES` instants.
+    """Replay and draw ``records`` on ``trajectories`` (``random``: the k-th held-out random
+    target instead) into ``out``: an MP4 or GIF of one trajectory with the runs side by side
+    (one panel each, the same target), or an HTML page that plays every run on every
+    trajectory in 3-D (:mod:`softtrack.report.viewer`); with ``strip``, also a PNG film strip
+    of :data:`STRIP_FRAMES` instants of the first trajectory.
 
     Raises:
-        VideoError: bad ``out``/``strip`` or no encoder (checked before any replay);
-        RunStoreError: a run without a readable model or evaluation settings.
+        VideoError: bad ``out``/``strip``, no encoder, several trajectories for a video
+            (checked before any replay); RunStoreError: a run without a readable model.
     """
-    video_format(out)
+    suffix = video_format(out)
     if strip is not None and Path(strip).suffix.lower() != ".png":
         raise VideoError(f"{strip}: a film strip is a PNG; name it *.png")
     for path in (out, strip):
         if path is not None and not Path(path).parent.is_dir():
             raise VideoError(f"{path}: its directory does not exist; create it first")
+    if suffix != ".html" and len(trajectories) != 1:
+        raise VideoError(f"{out}: a video shows one trajectory; choose one, or write an .html page")
     if not records:
         raise RunStoreError("animate: no run given; name a run id, a run directory or a name")
-    replays = [replay_run(record, trajectory, fps, load, random) for record in records]
-    for replay in replays:
+    names = list(labels or [_label(record) for record in records])
+    replays = {
+        (name, trajectory): replay_run(record, trajectory, fps, load, random)
+        for record, name in zip(records, names, strict=True)
+        for trajectory in trajectories
+    }
+    for replay in replays.values():
         if on_note is not None:
             on_note(replay.check)
+    if suffix == ".html":
+        rollouts = [_rollout(name, replay) for (name, _), replay in replays.items()]
+        page = viewer_page(rollouts, " vs ".join(names), fps)
+        written = write_page(page, out)
     width, height = (max(2, int(v) - int(v) % 2) for v in size)  # H.264: even sizes
     renderer = SceneRenderer(width, height)
-    names = labels or [_label(replay.record) for replay in replays]
+    first = trajectories[0]
     streams = [
-        list(episode_frames(replay.episode, env_config(replay.record.load_spec()), name))
-        for replay, name in zip(replays, names, strict=True)
+        list(
+            episode_frames(
+                replays[name, first].episode,
+                env_config(replays[name, first].record.load_spec()),
+                name,
+            )
+        )
+        for name in names
     ]
     n_frames = min(len(frames) for frames in streams)
 
     def panels(k: int) -> np.ndarray:
         return np.concatenate([renderer.render(frames[k]) for frames in streams], axis=1)
 
-    written = write_video((panels(k) for k in range(n_frames)), out, fps, title=" vs ".join(names))
+    if suffix != ".html":
+        written = write_video((panels(k) for k in range(n_frames)), out, fps)
     if strip is not None:
         picks = np.linspace(0, n_frames - 1, STRIP_FRAMES).round().astype(int)
         film_strip([panels(int(k)) for k in picks], strip, columns=3 if len(streams) == 1 else 1)
     return written
+
+
+def _rollout(name: str, replay: Replay) -> Rollout:
+    """The viewer's rollout of one replay (its frames: the episode's snapshots)."""
+    episode, config = replay.episode, env_config(replay.record.load_spec())
+    assert episode.snapshots is not None and episode.snapshot_steps is not None
+    steps = episode.snapshot_steps
+    if episode.object_position is not None:
+        sphere = episode.object_position[steps]
+        errors = np.linalg.norm(sphere - episode.target[steps], axis=-1)[:, None]
+    else:
+        sphere = None
+        goals = episode.target[steps][:, None, :]
+        if episode.goal_offsets is not None:
+            goals = goals + episode.goal_offsets[None]
+        errors = np.linalg.norm(episode.tips[steps] - goals, axis=-1)
+    return Rollout(
+        controller=name,
+        trajectory=episode.trajectory if replay.random is None else f"random {replay.random}",
+        times=episode.t[steps],
+        nodes=episode.snapshots,
+        target=episode.target[steps],
+        sphere=sphere,
+        errors=errors,
+        radius=float(config.sim.radius),
+        target_radius=float(config.target.sphere_radius),
+        sphere_radius=0.05 if config.sim.sphere is None else float(config.sim.sphere.radius),
+        bases=np.asarray(config.sim.base_positions, float)[: episode.snapshots.shape[1]],
+    )
 
 
 def _label(record: RunRecord) -> str:

@@ -1,12 +1,10 @@
 """Frames to files: MP4 (H.264 through the ffmpeg that ``imageio-ffmpeg`` ships: no system
-download), GIF, a self-contained HTML player, or a PNG film strip. Every file is written to a
+download), GIF or a PNG film strip (and HTML pages, :func:`write_page`). Every file is written to a
 temporary beside its destination and renamed into place, so a failed or interrupted write
 leaves nothing half-written."""
 
 from __future__ import annotations
 
-import base64
-import html
 import os
 import warnings
 from collections.abc import Iterable, Sequence
@@ -21,7 +19,11 @@ from softtrack.store.atomic import temp_name
 __all__ = ["VIDEO_FORMATS", "VideoError", "film_strip", "video_format", "write_video"]
 
 #: File suffixes :func:`write_video` writes, and what each is.
-VIDEO_FORMATS = {".mp4": "H.264 video", ".gif": "animated GIF", ".html": "HTML page with a player"}
+VIDEO_FORMATS = {
+    ".mp4": "H.264 video",
+    ".gif": "animated GIF",
+    ".html": "a page that plays the runs in 3-D (softtrack.report.viewer)",
+}
 
 
 class VideoError(ValueError):
@@ -43,17 +45,17 @@ def video_format(path: str | os.PathLike[str]) -> str:
     return suffix
 
 
-def write_video(
-    frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps: float, title: str = ""
-) -> Path:
-    """Write (H, W, 3) uint8 ``frames`` to ``path`` (MP4, GIF or HTML by suffix) at ``fps``.
+def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps: float) -> Path:
+    """Write (H, W, 3) uint8 ``frames`` to ``path`` (MP4 or GIF by suffix) at ``fps``.
 
     Raises:
-        VideoError: unknown suffix, no ffmpeg, no frames, or the destination cannot be
+        VideoError: another suffix, no ffmpeg, no frames, or the destination cannot be
             written (nothing is left behind).
     """
     path = Path(path)
     suffix = video_format(path)
+    if suffix == ".html":
+        raise VideoError(f"{path}: an .html page is written by softtrack animate, not as a video")
     if not path.parent.is_dir():
         raise VideoError(f"{path}: its directory {path.parent} does not exist; create it first")
     tmp = temp_name(path)
@@ -61,14 +63,27 @@ def write_video(
         if suffix == ".gif":
             _write_gif(frames, tmp, fps)
         else:
-            mp4 = tmp if suffix == ".mp4" else temp_name(path.with_suffix(".mp4"))
-            try:
-                _write_mp4(frames, mp4, fps)
-                if suffix == ".html":
-                    tmp.write_text(_player_page(mp4.read_bytes(), title), encoding="utf-8")
-            finally:
-                if mp4 != tmp:
-                    mp4.unlink(missing_ok=True)
+            _write_mp4(frames, tmp, fps)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise VideoError(
+            f"{path}: cannot be written ({exc.strerror or exc}); choose another --out"
+        ) from None
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def write_page(text: str, path: str | os.PathLike[str]) -> Path:
+    """Write an HTML page atomically.
+
+    Raises:
+        VideoError: the destination cannot be written (nothing is left behind).
+    """
+    path = Path(path)
+    tmp = temp_name(path)
+    try:
+        tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     except OSError as exc:
         raise VideoError(
@@ -135,31 +150,6 @@ def _write_gif(frames: Iterable[np.ndarray], path: Path, fps: float) -> None:
         loop=0,
         optimize=True,
     )
-
-
-def _player_page(mp4: bytes, title: str) -> str:
-    """A page that plays ``mp4`` from itself (a data URI): play, pause, scrub with the
-    browser's own controls, and a speed choice; nothing fetched from a network."""
-    data = base64.b64encode(mp4).decode("ascii")
-    name = html.escape(title or "softtrack animation")
-    speeds = "".join(
-        f'<option value="{s}"{" selected" if s == 1 else ""}>{s}×</option>'
-        for s in (0.25, 0.5, 1, 2)
-    )
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{name}</title>
-<style>body{{font-family:sans-serif;margin:1.5em;background:#f4f5f7;color:#222}}
-video{{max-width:100%;border:1px solid #ccc;background:#fff}}</style></head>
-<body><h1 style="font-size:1.2em">{name}</h1>
-<video id="player" controls loop autoplay muted playsinline
- src="data:video/mp4;base64,{data}"></video>
-<p><label>speed <select id="speed">{speeds}</select></label></p>
-<script>
-const player = document.getElementById("player");
-document.getElementById("speed").addEventListener("change",
-  (event) => {{ player.playbackRate = Number(event.target.value); }});
-</script></body></html>
-"""
 
 
 def film_strip(
