@@ -40,7 +40,10 @@ def across_seeds_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) ->
     panels = _comparisons(ctx, trajectories)
     if not panels:
         return
-    doc.h(3, "Across seeds: interquartile mean and probability of improvement")
+    doc.h(
+        2,
+        "Best controllers per task, across seeds: interquartile mean and probability of improvement",
+    )
     names = {g.label: g.name for g in ctx.groups}
     for title, comparison in panels:
         first = comparison.controllers[0]

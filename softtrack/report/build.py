@@ -137,13 +137,13 @@ def build_report(
         "rebuild it at any time with the same command. Beside each measured number is the "
         f"study's published value ({NOT_IN_STUDY} where it gives none)."
     )
-    runs_section(doc, ctx, runs)
-    provenance_section(doc, ctx)
+    # the answers first (the best controllers per task with their intervals, then every
+    # controller beside the study), then one section per question, the runs table last
+    across_seeds_section(doc, ctx, trajectories)
+    errors_section(doc, ctx, summary, trajectories)
     training_section(doc, ctx)
     final_section(doc, ctx)
     validation_section(doc, ctx)
-    errors_section(doc, ctx, summary, trajectories)
-    across_seeds_section(doc, ctx, trajectories)
     random_targets_section(doc, ctx)
     robustness_section(doc, ctx)
     contact_section(doc, ctx)
@@ -152,6 +152,8 @@ def build_report(
     actions_section(doc, ctx, summary, trajectories)
     trajectories_section(doc, ctx, trajectories, featured)
     moments_section(doc, ctx, trajectories, featured)
+    provenance_section(doc, ctx)
+    runs_section(doc, ctx, runs)
 
     index = out_dir / "index.md"
     atomic_write_text(out_dir / "index.html", doc.html(title), fsync=False)
