@@ -587,6 +587,7 @@ def report(
     extra_runs: Sequence[str | os.PathLike[str]] = (),
     all_figures: bool = False,
     figures_for: Sequence[str] = (),
+    interactive: bool = False,
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
@@ -600,6 +601,8 @@ def report(
             only of the chosen few (:func:`softtrack.report.featured.featured_groups`).
         figures_for: experiment names whose controllers get those figures, instead of the
             automatic choice (study protocol, best centralized, best independent).
+        interactive: also write ``interactive.html`` (the featured controllers replayed for
+            its 3-D viewer: :mod:`softtrack.report.interactive`).
     """
     from softtrack.report import build_report, select_report_runs
 
@@ -624,6 +627,7 @@ def report(
         portable_command(list(command_line)),
         all_figures=all_figures,
         figures_for=figures_for,
+        load=load_policy if interactive else None,
     )
 
 

@@ -1240,6 +1240,15 @@ def report(
             "automatic choice. Repeatable.",
         ),
     ] = None,
+    interactive: Annotated[
+        bool,
+        typer.Option(
+            "--html",
+            metavar="",
+            help="Also write interactive.html: the answers first, the featured controllers "
+            "replayed in a 3-D viewer, training curves a click hides, the runs last (offline).",
+        ),
+    ] = False,
 ) -> None:
     """Build a report (PNG figures, index.md, index.html) from the selected runs.
 
@@ -1258,8 +1267,11 @@ def report(
             on_episode=_print_episode,
             all_figures=all_figures,
             figures_for=figures_for or [],
+            interactive=interactive,
         )
     typer.echo(f"report: {index}")
+    if interactive:
+        typer.echo(f"interactive: {index.parent / 'interactive.html'}")
 
 
 @app.command(cls=Command)

@@ -16,6 +16,7 @@ import pytest
 LONG_TESTS = frozenset(
     {
         "tests/test_install.py::test_the_wheel_runs_quickstart_and_a_shipped_policy_outside_the_checkout",
+        "tests/test_animate.py::test_report_html_replays_the_featured_controller_read_only",
         "tests/test_train.py::test_interrupt_and_resume[td3-sbx]",
         "tests/test_report.py::test_a_report_of_many_controllers_draws_a_few_unless_all_figures",
         "tests/test_sweep.py::test_two_sweeps_share_a_runs_dir",

@@ -90,3 +90,32 @@ def test_an_unknown_run_is_one_line(tmp_path: Path) -> None:
     )
     assert result.exit_code == 2 and "no-such-run" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_report_html_replays_the_featured_controller_read_only(tmp_path: Path) -> None:
+    before = _digest(CENTRAL)
+    out = tmp_path / "report"
+    result = runner.invoke(
+        app,
+        [
+            "report",
+            "td3-sbx-128-mirror-val-confirm",
+            "--runs-dir",
+            str(MODELS),
+            "--out",
+            str(out),
+            "--html",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    page = (out / "interactive.html").read_text(encoding="utf-8")
+    assert page.index("Best controllers per task") < page.index("featured controllers in 3-D")
+    assert page.index("featured controllers in 3-D") < page.index('<h2 id="runs">')
+    assert "study (TD3, 3 seeds)" in page and "http://" not in page.replace("http://www.w3.org", "")
+    data = json.loads(
+        page.split('<script id="data" type="application/json">', 1)[1].split("</script>")[0]
+    )
+    assert sorted(r["trajectory"] for r in data["rollouts"]) == ["circle", "figure8", "rectangle"]
+    manifest = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert "interactive.html" in manifest["files"]
+    assert _digest(CENTRAL) == before

@@ -1,7 +1,8 @@
-"""The 3-D viewer page (``softtrack animate ... --out x.html``) in a real browser: Debian's
-chromium driven by Selenium. It loads offline with no console error, plays (its canvas changes
-between two frames), pauses, scrubs, switches controller, a toggle hides the target's path,
-and a screenshot shows both arms in their colours."""
+"""The 3-D viewer page (``softtrack animate ... --out x.html``) and the interactive report
+(``softtrack report --html``) in a real browser: Debian's chromium driven by Selenium. The
+viewer loads offline with no console error, plays (its canvas changes between two frames),
+pauses, scrubs, switches controller, a toggle hides the target's path, and a screenshot shows
+both arms in their colours; the report opens with its answers and a checkbox hides a curve."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from softtrack.report.interactive import AnswerTable, CurvePanel, interactive_page
 from softtrack.report.viewer import Rollout, viewer_page
 from softtrack.viz.scene import ARM_COLORS
 
@@ -119,3 +121,47 @@ def test_viewer_plays_pauses_scrubs_and_switches(browser: Any, tmp_path: Path) -
         close = np.abs(pixels - np.asarray(colour, float)).max(axis=1) < 40
         assert close.sum() > 300, f"arm colour {colour} not on screen"
     print(f"browser test: {time.monotonic() - started:.1f} s")
+
+
+def test_report_page_answers_first_and_a_checkbox_hides_a_curve(
+    browser: Any, tmp_path: Path
+) -> None:
+    steps = np.linspace(1e3, 1e5, 50)
+    panel = CurvePanel(
+        "centralized",
+        "episode return",
+        (
+            ("TD3", "#1f77b4", steps, np.log(steps), np.full(50, 0.5)),
+            ("DDPG", "#ff7f0e", steps, 0.8 * np.log(steps), np.full(50, 0.3)),
+        ),
+    )
+    answers = [
+        AnswerTable(
+            "shared target: 3-D RMSE (m)",
+            ("trajectory, arm", "study (TD3, 3 seeds)", "TD3"),
+            (("circle, arm 1", "0.0650", "0.0402 [0.0383, 0.0432]"),),
+        )
+    ]
+    page = tmp_path / "interactive.html"
+    page.write_text(
+        interactive_page(
+            "report",
+            "intro",
+            answers,
+            [panel],
+            [_rollout("TD3 (seed 0)", "circle", 1.2)],
+            ["run", "status"],
+            [["01ABC", "completed"]],
+        ),
+        encoding="utf-8",
+    )
+    browser.get(page.as_uri())
+    time.sleep(0.5)
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    headings = [h.text for h in browser.find_elements("tag name", "h2")]
+    assert headings[0].startswith("Best controllers per task") and headings[-1] == "Runs"
+    curve = browser.find_element("id", "curve-0-1")
+    assert curve.is_displayed()
+    browser.find_element("id", "toggle-0-1").click()
+    assert not curve.is_displayed()
+    assert browser.find_element("id", "curve-0-0").is_displayed()

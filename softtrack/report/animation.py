@@ -28,7 +28,7 @@ from softtrack.store.runs import RunRecord, RunStoreError
 from softtrack.store.tables import TableError, read_table
 from softtrack.viz.scene import SceneRenderer
 
-__all__ = ["Replay", "animate_runs", "replay_run"]
+__all__ = ["Replay", "animate_runs", "replay_run", "rollout_of"]
 
 #: Frames of a film strip, evenly spaced over the episode, the last at its end.
 STRIP_FRAMES = 6
@@ -182,7 +182,7 @@ def animate_runs(
         if on_note is not None:
             on_note(replay.check)
     if suffix == ".html":
-        rollouts = [_rollout(name, replay) for (name, _), replay in replays.items()]
+        rollouts = [rollout_of(name, replay) for (name, _), replay in replays.items()]
         page = viewer_page(rollouts, " vs ".join(names), fps)
         written = write_page(page, out)
     width, height = (max(2, int(v) - int(v) % 2) for v in size)  # H.264: even sizes
@@ -211,7 +211,7 @@ def animate_runs(
     return written
 
 
-def _rollout(name: str, replay: Replay) -> Rollout:
+def rollout_of(name: str, replay: Replay) -> Rollout:
     """The viewer's rollout of one replay (its frames: the episode's snapshots)."""
     episode, config = replay.episode, env_config(replay.record.load_spec())
     assert episode.snapshots is not None and episode.snapshot_steps is not None

@@ -31,6 +31,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from softtrack.evaluation.runs import PolicyLoader
 from softtrack.report.across_seeds import across_seeds_section
 from softtrack.report.contact import contact_section
 from softtrack.report.data import group_runs, load_runs, trajectories_in
@@ -92,6 +93,7 @@ def build_report(
     *,
     all_figures: bool = False,
     figures_for: Sequence[str] = (),
+    load: PolicyLoader | None = None,
 ) -> Path:
     """Write the report of ``records`` into ``out_dir``; return the path of ``index.md``.
 
@@ -106,6 +108,9 @@ def build_report(
             (:func:`softtrack.report.featured.featured_groups`).
         figures_for: experiment names whose controllers get those figures, instead of the
             automatic choice.
+        load: with a policy loader, also ``interactive.html``: the answers first, the
+            featured controllers replayed in a 3-D viewer, toggleable training curves, the
+            runs last (:mod:`softtrack.report.interactive`).
 
     Raises:
         EmptySelectionError: ``records`` is empty.
@@ -158,6 +163,15 @@ def build_report(
     index = out_dir / "index.md"
     atomic_write_text(out_dir / "index.html", doc.html(title), fsync=False)
     atomic_write_text(index, doc.markdown(), fsync=False)
+    if load is not None:
+        from softtrack.report.interactive_build import INTERACTIVE_PAGE, write_interactive
+
+        intro = (
+            f"Generated {generated} by `{command}` from {len(runs)} run(s). The featured "
+            "controllers are replayed from their policies; every number is from the stored tables."
+        )
+        write_interactive(out_dir, title, intro, ctx, runs, featured, trajectories, load)
+        ctx.written.append(INTERACTIVE_PAGE)
     keep = set(ctx.written)
     _remove_stale(out_dir, keep)
     atomic_write_json(

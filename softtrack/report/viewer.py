@@ -17,7 +17,7 @@ import numpy as np
 from softtrack.viz.camera import FRONT, Camera
 from softtrack.viz.scene import ARM_COLORS
 
-__all__ = ["Rollout", "viewer_page"]
+__all__ = ["VIEWER_STYLE", "Rollout", "viewer_page", "viewer_section"]
 
 
 @dataclass(frozen=True)
@@ -78,33 +78,35 @@ def _payload(rollout: Rollout) -> dict[str, object]:
 
 def viewer_page(rollouts: Sequence[Rollout], title: str, fps: float, camera: Camera = FRONT) -> str:
     """The page (HTML text) playing ``rollouts`` at ``fps`` frames per second."""
+    return (
+        _PAGE.replace("__TITLE__", html.escape(title))
+        .replace("__STYLE__", VIEWER_STYLE)
+        .replace("__VIEWER__", viewer_section(rollouts, fps, camera))
+    )
+
+
+def viewer_section(rollouts: Sequence[Rollout], fps: float, camera: Camera = FRONT) -> str:
+    """The viewer's controls, canvas and script, to place in a page (with
+    :data:`VIEWER_STYLE` in its style sheet)."""
     basis = camera.basis()
     data = {
-        "title": title,
         "fps": float(fps),
-        "camera": {
-            "eye": list(camera.eye),
-            "basis": basis.tolist(),
-            "fov": float(camera.fov_deg),
-        },
+        "camera": {"eye": list(camera.eye), "basis": basis.tolist(), "fov": float(camera.fov_deg)},
         "colors": [f"rgb{tuple(c)}" for c in ARM_COLORS],
         "rollouts": [_payload(r) for r in rollouts],
     }
     blob = json.dumps(data).replace("</", "<\\/")
-    return _PAGE.replace("__TITLE__", html.escape(title)).replace("__DATA__", blob)
+    return VIEWER_HTML + VIEWER_SCRIPT.replace("__DATA__", blob)
 
 
-_PAGE = """<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>__TITLE__</title>
-<style>
-body{font-family:system-ui,sans-serif;margin:1.2em;background:#f4f5f7;color:#222}
-#controls{display:flex;gap:.8em;align-items:center;flex-wrap:wrap;margin:.6em 0}
+VIEWER_STYLE = """#controls{display:flex;gap:.8em;align-items:center;flex-wrap:wrap;margin:.6em 0}
 canvas{background:#eef1f6;border:1px solid #ccd;max-width:100%}
 #scrub{width:24em}
-</style></head>
-<body>
-<h1 style="font-size:1.2em">__TITLE__</h1>
-<div id="controls">
+"""
+
+#: The viewer's controls and canvas (ids: controller, trajectory, play, scrub, speed, path,
+#: view, status).
+VIEWER_HTML = """<div id="controls">
  <label>controller <select id="controller"></select></label>
  <label>trajectory <select id="trajectory"></select></label>
  <button id="play" type="button">pause</button>
@@ -115,7 +117,10 @@ canvas{background:#eef1f6;border:1px solid #ccd;max-width:100%}
 </div>
 <canvas id="view" width="800" height="600"></canvas>
 <p id="status"></p>
-<script id="data" type="application/json">__DATA__</script>
+"""
+
+#: The viewer's data (``__DATA__``) and renderer; it draws into :data:`VIEWER_HTML`.
+VIEWER_SCRIPT = """<script id="data" type="application/json">__DATA__</script>
 <script>
 "use strict";
 const DATA = JSON.parse(document.getElementById("data").textContent);
@@ -231,5 +236,14 @@ function tick(now) {
   last = now; requestAnimationFrame(tick);
 }
 draw(); requestAnimationFrame(tick);
-</script></body></html>
+</script>"""
+
+_PAGE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>__TITLE__</title>
+<style>
+body{font-family:system-ui,sans-serif;margin:1.2em;background:#f4f5f7;color:#222}
+__STYLE__</style></head>
+<body>
+<h1 style="font-size:1.2em">__TITLE__</h1>
+__VIEWER__</body></html>
 """
