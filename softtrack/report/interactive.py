@@ -3,8 +3,8 @@
 Its first screen answers the question: per task, the study's published 3-D RMSE beside the
 best controllers' interquartile mean with its 95 % bootstrap interval, per trajectory and arm
 (the numbers of ``softtrack compare``). Then the 3-D rollout viewer of the featured controllers
-(:mod:`softtrack.report.viewer`), the training curves with their seed bands (one checkbox per
-curve hides it), and the table of runs last. Everything is in the page (data as JSON, plain
+(:mod:`softtrack.report.viewer`), the training and validation curves with their seed bands
+(one checkbox per curve hides it), and the table of runs last. Everything is in the page (data as JSON, plain
 JavaScript and SVG); nothing is fetched at view time.
 """
 
@@ -120,7 +120,7 @@ __STYLE__</style></head>
 __ANSWERS__
 <h2 id="viewer">The featured controllers in 3-D</h2>
 __VIEWER__
-<h2 id="training">Training curves (mean ± 1 std across seeds; a checkbox hides a curve)</h2>
+<h2 id="training">Training and validation curves (mean ± 1 std across seeds; a checkbox hides a curve)</h2>
 <div id="curves"></div>
 <script id="curve-data" type="application/json">__CURVES__</script>
 <script>
@@ -153,7 +153,7 @@ __VIEWER__
     }
     const xt = node("text", {x: W - M.r, y: H - 8, "text-anchor": "end", "font-size": 10}, svg);
     xt.textContent = `${x1.toExponential(1)} env steps`;
-    const yt = node("text", {x: 4, y: M.t + 10, "font-size": 10}, svg);
+    const yt = node("text", {x: M.l + 6, y: M.t + 10, "font-size": 10}, svg);
     yt.textContent = panel.y;
     const legend = document.createElement("div"); legend.className = "legend";
     panel.curves.forEach((c, k) => {

@@ -5,8 +5,11 @@ the first screen's tables, the training curves, and the featured controllers rep
 from __future__ import annotations
 
 import statistics
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
+
+import numpy as np
 
 from softtrack.evaluation.runs import PolicyLoader
 from softtrack.report.animation import replay_run, rollout_of
@@ -17,6 +20,7 @@ from softtrack.report.document import Context, Doc
 from softtrack.report.featured import Featured
 from softtrack.report.interactive import AnswerTable, CurvePanel, interactive_page
 from softtrack.report.reference import TRAJECTORY_TITLES, study_rmse_3d
+from softtrack.report.summaries import validation_scores
 from softtrack.report.training_sections import runs_section
 from softtrack.report.video import write_page
 from softtrack.report.viewer import Rollout
@@ -77,6 +81,35 @@ def _panels(ctx: Context) -> list[CurvePanel]:
     return panels
 
 
+def _validation_panels(ctx: Context) -> list[CurvePanel]:
+    """Per validated family, each controller's validation score per checkpoint (its first
+    policy), mean ± 1 std across seeds at the checkpoints its runs share."""
+    panels = []
+    for selection in ctx.plan.validation:
+        curves = []
+        for group in selection.shown:
+            per_run = []
+            for run in group.runs:
+                scores = validation_scores(run)
+                if scores.empty:
+                    continue
+                first = scores[scores["policy"] == scores["policy"].min()]
+                per_run.append(dict(zip(first["global_step"], first["score"], strict=True)))
+            steps = sorted(set.intersection(*(set(r) for r in per_run))) if per_run else []
+            if not steps:
+                continue
+            values = np.array([[r[step] for step in steps] for r in per_run], dtype=float)
+            values[~np.isfinite(values)] = np.nan
+            with warnings.catch_warnings():  # a checkpoint no run scored finitely
+                warnings.simplefilter("ignore", RuntimeWarning)
+                mean = np.nanmean(values, axis=0)
+                std = np.nanstd(values, axis=0, ddof=1) if len(values) > 1 else 0.0 * mean
+            curves.append((group.label, ctx.plan.color(group), np.array(steps, float), mean, std))
+        if curves:
+            panels.append(CurvePanel(f"validation: {selection.title}", "score (m)", tuple(curves)))
+    return panels
+
+
 def _median_run(runs: Sequence[RunData]) -> RunData:
     """The run with the median mean 3-D RMSE over its stored metrics (the first without)."""
     scored = [
@@ -129,7 +162,7 @@ def write_interactive(
         title,
         intro,
         _answers(ctx, trajectories),
-        _panels(ctx),
+        [*_panels(ctx), *_validation_panels(ctx)],
         rollouts,
         table[1],
         table[2],
