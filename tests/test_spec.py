@@ -1015,3 +1015,52 @@ def test_study_protocol_files() -> None:
         )
     quick = load_spec(REPO / "experiments" / "quickstart.yaml")
     assert quick.seeds == [0] and quick.training.total_timesteps <= 100_000
+
+
+def _hostile_spec(tmp_path: Path, kind: str) -> Path:
+    """A spec path that is not a regular text file of spec size (or whose base is not)."""
+    if kind == "fifo":
+        path = tmp_path / "fifo.yaml"
+        os.mkfifo(path)
+        return path
+    if kind == "device":
+        return Path("/dev/zero")
+    if kind == "proc":
+        return Path("/proc/self/environ")
+    if kind == "huge":
+        path = tmp_path / "huge.yaml"
+        path.write_text("name: x\n" + "# padding\n" * 120_000)
+        return path
+    path = tmp_path / "child.yaml"
+    path.write_text("base: /dev/zero\nname: x\n")
+    return path
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize(
+    ("kind", "message"),
+    [
+        ("fifo", "is a FIFO, not a spec file"),
+        ("device", "is a device, not a spec file"),
+        ("proc", "holds NUL characters"),
+        ("huge", "is larger than 1000 kB"),
+        ("base-device", "is a device, not a spec file"),
+    ],
+)
+def test_a_spec_that_is_no_regular_file_is_one_line_without_reading_it(
+    tmp_path: Path, kind: str, message: str
+) -> None:
+    """A FIFO without a writer (hung `validate`), /dev/zero as a spec or a base (grew to
+    ~20 GB), /proc/self/environ (a traceback), an oversized file: one line, exit 2, quickly,
+    nothing of the file quoted."""
+    path = _hostile_spec(tmp_path, kind)
+    result = subprocess.run(
+        [sys.executable, "-m", "softtrack.cli", "validate", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+    assert "PATH=" not in result.stderr and "HOME=" not in result.stderr

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import copy
 import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -60,15 +61,63 @@ def read_spec_file(path: str | os.PathLike[str]) -> tuple[Any, dict[FieldPath, i
         )
     if path.is_dir():
         raise SpecError(label, "is a directory, not a spec file", "give a .yaml file")
+    raw = _read_regular_file(path, label)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SpecError(label, f"not UTF-8 text ({exc.reason})", "save the file as UTF-8") from None
+    if "\x00" in text:
+        raise SpecError(label, "holds NUL characters: not a text file", "give a .yaml spec file")
+    return _parse_yaml(text, label)
+
+
+#: The largest spec file read, bytes (the shipped ones are under 4 kB).
+MAX_SPEC_BYTES = 1_000_000
+
+
+def _read_regular_file(path: Path, label: str) -> bytes:
+    """The bytes of a regular file of at most :data:`MAX_SPEC_BYTES`; a FIFO, a device or a
+    socket is refused before anything is read from it (opened non-blocking, so a FIFO without
+    a writer cannot hang the command), and nothing of the file is ever quoted back."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:
         raise SpecError(
             label, f"cannot read the file ({exc.strerror})", "check its permissions"
         ) from None
-    return _parse_yaml(text, label)
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = (
+                "a FIFO"
+                if stat.S_ISFIFO(mode)
+                else "a device"
+                if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+                else "a socket"
+                if stat.S_ISSOCK(mode)
+                else "not a regular file"
+            )
+            raise SpecError(label, f"is {kind}, not a spec file", "give a .yaml spec file")
+        chunks, size = [], 0
+        while size <= MAX_SPEC_BYTES:
+            chunk = os.read(fd, min(65536, MAX_SPEC_BYTES + 1 - size))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise SpecError(
+            label, f"cannot read the file ({exc.strerror})", "check its permissions"
+        ) from None
+    finally:
+        os.close(fd)
+    if size > MAX_SPEC_BYTES:
+        raise SpecError(
+            label,
+            f"is larger than {MAX_SPEC_BYTES // 1000} kB: not a spec file",
+            "give a .yaml spec file (a spec is a few kB)",
+        )
+    return b"".join(chunks)
 
 
 def _base_path(label: str, data: dict[str, Any], lines: dict[FieldPath, int]) -> str:
