@@ -68,7 +68,7 @@ def test_a_video_shows_one_trajectory(tmp_path: Path) -> None:
     ("args", "message"),
     [
         (["--out", "{tmp}/a.avi"], "unknown animation format .avi"),
-        (["--out", "{tmp}/missing/a.mp4"], "does not exist"),
+        (["--out", "{tmp}/a.gif/b.mp4"], "its directory cannot be created"),
         (["--out", "{tmp}/a.gif", "--strip", "{tmp}/s.jpg"], "a film strip is a PNG"),
     ],
 )
@@ -76,11 +76,22 @@ def test_bad_output_is_one_line_and_nothing_is_written(
     tmp_path: Path, args: list[str], message: str
 ) -> None:
     filled = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    if "a.gif/b.mp4" in filled[1]:
+        (tmp_path / "a.gif").write_text("a file where a directory would go")
+    before = sorted(p.name for p in tmp_path.iterdir())
     result = runner.invoke(app, ["animate", str(CENTRAL), *filled])
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
-    assert list(tmp_path.iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_missing_output_directories_are_created(tmp_path: Path) -> None:
+    out = tmp_path / "videos" / "deep" / "a.gif"
+    args = ["animate", str(CENTRAL), "--out", str(out), "--width", "160", "--height", "120"]
+    result = runner.invoke(app, [*args, "--fps", "2"])
+    assert result.exit_code == 0, result.output
+    assert out.is_file()
 
 
 def test_an_unknown_run_is_one_line(tmp_path: Path) -> None:

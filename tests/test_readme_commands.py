@@ -50,11 +50,20 @@ def _new_paths(clone: Path) -> tuple[list[str], list[str]]:
 
 
 def _outputs(command: str) -> list[str]:
-    """Paths the command names as where it writes."""
-    named = re.findall(r"--out (\S+)", command)
+    """Paths the command names as where it writes (a directory, or a file's top directory)."""
+    named = re.findall(r"--(?:out|strip) (\S+)", command)
     if command.startswith("$S export "):
         named.append(command.split()[-1])
-    return [p.rstrip("/") + "/" for p in named]
+    allowed = []
+    for path in named:
+        parts = Path(path.rstrip("/")).parts
+        if not Path(path).suffix:  # a directory it writes into
+            allowed.append(path.rstrip("/") + "/")
+        elif len(parts) == 1:  # a file in the checkout's top directory
+            allowed.append(path)
+        else:  # a file in a directory it creates: git shows that directory
+            allowed.append(parts[0] + "/")
+    return allowed
 
 
 @pytest.mark.slow

@@ -166,8 +166,8 @@ def animate_runs(
     if strip is not None and Path(strip).suffix.lower() != ".png":
         raise VideoError(f"{strip}: a film strip is a PNG; name it *.png")
     for path in (out, strip):
-        if path is not None and not Path(path).parent.is_dir():
-            raise VideoError(f"{path}: its directory does not exist; create it first")
+        if path is not None:
+            _make_parent(Path(path))
     if suffix != ".html" and len(trajectories) != 1:
         raise VideoError(f"{out}: a video shows one trajectory; choose one, or write an .html page")
     if not records:
@@ -238,6 +238,16 @@ def rollout_of(name: str, replay: Replay) -> Rollout:
         sphere_radius=0.05 if config.sim.sphere is None else float(config.sim.sphere.radius),
         bases=np.asarray(config.sim.base_positions, float)[: episode.snapshots.shape[1]],
     )
+
+
+def _make_parent(path: Path) -> None:
+    """Create the directory ``path`` goes into (an output path under a file: one line)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise VideoError(
+            f"{path}: its directory cannot be created ({exc.strerror or exc}); choose another --out"
+        ) from None
 
 
 def _label(record: RunRecord) -> str:
