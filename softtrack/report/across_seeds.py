@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from softtrack.report.compare import (
     CROSS_CPU_NOTE,
     Comparison,
+    ControllerScores,
     compare_controllers,
     controller_scores,
     profile_figure,
@@ -17,11 +18,15 @@ from softtrack.report.compare import (
 from softtrack.report.document import Context, Doc, seeds_text
 from softtrack.store.runs import RunStoreError
 
-__all__ = ["across_seeds_section"]
+__all__ = ["across_seeds_section", "headline_scores"]
 
 
-def _comparisons(ctx: Context, trajectories: Sequence[str]) -> list[tuple[str, Comparison]]:
-    panels = []
+def headline_scores(
+    ctx: Context, trajectories: Sequence[str]
+) -> list[tuple[str, list[ControllerScores]]]:
+    """Per task (headline selection) with stored metrics: its title and its controllers'
+    3-D RMSE score matrices."""
+    tasks = []
     for selection in ctx.plan.headline:
         controllers = []
         for group in selection.shown:
@@ -31,8 +36,15 @@ def _comparisons(ctx: Context, trajectories: Sequence[str]) -> list[tuple[str, C
             except RunStoreError:  # no stored metric: the tables say so
                 continue
         if controllers:
-            panels.append((selection.title, compare_controllers(controllers, cells=False)))
-    return panels
+            tasks.append((selection.title, controllers))
+    return tasks
+
+
+def _comparisons(ctx: Context, trajectories: Sequence[str]) -> list[tuple[str, Comparison]]:
+    return [
+        (title, compare_controllers(controllers, cells=False))
+        for title, controllers in headline_scores(ctx, trajectories)
+    ]
 
 
 def across_seeds_section(doc: Doc, ctx: Context, trajectories: Sequence[str]) -> None:

@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from softtrack.evaluation.runs import PolicyLoader
+from softtrack.report.across_seeds import headline_scores
 from softtrack.report.animation import replay_run, rollout_of
-from softtrack.report.compare import compare_controllers, controller_scores
+from softtrack.report.compare import compare_controllers
 from softtrack.report.curves import training_curves
 from softtrack.report.data import RunData
 from softtrack.report.document import Context, Doc
@@ -35,16 +36,7 @@ VIEWER_FPS = 15.0
 
 def _answers(ctx: Context, trajectories: Sequence[str]) -> list[AnswerTable]:
     tables = []
-    for selection in ctx.plan.headline:
-        controllers = []
-        for group in selection.shown:
-            metrics = [(run.seed, run.metrics) for run in group.runs]
-            try:
-                controllers.append(controller_scores(group.label, metrics, "rmse_3d", trajectories))
-            except RunStoreError:
-                continue
-        if not controllers:
-            continue
+    for task, controllers in headline_scores(ctx, trajectories):
         comparison = compare_controllers(controllers)
         cells = controllers[0].cells
         header = ("trajectory, arm", "study (TD3, 3 seeds)", *(c.label for c in controllers))
@@ -61,7 +53,7 @@ def _answers(ctx: Context, trajectories: Sequence[str]) -> list[AnswerTable]:
             rows.append(tuple(row))
         overall = ["all cells", "", *(comparison.overall[c.label].text() for c in controllers)]
         rows.append(tuple(overall))
-        title = f"{selection.title}: 3-D RMSE (m), IQM over seeds [95 % interval]"
+        title = f"{task}: 3-D RMSE (m), IQM over seeds [95 % interval]"
         tables.append(AnswerTable(title, header, tuple(rows)))
     return tables
 

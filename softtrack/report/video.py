@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -58,20 +58,8 @@ def write_video(frames: Iterable[np.ndarray], path: str | os.PathLike[str], fps:
         raise VideoError(f"{path}: an .html page is written by softtrack animate, not as a video")
     if not path.parent.is_dir():
         raise VideoError(f"{path}: its directory {path.parent} does not exist; create it first")
-    tmp = temp_name(path)
-    try:
-        if suffix == ".gif":
-            _write_gif(frames, tmp, fps)
-        else:
-            _write_mp4(frames, tmp, fps)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise VideoError(
-            f"{path}: cannot be written ({exc.strerror or exc}); choose another --out"
-        ) from None
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    writer = _write_gif if suffix == ".gif" else _write_mp4
+    return _write_atomically(path, lambda tmp: writer(frames, tmp, fps))
 
 
 def write_page(text: str, path: str | os.PathLike[str]) -> Path:
@@ -80,10 +68,19 @@ def write_page(text: str, path: str | os.PathLike[str]) -> Path:
     Raises:
         VideoError: the destination cannot be written (nothing is left behind).
     """
-    path = Path(path)
+    return _write_atomically(Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def _write_atomically(path: Path, write: Callable[[Path], object]) -> Path:
+    """``write`` a temporary beside ``path``, then rename it into place; nothing is left
+    behind on failure.
+
+    Raises:
+        VideoError: the destination cannot be written.
+    """
     tmp = temp_name(path)
     try:
-        tmp.write_text(text, encoding="utf-8")
+        write(tmp)
         os.replace(tmp, path)
     except OSError as exc:
         raise VideoError(
@@ -173,14 +170,6 @@ def film_strip(
     for k, frame in enumerate(frames):
         r, c = divmod(k, columns)
         sheet[r * height : (r + 1) * height, c * width : (c + 1) * width] = frame
-    tmp = temp_name(path)
-    try:
-        Image.fromarray(sheet).save(tmp, format="PNG", optimize=True)
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise VideoError(
-            f"{path}: cannot be written ({exc.strerror or exc}); choose another --out"
-        ) from None
-    finally:
-        tmp.unlink(missing_ok=True)
-    return path
+    return _write_atomically(
+        path, lambda tmp: Image.fromarray(sheet).save(tmp, format="PNG", optimize=True)
+    )
