@@ -588,6 +588,8 @@ def report(
     all_figures: bool = False,
     figures_for: Sequence[str] = (),
     interactive: bool = False,
+    studies: Sequence[str] = (),
+    storage: str | None = None,
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
@@ -603,11 +605,19 @@ def report(
             automatic choice (study protocol, best centralized, best independent).
         interactive: also write ``interactive.html`` (the featured controllers replayed for
             its 3-D viewer: :mod:`softtrack.report.interactive`).
+        studies: tuning studies (``softtrack tune --study``) whose trials' runs join the
+            selection and whose trials, parameter importance and best trials the report shows.
+        storage: the studies' Optuna storage URL (default ``sqlite:///<runs dir>/optuna.db``).
     """
     from softtrack.report import build_report, select_report_runs
+    from softtrack.tune.view import load_view
 
-    store = RunStore(resolve_runs_dir(runs_dir))
-    records = select_report_runs(store, selection)
+    root = resolve_runs_dir(runs_dir)
+    store = RunStore(root)
+    views = [load_view(name, storage=storage, runs_dir=root) for name in studies]
+    trial_runs = [t.run_id for view in views for t in view.trials if t.run_id]
+    trial_runs = [run_id for run_id in trial_runs if (root / run_id / "run.json").is_file()]
+    records = select_report_runs(store, [*selection, *trial_runs])
     extra = [resolve_run(str(path)) for path in extra_runs]
     for record in extra:
         if not has_evaluation(record):
@@ -628,6 +638,7 @@ def report(
         all_figures=all_figures,
         figures_for=figures_for,
         load=load_policy if interactive else None,
+        tune_views=views,
     )
 
 

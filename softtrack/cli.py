@@ -1249,6 +1249,26 @@ def report(
             "replayed in a 3-D viewer, training curves a click hides, the runs last (offline).",
         ),
     ] = False,
+    studies: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--study",
+            metavar="NAME",
+            show_default=False,
+            help="A tuning study (softtrack tune --study): its trials' runs join the selection; "
+            "the report shows its parameter importance and best trials, and --html its trials "
+            "in parallel coordinates. Repeatable.",
+        ),
+    ] = None,
+    storage: Annotated[
+        str | None,
+        typer.Option(
+            "--storage",
+            metavar="URL",
+            show_default=False,
+            help="The studies' Optuna storage [default: sqlite:///RUNS_DIR/optuna.db].",
+        ),
+    ] = None,
 ) -> None:
     """Build a report (PNG figures, index.md, index.html) from the selected runs.
 
@@ -1268,6 +1288,8 @@ def report(
             all_figures=all_figures,
             figures_for=figures_for or [],
             interactive=interactive,
+            studies=studies or [],
+            storage=storage,
         )
     typer.echo(f"report: {index}")
     if interactive:

@@ -2,7 +2,8 @@
 (``softtrack report --html``) in a real browser: Debian's chromium driven by Selenium. The
 viewer loads offline with no console error, plays (its canvas changes between two frames),
 pauses, scrubs, switches controller, a toggle hides the target's path, and a screenshot shows
-both arms in their colours; the report opens with its answers and a checkbox hides a curve."""
+both arms in their colours; the report opens with its answers and a checkbox hides a curve; a
+tuning study's trials are lines in parallel coordinates, the pruned ones hidden by a checkbox."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import pytest
 from PIL import Image
 
 from softtrack.report.interactive import AnswerTable, CurvePanel, interactive_page
+from softtrack.report.tune_view import TuneAxis, TuneTrial, TuneView, tune_html_section
 from softtrack.report.viewer import Rollout, viewer_page
 from softtrack.viz.scene import ARM_COLORS
 
@@ -165,3 +167,59 @@ def test_report_page_answers_first_and_a_checkbox_hides_a_curve(
     browser.find_element("id", "toggle-0-1").click()
     assert not curve.is_displayed()
     assert browser.find_element("id", "curve-0-0").is_displayed()
+
+
+def test_tune_study_in_parallel_coordinates(browser: Any, tmp_path: Path) -> None:
+    from selenium.webdriver import ActionChains
+
+    axes = (
+        TuneAxis("algo.learning_rate", "float", True, 1e-4, 1e-2),
+        TuneAxis("algo.batch_size", "categorical", False, None, None, ("8", "16")),
+    )
+    trials = tuple(
+        TuneTrial(
+            number=k,
+            state="PRUNED" if k >= 4 else "COMPLETE",
+            score=0.05 + 0.01 * k,
+            step=200,
+            values={"algo.learning_rate": 1e-4 * 2**k, "algo.batch_size": "8" if k % 2 else "16"},
+            run_id=f"RUN{k}",
+        )
+        for k in range(6)
+    )
+    view = TuneView(
+        "demo",
+        "best validation score",
+        axes,
+        trials,
+        (("algo.learning_rate", 0.8), ("algo.batch_size", 0.2)),
+        "PED-ANOVA",
+    )
+    page = tmp_path / "interactive.html"
+    page.write_text(
+        interactive_page(
+            "report", "intro", [], [], [], ["run"], [], tune_html=tune_html_section([view])
+        ),
+        encoding="utf-8",
+    )
+    browser.get(page.as_uri())
+    time.sleep(0.3)
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    svg = browser.find_element("id", "parallel-svg-0")
+    assert len(svg.find_elements("css selector", "polyline.complete")) == 4
+    pruned = svg.find_elements("css selector", "polyline.pruned")
+    assert len(pruned) == 2 and all(p.is_displayed() for p in pruned)
+    assert len(browser.find_elements("css selector", "#importance-0 .bar")) == 2
+    browser.find_element("id", "pruned-0").click()
+    assert not any(p.is_displayed() for p in pruned)
+    best = svg.find_element("css selector", 'polyline[data-trial="0"]')
+    # a point on the line a quarter along it, as an offset from the svg's centre
+    dx, dy = browser.execute_script(
+        """const [svg, line] = arguments, p = line.getPointAtLength(line.getTotalLength() / 4);
+        const q = p.matrixTransform(line.getScreenCTM()), r = svg.getBoundingClientRect();
+        return [q.x - (r.x + r.width / 2), q.y - (r.y + r.height / 2)];""",
+        svg,
+        best,
+    )
+    ActionChains(browser).move_to_element_with_offset(svg, round(dx), round(dy)).perform()
+    assert browser.find_element("id", "caption-0").text.startswith("trial 0 (complete): 0.05 m")

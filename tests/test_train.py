@@ -105,7 +105,8 @@ def test_train_prints_progress_lines_into_a_log(
     assert len(steps) >= 10 and steps == sorted(steps) and steps[-1] <= 400
     assert all("steps/s" in line for line in lines[1:])
     assert any(
-        re.search(r"the last 20 episodes -?[\d,]+\.\d\d, \d+:\d\d h left$", line) for line in lines
+        re.search(r"the last 20 episodes -?[\d,]+\.\d\d, \d+:\d\d min left$", line)
+        for line in lines
     )
 
 
@@ -154,8 +155,11 @@ def test_progress_line_format() -> None:
     line = progress_line("5JP1EEN4", 2_650_720, 4_000_000, 378.1, 14169.214)
     assert line == (
         "5JP1EEN4 2,650,720/4,000,000 steps (66.3%), 378 steps/s, "
-        "mean return of the last 20 episodes 14,169.21, 0:59 h left"
+        "mean return of the last 20 episodes 14,169.21, 59:29 min left"
     )
+    # a short run's time left in seconds, not "0:00 h"
+    assert progress_line("x", 30_000, 40_000, 500.0, None).endswith(", 0:20 min left")
+    assert progress_line("x", 0, 4_000_000, 378.1, None).endswith(", 2:56:19 h left")
     assert progress_line("x arm1", 0, 10, None, float("nan")) == "x arm1 0/10 steps (0.0%)"
     assert progress_line("x", 5_000, 1_500_000, 1_812.4, None, updates_start=10_000) == (
         "x 5,000/1,500,000 steps (0.3%), 1,812 steps/s, updates start at 10,000 steps"
@@ -199,8 +203,8 @@ def test_the_time_left_counts_from_the_first_update(
     assert (
         lines[0] == "12345678 500/11,000 steps (4.5%), 1,000 steps/s, updates start at 1,000 steps"
     )
-    assert lines[2] == "12345678 1,000/11,000 steps (9.1%), 100 steps/s, 0:02 h left"
-    assert lines[3] == "12345678 2,000/11,000 steps (18.2%), 100 steps/s, 0:02 h left"
+    assert lines[2] == "12345678 1,000/11,000 steps (9.1%), 100 steps/s, 1:40 min left"
+    assert lines[3] == "12345678 2,000/11,000 steps (18.2%), 100 steps/s, 1:30 min left"
     assert lines[4] == "12345678 stopped: 2,000/11,000 steps (18.2%) in 0:11 min, 182 steps/s"
 
 

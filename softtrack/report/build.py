@@ -62,6 +62,7 @@ from softtrack.report.training_sections import (
     validation_section,
 )
 from softtrack.report.transport import transport_section
+from softtrack.report.tune_view import TuneView, tune_section
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 
@@ -94,6 +95,7 @@ def build_report(
     all_figures: bool = False,
     figures_for: Sequence[str] = (),
     load: PolicyLoader | None = None,
+    tune_views: Sequence[TuneView] = (),
 ) -> Path:
     """Write the report of ``records`` into ``out_dir``; return the path of ``index.md``.
 
@@ -111,6 +113,9 @@ def build_report(
         load: with a policy loader, also ``interactive.html``: the answers first, the
             featured controllers replayed in a 3-D viewer, toggleable training curves, the
             runs last (:mod:`softtrack.report.interactive`).
+        tune_views: tuning studies shown after the answers: their trials (parallel coordinates
+            on the interactive page), parameter importance and best trials
+            (:mod:`softtrack.report.tune_view`).
 
     Raises:
         EmptySelectionError: ``records`` is empty.
@@ -145,6 +150,7 @@ def build_report(
     # the answers first (the best controllers per task with their intervals, then every
     # controller beside the study), then one section per question, the runs table last
     across_seeds_section(doc, ctx, trajectories)
+    tune_section(doc, tune_views)
     errors_section(doc, ctx, summary, trajectories)
     training_section(doc, ctx)
     final_section(doc, ctx)
@@ -170,7 +176,9 @@ def build_report(
             f"Generated {generated} by `{command}` from {len(runs)} run(s). The featured "
             "controllers are replayed from their policies; every number is from the stored tables."
         )
-        write_interactive(out_dir, title, intro, ctx, runs, featured, trajectories, load)
+        write_interactive(
+            out_dir, title, intro, ctx, runs, featured, trajectories, load, tune_views
+        )
         ctx.written.append(INTERACTIVE_PAGE)
     keep = set(ctx.written)
     _remove_stale(out_dir, keep)

@@ -62,8 +62,10 @@ def interactive_page(
     runs_header: Sequence[str],
     runs_rows: Sequence[Sequence[str]],
     fps: float = 15.0,
+    tune_html: str = "",
 ) -> str:
-    """The page's HTML text."""
+    """The page's HTML text (``tune_html``: the tuning studies' section, placed after the
+    answers)."""
     answer_html = (
         "".join(f"<h3>{html.escape(a.title)}</h3>{_table(a.header, a.rows)}" for a in answers)
         or "<p>No evaluated controller in this selection.</p>"
@@ -94,7 +96,7 @@ def interactive_page(
     return (
         _PAGE.replace("__TITLE__", html.escape(title))
         .replace("__INTRO__", html.escape(intro))
-        .replace("__ANSWERS__", answer_html)
+        .replace("__ANSWERS__", answer_html + tune_html)
         .replace("__VIEWER__", viewer)
         .replace("__CURVES__", blob)
         .replace("__RUNS__", _table(runs_header, runs_rows))
@@ -112,6 +114,8 @@ th{background:#e8ebf2}
 .panel{display:inline-block;vertical-align:top;margin:0 1.5em 1.5em 0}
 .legend label{display:block;font-size:.85em}
 svg{background:#fff;border:1px solid #ccd}
+.bar-row{font-size:.85em;margin:2px 0}.bar-label{display:inline-block;width:12em}
+.bar{display:inline-block;height:.8em;background:#3b6fb6;vertical-align:middle}
 __STYLE__</style></head>
 <body>
 <h1 style="font-size:1.35em">__TITLE__</h1>

@@ -23,6 +23,7 @@ from softtrack.report.interactive import AnswerTable, CurvePanel, interactive_pa
 from softtrack.report.reference import TRAJECTORY_TITLES, study_rmse_3d
 from softtrack.report.summaries import validation_scores
 from softtrack.report.training_sections import runs_section
+from softtrack.report.tune_view import TuneView, tune_html_section
 from softtrack.report.video import write_page
 from softtrack.report.viewer import Rollout
 from softtrack.store.runs import RunStoreError
@@ -141,9 +142,11 @@ def write_interactive(
     featured: Sequence[Featured],
     trajectories: Sequence[str],
     load: PolicyLoader,
+    tune_views: Sequence[TuneView] = (),
 ) -> tuple[Path, list[str]]:
     """Write ``out_dir/interactive.html``; returns its path and one note per featured
-    controller that could not be replayed."""
+    controller that could not be replayed. ``tune_views``: tuning studies drawn after the
+    answers (parallel coordinates, parameter importance)."""
     doc = Doc()
     runs_section(doc, ctx, runs)
     table = next(b for b in doc.blocks if b[0] == "table")
@@ -159,5 +162,6 @@ def write_interactive(
         table[1],
         table[2],
         VIEWER_FPS,
+        tune_html_section(tune_views),
     )
     return write_page(page, out_dir / INTERACTIVE_PAGE), notes

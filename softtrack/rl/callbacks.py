@@ -382,11 +382,6 @@ def _progress_enabled() -> bool:
     return sys.stderr.isatty() and not os.environ.get("CI")
 
 
-def _duration(seconds: float) -> str:
-    minutes = round(seconds / 60.0)
-    return f"{minutes // 60}:{minutes % 60:02d} h"
-
-
 def progress_line(
     name: str,
     step: int,
@@ -396,7 +391,7 @@ def progress_line(
     updates_start: int = 0,
 ) -> str:
     """One line of training progress for a log, e.g. ``5JP1EEN4 2,650,720/4,000,000 steps
-    (66.3%), 378 steps/s, mean return of the last 20 episodes 14,169.21, 0:59 h left`` (the
+    (66.3%), 378 steps/s, mean return of the last 20 episodes 14,169.21, 59:29 min left`` (the
     episode return: the reward summed over a training episode, :attr:`EpisodeLogger.recent_return`).
 
     Before ``updates_start`` (the model's ``learning_starts``, env steps) the env steps run
@@ -410,7 +405,7 @@ def progress_line(
     if step < updates_start:
         parts.append(f"updates start at {updates_start:,} steps")
     elif steps_per_second and step < total:
-        parts.append(f"{_duration((total - step) / steps_per_second)} left")
+        parts.append(f"{_elapsed((total - step) / steps_per_second)} left")
     return ", ".join(parts)
 
 
