@@ -21,12 +21,12 @@ test: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q -n 2 -m "not slow"
+	$(BIN)/python -m pytest -q -n 2 -m "not slow" --durations=15
 
 # the tests marked slow (long trainings, sweeps killed, the README tour, the wheel installed
 # outside the checkout: tests/conftest.py LONG_TESTS); CI runs them after `make test`
 test-slow: setup
-	$(BIN)/python -m pytest -q -n 2 -m slow
+	$(BIN)/python -m pytest -q -n 2 -m slow --durations=15
 
 test-all: setup
 	$(BIN)/python -m pytest -q -n 2

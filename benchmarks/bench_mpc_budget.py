@@ -39,14 +39,14 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from softtrack.evaluation.episode_tables import metrics_table  # noqa: E402
 from softtrack.evaluation.episodes import EVAL_TRAJECTORIES, run_episode  # noqa: E402
-from softtrack.evaluation.runs import resolve_run  # noqa: E402
-from softtrack.evaluation.tables import metrics_table  # noqa: E402
 from softtrack.report.reference import STUDY_RMSE_3D  # noqa: E402
 from softtrack.rl.policy import mpc_controller  # noqa: E402
 from softtrack.spec import load_spec  # noqa: E402
 from softtrack.spec.env_config import env_config  # noqa: E402
 from softtrack.store.provenance import cpu_kind  # noqa: E402
+from softtrack.store.selection import select_one_run  # noqa: E402
 
 DEFAULT_SPEC = ROOT / "experiments" / "variants" / "mpc-mppi-64x50.yaml"
 
@@ -112,7 +112,7 @@ def rl_means(run_dirs: list[str]) -> dict[str, float]:
     """Experiment name → seed mean of the mean 3-D RMSE over the six cells (stored)."""
     per_run: dict[str, list[float]] = {}
     for ref in run_dirs:
-        record = resolve_run(ref)
+        record = select_one_run(ref)
         metrics = pd.read_parquet(record.table_path("eval_metrics"))
         metrics = metrics[metrics["trajectory"].isin(EVAL_TRAJECTORIES)]
         per_run.setdefault(record.info.name, []).append(float(metrics["rmse_3d"].mean()))

@@ -65,8 +65,7 @@ from typing import Any
 
 from softtrack import api
 from softtrack.evaluation import EVAL_TRAJECTORIES
-from softtrack.evaluation.runs import resolve_run
-from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS
+from softtrack.evaluation.episode_tables import VALIDATION_SCORED_COLUMNS
 from softtrack.report.data import Group, load_runs, representative_run
 from softtrack.rl.confirmation import confirm_run
 from softtrack.spec import ExperimentSpec, chain_comment, spec_chain, spec_hash, spec_to_yaml
@@ -74,6 +73,7 @@ from softtrack.store.atomic import atomic_write_text
 from softtrack.store.ids import create_unique_dir
 from softtrack.store.provenance import portable_path
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
+from softtrack.store.selection import select_one_run
 from softtrack.store.tables import read_table, write_table
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -599,7 +599,7 @@ def derive_run(job: Job, runs_dir: Path, base: RunRecord | None = None) -> str:
     (:func:`_training_fields`). Returns the run id."""
     if base is None:
         assert job.derive_from is not None
-        base = resolve_run(str(ROOT / "models" / job.derive_from))
+        base = select_one_run(str(ROOT / "models" / job.derive_from))
     spec = load_experiment(job.spec).with_seed(job.seed)
     base_spec = base.load_spec()
     if not _trains_like(spec, base_spec) or base.info.seed != job.seed:
@@ -790,7 +790,7 @@ def lean(run_dir: Path, name: str) -> None:
 
 def lean_validation(run_dir: Path) -> None:
     """Keep of ``tables/validation.parquet`` the columns that scores and the report read
-    (:data:`~softtrack.evaluation.tables.VALIDATION_SCORED_COLUMNS`, with ``run_id``,
+    (:data:`~softtrack.evaluation.episode_tables.VALIDATION_SCORED_COLUMNS`, with ``run_id``,
     ``seed`` and ``wall_time``): the per-axis and action metrics of every checkpoint are four
     fifths of a shipped transport run's bytes, and the run directory under ``runs/`` keeps
     them."""
@@ -811,7 +811,7 @@ def lean_undrawn_steps(name: str) -> None:
     dests = [ROOT / "models" / job.dest for job in JOBS if job.name == name]
     if name not in KEEP_STEPS or name in FEATURED or not all(d.is_dir() for d in dests):
         return
-    runs = load_runs(resolve_run(str(d)) for d in dests)
+    runs = load_runs(select_one_run(str(d)) for d in dests)
     group = Group("", "", name, "", name, name, tuple(runs))
     drawn = {id(representative_run(group, t)) for t in EVAL_TRAJECTORIES}
     if any(r.metrics is not None and "object_rmse_3d" in r.metrics for r in runs):

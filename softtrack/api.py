@@ -16,18 +16,16 @@ from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
-from softtrack.evaluation.robustness import expand_settings
+from softtrack.evaluation.perturbations import expand_settings
 from softtrack.evaluation.robustness_runs import run_robustness
-from softtrack.evaluation.runs import (
+from softtrack.evaluation.run_evaluation import (
     evaluate_random_targets,
     evaluate_run,
     has_evaluation,
-    resolve_run,
 )
 from softtrack.executors import dispatch
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
 from softtrack.report.video import VideoError
-from softtrack.rl.export import export_policy_run, relayout_exported_run
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy import (
     MODEL_CHOICES,
@@ -36,6 +34,7 @@ from softtrack.rl.policy import (
     model_paths,
     require_model,
 )
+from softtrack.rl.policy_export import export_policy_run, relayout_exported_run
 from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import (
     ExperimentSpec,
@@ -50,6 +49,7 @@ from softtrack.store.atomic import atomic_dir, is_temp_file
 from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.provenance import portable_command, portable_path
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
+from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.status import (
     RUN_TABLE_COLUMNS,
     effective_status,
@@ -64,10 +64,10 @@ from softtrack.store.tables import TableError
 from softtrack.store.upgrade import upgrade_run_tables
 from softtrack.trajectories import EVAL_TRAJECTORIES
 from softtrack.tune import TuneError
-from softtrack.tune.run import TuneOutcome
-from softtrack.tune.run import tune as run_tune
-from softtrack.tune.run import tune_best as best_trial_spec
-from softtrack.tune.run import tune_status as study_status
+from softtrack.tune.command import TuneOutcome
+from softtrack.tune.command import tune as run_tune
+from softtrack.tune.command import tune_best as best_trial_spec
+from softtrack.tune.command import tune_status as study_status
 
 # Imported where used, because importing them costs seconds at every command's start:
 # softtrack.rl.train (JAX, torch, Stable-Baselines3) and softtrack.report (matplotlib).
@@ -238,11 +238,12 @@ def resume(
     on_start: Callable[[RunRecord], None] | None = None,
     show_progress: bool | None = None,
 ) -> TrainOutcome:
-    """Continue an interrupted (or killed, or failed) run from its latest checkpoint."""
+    """Continue an interrupted (or killed, or failed) run from its latest checkpoint (``run_id``:
+    a run id or unique prefix, a run directory, or an experiment of one run)."""
     from softtrack.rl.train import check_resumable, train_run
 
-    store = RunStore(resolve_runs_dir(runs_dir))
-    record = store.get_run(run_id)
+    record = select_one_run(run_id, runs_dir)
+    store = RunStore(record.path.parent)
     check_resumable(record)
     if on_start is not None:
         on_start(record)
@@ -282,7 +283,7 @@ def evaluate(
         on_episode: called with (record, episode, metrics) after each trajectory.
         write: store the tables in each run (``False``: only return the metrics).
         random_episodes: random-target episodes per run after the trajectories (0: none;
-            :func:`softtrack.evaluation.runs.evaluate_random_targets`, table ``eval_random``).
+            :func:`softtrack.evaluation.run_evaluation.evaluate_random_targets`, table ``eval_random``).
         on_random: called with (record, rows of its random-target episodes) per run.
         model: which model of each run (:data:`softtrack.rl.policy.ModelChoice`): ``policy``
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
@@ -320,8 +321,9 @@ def evaluate(
         )
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
-    mpc_specs = {ref: _mpc_spec(ref) for ref in references if _is_spec_file(ref)}
-    records = [resolve_run(ref, runs_dir) for ref in references if ref not in mpc_specs]
+    mpc_specs = _mpc_specs(references)
+    selected = [ref for ref in references if ref not in mpc_specs]
+    records = select_runs(RunStore(resolve_runs_dir(runs_dir)), selected) if selected else []
     for record in records:
         record.load_spec()  # every run checked before anything is copied or written
     if write and model == "policy":
@@ -368,21 +370,15 @@ def _is_spec_file(reference: str) -> bool:
     return Path(reference).suffix in (".yaml", ".yml") and Path(reference).is_file()
 
 
-def _mpc_spec(path: str) -> ExperimentSpec:
-    """The spec of an MPC controller at ``path``, to evaluate without training.
+def _mpc_specs(references: Sequence[str]) -> dict[str, ExperimentSpec]:
+    """The references that are spec files of an MPC controller (evaluated without training),
+    with their specs; any other spec file selects the runs trained from it.
 
     Raises:
-        SpecError: the spec is invalid, or its controller needs training.
+        SpecError: a spec file is invalid.
     """
-    spec = load_spec(path)
-    if spec.controller != "mpc":
-        raise SpecError(
-            path,
-            f"controller: {spec.controller} needs training before it can be evaluated",
-            f"train it (`softtrack train {path}`) and evaluate its runs",
-            field="controller",
-        )
-    return spec
+    specs = {ref: load_spec(ref) for ref in references if _is_spec_file(ref)}
+    return {ref: spec for ref, spec in specs.items() if spec.controller == "mpc"}
 
 
 def export(
@@ -395,9 +391,9 @@ def export(
     """Copy a finished run (id, id prefix or run directory) to ``dest`` without its checkpoints
     and replay buffers: spec, run.json, tables, log, and its policy as ``model.zip`` beside
     ``policy.json`` (other models under ``other_models/`` unless ``policy_only``),
-    inference-only (see :mod:`softtrack.rl.export`). Returns ``dest``."""
+    inference-only (see :mod:`softtrack.rl.policy_export`). Returns ``dest``."""
 
-    return export_policy_run(resolve_run(reference, runs_dir), dest, policy_only)
+    return export_policy_run(select_one_run(reference, runs_dir), dest, policy_only)
 
 
 def upgrade(
@@ -405,7 +401,7 @@ def upgrade(
 ) -> dict[Path, list[str]]:
     """Rewrite run directories made by earlier versions in the current format: evaluation
     tables (:mod:`softtrack.store.upgrade`) and, for exported runs, the model layout
-    (:func:`softtrack.rl.export.relayout_exported_run`). Every directory is checked before
+    (:func:`softtrack.rl.policy_export.relayout_exported_run`). Every directory is checked before
     any is changed.
 
     Returns:
@@ -460,7 +456,7 @@ def copy_run(
     import filecmp
     import shutil
 
-    record = resolve_run(str(source))
+    record = select_one_run(str(source))
     root = resolve_runs_dir(runs_dir)
     dest = root / record.run_id
     if dest.exists() and dest.resolve() == record.path.resolve():
@@ -609,7 +605,7 @@ def report(
             selection and whose trials, parameter importance and best trials the report shows.
         storage: the studies' Optuna storage URL (default ``sqlite:///<runs dir>/optuna.db``).
     """
-    from softtrack.report import build_report, select_report_runs
+    from softtrack.report import build_report
     from softtrack.tune.view import load_view
 
     root = resolve_runs_dir(runs_dir)
@@ -617,8 +613,8 @@ def report(
     views = [load_view(name, storage=storage, runs_dir=root) for name in studies]
     trial_runs = [t.run_id for view in views for t in view.trials if t.run_id]
     trial_runs = [run_id for run_id in trial_runs if (root / run_id / "run.json").is_file()]
-    records = select_report_runs(store, [*selection, *trial_runs])
-    extra = [resolve_run(str(path)) for path in extra_runs]
+    records = select_runs(store, [*selection, *trial_runs])
+    extra = [select_one_run(str(path)) for path in extra_runs]
     for record in extra:
         if not has_evaluation(record):
             raise RunStoreError(
@@ -728,7 +724,13 @@ def quickstart(
     evaluate(run_ids, runs_dir=runs_dir, on_episode=on_episode)
     extra: list[Path] = []
     if shipped is None or copy is None:
-        on_line("3/4 no shipped policy to show (skipped)")
+        on_line(
+            "3/4 no shipped policy to show (skipped: --no-pretrained)"
+            if no_pretrained
+            else f"3/4 no shipped policy to show: {QUICKSTART_PRETRAINED} is neither in a "
+            "checkout nor in the current directory (an installed softtrack used elsewhere); "
+            "give --pretrained DIR, that directory of a clone, to compare with it"
+        )
     else:
         on_line(
             f"3/4 the shipped policy {shown_path(shipped)} on the same trajectories "
@@ -874,7 +876,7 @@ def robustness(
 
     Args:
         references: run ids (or prefixes) or run directories.
-        grid: ``factor=level1,level2`` axes (:mod:`softtrack.evaluation.robustness`).
+        grid: ``factor=level1,level2`` axes (:mod:`softtrack.evaluation.perturbations`).
         full_grid: every combination of the axes' levels (default: one factor at a time).
         trajectories: subset of circle, rectangle, figure8 (default all three).
         episodes: episodes per setting and trajectory (≥ 1; more for noisy settings).
@@ -914,7 +916,7 @@ def robustness(
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     settings = expand_settings(parse_grid(grid), full_grid)
-    records = [resolve_run(ref, runs_dir) for ref in references]
+    records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
     for record in records:
         record.load_spec()  # every run checked before anything is copied or written
     records = [writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) for r in records]
@@ -949,7 +951,7 @@ def tune(
 ) -> TuneOutcome:
     """Search the spec's ``tune:`` space with Optuna until ``trials`` trials are finished
     (complete or pruned), each a run of the store; running it again with the same ``study``
-    continues the study (:mod:`softtrack.tune.run`, docs/tuning.md).
+    continues the study (:mod:`softtrack.tune.command`, docs/tuning.md).
 
     Args:
         study: the study name (default: the spec's name).
@@ -961,7 +963,7 @@ def tune(
             other processes).
 
     Returns:
-        A :class:`~softtrack.tune.run.TuneOutcome` (counts, summary, exit code).
+        A :class:`~softtrack.tune.command.TuneOutcome` (counts, summary, exit code).
     """
 
     return run_tune(

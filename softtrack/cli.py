@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from softtrack.executors import dispatch
     from softtrack.executors.dispatch import Outcome
     from softtrack.store import query as results_db
-    from softtrack.store import summaries
+    from softtrack.store import run_summaries as summaries
     from softtrack.store.runs import RunRecord
 else:
     # loaded at their first use, so `softtrack --help` and `softtrack runs` start at once
@@ -42,7 +42,7 @@ else:
     dispatch = lazy_module("softtrack.executors.dispatch")
     duckdb = lazy_module("duckdb")
     results_db = lazy_module("softtrack.store.query")
-    summaries = lazy_module("softtrack.store.summaries")
+    summaries = lazy_module("softtrack.store.run_summaries")
 
 app = App(
     name="softtrack",
@@ -109,6 +109,11 @@ def _user_errors(runs_dir: str | None = None) -> Iterator[None]:
         if problem is None:
             raise
         _fail(problem)
+
+
+def _plural(count: int, noun: str) -> str:
+    """``1 run``, ``2 runs``."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
 
 
 def _version(value: bool) -> None:
@@ -739,7 +744,8 @@ def runs(
     typer.echo(summaries.format_runs_table(shown))
     if limit and listing.total > len(shown):
         typer.echo(
-            f"(the {limit} runs created last of {listing.total}; --limit 0 lists all)", err=True
+            f"(the {_plural(limit, 'run')} created last of {listing.total}; --limit 0 lists all)",
+            err=True,
         )
 
 
@@ -846,8 +852,8 @@ def evaluate(
     references: Annotated[
         list[str],
         typer.Argument(
-            metavar="RUN_ID_OR_DIR",
-            help="Run ids (or prefixes) or run directories.",
+            metavar="RUN",
+            help="Runs: run ids (or unique prefixes), run directories, experiment names or spec files.",
             show_default=False,
         ),
     ],
@@ -1010,8 +1016,8 @@ def robustness(
     references: Annotated[
         list[str],
         typer.Argument(
-            metavar="RUN_ID_OR_DIR",
-            help="Run ids (or prefixes) or run directories.",
+            metavar="RUN",
+            help="Runs: run ids (or unique prefixes), run directories, experiment names or spec files.",
             show_default=False,
         ),
     ],
@@ -1213,7 +1219,7 @@ def report(
         typer.Argument(
             metavar="SELECTION",
             show_default=False,
-            help="Experiment names, run ids (or prefixes) or spec files.",
+            help="Experiment names, run ids (or prefixes), run directories or spec files.",
         ),
     ] = None,
     out: Annotated[
@@ -1303,8 +1309,8 @@ def compare(
         typer.Argument(
             metavar="CONTROLLER",
             show_default=False,
-            help="Two or more controllers, each an experiment name, run id (or prefix) or "
-            "spec file; the first is compared with each other.",
+            help="Two or more controllers, each an experiment name, run id (or prefix), run "
+            "directory or spec file; the first is compared with each other.",
         ),
     ],
     runs_dir: RunsDirOption = None,
@@ -1374,8 +1380,9 @@ def animate(
     references: Annotated[
         list[str],
         typer.Argument(
-            metavar="RUN_ID_OR_DIR...",
-            help="One run, or several drawn side by side on the same target.",
+            metavar="RUN...",
+            help="One run, or several drawn side by side on the same target: run ids, run "
+            "directories, experiment names or spec files.",
             show_default=False,
         ),
     ],
@@ -1433,14 +1440,15 @@ def animate(
 
     Each replay's tips are compared with the run's stored evaluation (one line says whether
     they are equal to the last bit). Example:
-    softtrack animate models/td3-sbx-128-mirror-val-confirm-seed0 --out circle.mp4
+    softtrack animate models/td3-sbx-128-mirror-val-confirm-4e6-seed0 --out circle.mp4
     """
-    from softtrack.evaluation.runs import resolve_run
     from softtrack.report.animation import animate_runs
     from softtrack.rl.policy import load_policy
+    from softtrack.store.runs import RunStore
+    from softtrack.store.selection import select_runs
 
     with _user_errors(runs_dir):
-        records = [resolve_run(reference, runs_dir) for reference in references]
+        records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
         chosen = list(EVAL_TRAJECTORIES) if str(trajectory) == "all" else [str(trajectory)]
         written = animate_runs(
             records,

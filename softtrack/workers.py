@@ -78,10 +78,10 @@ def train_main(argv: list[str] | None = None) -> int:
 def robustness_main(argv: list[str] | None = None) -> int:
     """``python -m softtrack.workers robustness RUN_DIR --level f=v ...``: evaluate one setting
     of one run and write its rows to the run's part file."""
-    from softtrack.evaluation.robustness import Setting
+    from softtrack.evaluation.perturbations import Setting
     from softtrack.evaluation.robustness_runs import evaluate_setting, part_path
-    from softtrack.evaluation.runs import resolve_run
     from softtrack.rl.policy import load_policy
+    from softtrack.store.selection import select_one_run
     from softtrack.store.tables import write_table
 
     parser = argparse.ArgumentParser(prog="python -m softtrack.workers robustness")
@@ -91,7 +91,7 @@ def robustness_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=1)
     parser.add_argument("--keep-realism", action="store_true")
     args = parser.parse_args(argv)
-    record = resolve_run(args.run)
+    record = select_one_run(args.run)
     spec = record.load_spec()
     setting = Setting(tuple((f, v) for f, _, v in (item.partition("=") for item in args.level)))
     trajectories = args.trajectories.split(",")

@@ -24,8 +24,8 @@ from softtrack.spec import ExperimentSpec
 from softtrack.store import catalog
 from softtrack.store.catalog import CATALOG_DIR, FORMAT_VERSION, catalog_path, read_catalog
 from softtrack.store.catalog_rows import run_row
+from softtrack.store.run_summaries import run_listing
 from softtrack.store.runs import RunStore
-from softtrack.store.summaries import run_listing
 from softtrack.store.tables import append_rows, write_table
 
 runner = CliRunner()

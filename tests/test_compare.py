@@ -12,12 +12,12 @@ from softtrack.cli import app
 from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.report.compare import MAX_PRINTED_CELLS, compare_selection
 from softtrack.report.data import group_runs, load_runs
-from softtrack.report.transport import figure_runs, random_summary
 from softtrack.report.transport_frontier import (
     frontier_figure,
     hold_track_frontier,
     longest_holding,
 )
+from softtrack.report.transport_section import figure_runs, random_summary
 from softtrack.spec import parse_spec
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import write_table

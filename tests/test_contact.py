@@ -1,4 +1,4 @@
-"""Rod–rod contact between the arms (softtrack.sim.contact, docs/physics.md "Contact").
+"""Rod–rod contact between the arms (softtrack.sim.rod_contact, docs/physics.md "Contact").
 
 Checked against the real PyElastica 1.0.0 (``RodRodContact`` built inside the test), against
 geometry (pressed arms stop at their surfaces instead of passing through) and against the

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation.metrics import contact_statistics
-from softtrack.report.contact import centralized_vs_independent, contact_summary
+from softtrack.report.contact_section import centralized_vs_independent, contact_summary
 from softtrack.report.data import group_runs, load_runs
 from softtrack.store.runs import RunStore
 from softtrack.store.tables import read_table

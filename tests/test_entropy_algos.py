@@ -297,7 +297,7 @@ def test_stochastic_algorithms_get_no_action_noise() -> None:
 
 
 def test_new_fields_at_their_defaults_keep_every_spec_hash() -> None:
-    """Runs recorded before the fields existed keep their hash (softtrack.spec.api)."""
+    """Runs recorded before the fields existed keep their hash (softtrack.spec.spec_io)."""
     spec = parse_spec({})
     changed = parse_spec({"algo": {"target_entropy": -5.0}})
     assert spec_hash(spec) != spec_hash(changed)

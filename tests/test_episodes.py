@@ -10,8 +10,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.settings import TrackingConfig, make_config
 from softtrack.evaluation import (
     Episode,
     accepts_batches,

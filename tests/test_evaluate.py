@@ -209,7 +209,7 @@ def test_evaluate_one_trajectory_keeps_the_others(trained: tuple[Path, str]) -> 
 def test_old_metrics_tables_without_action_columns_stay_valid(
     trained: tuple[Path, str], tmp_path: Path
 ) -> None:
-    from softtrack.evaluation.runs import has_evaluation
+    from softtrack.evaluation.run_evaluation import has_evaluation
     from softtrack.store.tables import write_table
 
     run_id = trained[1]
@@ -236,7 +236,7 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     trained: tuple[Path, str], tmp_path: Path
 ) -> None:
     from softtrack.evaluation import RANDOM_TARGET_SEED
-    from softtrack.evaluation.runs import evaluate_random_targets
+    from softtrack.evaluation.run_evaluation import evaluate_random_targets
 
     run_id = trained[1]
     fresh = _own_copy(trained, tmp_path)

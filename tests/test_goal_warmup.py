@@ -12,7 +12,7 @@ from softtrack.env import TrackingCore, make_config
 from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl.callbacks import GoalMotionWarmup
 from softtrack.spec import SpecError, parse_spec, spec_hash
-from softtrack.spec.api import _FIELDS_ADDED_LATER
+from softtrack.spec.spec_io import _FIELDS_ADDED_LATER
 
 TRANSPORT = {"task": "transport", "sphere": {}, "contact_k": 1e6, "contact_nu": 600.0}
 SQUEEZE = np.zeros(24)

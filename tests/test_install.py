@@ -100,6 +100,8 @@ def test_the_wheel_runs_quickstart_and_a_shipped_policy_outside_the_checkout(
     assert f"package: {wheel_site}" in result.stderr  # the wheel's code, not the checkout's
     assert (elsewhere / "report" / "index.md").is_file()
     assert "quickstart.yaml" in result.stdout
+    assert "3/4 no shipped policy to show: models/" in result.stdout  # said, with the fix
+    assert "give --pretrained DIR" in result.stdout
     shipped = CHECKOUT / "models" / "td3-sbx-1e7-seed0"
     before = {p: p.read_bytes() for p in shipped.rglob("*") if p.is_file()}
     result = _softtrack(

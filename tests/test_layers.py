@@ -5,6 +5,7 @@ or the command line."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "softtrack"
@@ -60,3 +61,31 @@ def test_no_import_runs_up_a_layer() -> None:
             if LAYER.get(imported, -1) >= LAYER[own] and imported != own:
                 upward.append(f"{path.relative_to(PACKAGE.parent)} imports softtrack.{imported}")
     assert not upward, "\n".join(upward)
+
+
+def test_file_names_are_unique_across_the_package() -> None:
+    """A module's name says what it holds: no two modules share a file name (``__init__.py``
+    aside), so ``runs.py`` or ``tables.py`` never needs its package to be understood."""
+    seen: dict[str, list[str]] = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.name != "__init__.py" and "__pycache__" not in path.parts:
+            seen.setdefault(path.name, []).append(str(path.relative_to(PACKAGE)))
+    assert {name: paths for name, paths in seen.items() if len(paths) > 1} == {}
+
+
+def test_contributing_lists_the_layers_in_their_order() -> None:
+    """CONTRIBUTING.md's layer map names the packages of :data:`LAYERS`, bottom to top."""
+    text = (PACKAGE.parent / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    section = text.split("## The layers", 1)[1].split("\n## ", 1)[0]
+    listed = [
+        set(re.findall(r"`(\w+)`", line.split(":", 1)[0]))
+        for line in section.splitlines()
+        if re.match(r"\d+\. ", line)
+    ]
+    assert listed == [names - {"__init__", "__main__"} for names in LAYERS]
+
+
+def test_contributing_names_files_that_exist() -> None:
+    text = (PACKAGE.parent / "CONTRIBUTING.md").read_text(encoding="utf-8")
+    named = set(re.findall(r"`((?:softtrack|tests)/[\w/]+\.py)`", text))
+    assert named and sorted(p for p in named if not (PACKAGE.parent / p).is_file()) == []

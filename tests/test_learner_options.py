@@ -8,8 +8,8 @@ import pytest
 from stable_baselines3.common.buffers import NStepReplayBuffer
 
 from softtrack.rl.factory import build_model, make_vec_env
-from softtrack.spec.api import parse_spec, spec_hash
 from softtrack.spec.fields import SpecError
+from softtrack.spec.spec_io import parse_spec, spec_hash
 
 _SMALL = {
     "training": {"n_envs": 2, "total_timesteps": 200},

@@ -13,12 +13,12 @@ import yaml
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.env.config import make_config
+from softtrack.env.settings import make_config
+from softtrack.evaluation.episode_tables import metrics_table
 from softtrack.evaluation.episodes import run_episode
-from softtrack.evaluation.tables import metrics_table
-from softtrack.mpc.config import PlannerConfig
 from softtrack.mpc.controller import MpcController
 from softtrack.mpc.planner import interpolation_matrix
+from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.engine import RodBatch
 from softtrack.sim.params import SimParams
 from softtrack.spec import ExperimentSpec, SpecError, load_spec
@@ -109,7 +109,7 @@ def test_cem_and_a_wrong_model_run() -> None:
 )
 def test_mpc_section_errors_name_the_field(mpc: dict, message: str) -> None:
     with pytest.raises(SpecError, match=message):
-        from softtrack.spec.api import parse_spec
+        from softtrack.spec.spec_io import parse_spec
 
         parse_spec({"controller": "mpc", "mpc": mpc})
 

@@ -20,7 +20,7 @@ from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl import policy_training
 from softtrack.rl.callbacks import GoalMotionWarmup, RandomisationWarmup
 from softtrack.spec import SpecError, parse_spec, spec_hash
-from softtrack.spec.api import _FIELDS_ADDED_LATER
+from softtrack.spec.spec_io import _FIELDS_ADDED_LATER
 
 RANGES = {
     "youngs_modulus_scale": [0.6, 1.3],

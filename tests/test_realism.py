@@ -27,8 +27,8 @@ from softtrack.evaluation.episodes import run_episode
 from softtrack.sim import InvalidParameterError, spline_matrix
 from softtrack.sim.engine import RodBatch
 from softtrack.spec import RealismSpec, SpecError, parse_spec, spec_hash
-from softtrack.spec.api import _FIELDS_ADDED_LATER
 from softtrack.spec.env_config import env_config, env_kwargs
+from softtrack.spec.spec_io import _FIELDS_ADDED_LATER
 
 CONTROL_DT = 0.002  # s
 

@@ -15,8 +15,8 @@ import softtrack.env  # noqa: F401  (registers the environments)
 from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.report.video import VideoError, film_strip, write_video
 from softtrack.viz.camera import FRONT
-from softtrack.viz.frames import closest_points, contact_arrows
 from softtrack.viz.scene import ARM_COLORS, SceneFrame, SceneRenderer
+from softtrack.viz.scene_frames import closest_points, contact_arrows
 
 ENV_IDS = [
     "softtrack/DualArmTracking-v0",

@@ -26,13 +26,14 @@ from softtrack.evaluation import (
     trajectory_table,
 )
 from softtrack.evaluation.metrics import ACTION_STATISTICS, SAFETY_STATISTICS, TORQUE_STATISTICS
-from softtrack.report import EmptySelectionError, build_report, select_report_runs
+from softtrack.report import build_report
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import Group, group_runs, load_runs, representative_run
-from softtrack.report.summaries import controller_differences, metrics_summary, moment_peaks
+from softtrack.report.group_summaries import controller_differences, metrics_summary, moment_peaks
 from softtrack.spec import parse_spec, spec_to_yaml
 from softtrack.store.provenance import cpu_description
 from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore
+from softtrack.store.selection import EmptySelectionError, select_runs
 from softtrack.store.status import final_stage_return
 from softtrack.store.tables import read_table, write_table
 
@@ -135,42 +136,42 @@ def store(tmp_path_factory: pytest.TempPathFactory) -> RunStore:
 
 @pytest.fixture(scope="module")
 def report(store: RunStore, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    records = select_report_runs(store, ["td3", "ddpg", "independent-td3"])
+    records = select_runs(store, ["td3", "ddpg", "independent-td3"])
     out = tmp_path_factory.mktemp("out") / "reports" / "test"
     return build_report(records, out, COMMAND)
 
 
 # ---- selection ------------------------------------------------------------------------------
 def test_select_by_name_id_prefix_and_spec(store: RunStore, tmp_path: Path) -> None:
-    td3 = select_report_runs(store, ["td3"])
+    td3 = select_runs(store, ["td3"])
     assert [r.info.seed for r in td3] == [0, 1] and {r.info.algo for r in td3} == {"td3"}
-    one = select_report_runs(store, [td3[1].run_id[:20], "td3"])  # prefix, then a duplicate by name
+    one = select_runs(store, [td3[1].run_id[:20], "td3"])  # prefix, then a duplicate by name
     assert [r.run_id for r in one] == [td3[1].run_id, td3[0].run_id]
     spec_file = tmp_path / "ddpg.yaml"
     spec_file.write_text(spec_to_yaml(_spec("ddpg", "ddpg")))
-    by_spec = select_report_runs(store, [str(spec_file)])
+    by_spec = select_runs(store, [str(spec_file)])
     assert {r.info.name for r in by_spec} == {"ddpg"} and len(by_spec) == 2
 
 
 def test_empty_selection_is_a_clear_error(store: RunStore, tmp_path: Path) -> None:
-    with pytest.raises(EmptySelectionError, match="nothing to report"):
-        select_report_runs(store, [])
+    with pytest.raises(EmptySelectionError, match="nothing selected"):
+        select_runs(store, [])
     with pytest.raises(EmptySelectionError, match=r"neither an experiment name.*known: ddpg"):
-        select_report_runs(store, ["sac-nonexistent"])
+        select_runs(store, ["sac-nonexistent"])
     other = tmp_path / "other.yaml"
     other.write_text("name: other\n")
     with pytest.raises(EmptySelectionError, match=r"no run .* has this spec"):
-        select_report_runs(store, [str(other)])
+        select_runs(store, [str(other)])
     with pytest.raises(EmptySelectionError, match="no runs"):
         build_report([], tmp_path / "out", COMMAND)
     assert not (tmp_path / "out").exists()
     with pytest.raises(RunNotFoundError, match="matches"):
-        select_report_runs(store, ["0"])  # every ULID of this decade starts with 0: ambiguous
+        select_runs(store, ["0"])  # every ULID of this decade starts with 0: ambiguous
 
 
 # ---- aggregation ----------------------------------------------------------------------------
 def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
-    groups = group_runs(load_runs(select_report_runs(store, ["td3", "independent-td3"])))
+    groups = group_runs(load_runs(select_runs(store, ["td3", "independent-td3"])))
     table = final_stage_table(groups)
     td3 = table[table["group"] == "TD3"].iloc[0]
     per_run = [final_stage_return(r.record)[0] for r in groups[0].runs]
@@ -186,7 +187,7 @@ def test_final_stage_return_matches_the_run_table(store: RunStore) -> None:
 
 
 def test_curves_metrics_and_peaks(store: RunStore) -> None:
-    groups = group_runs(load_runs(select_report_runs(store, ["td3", "ddpg", "independent-td3"])))
+    groups = group_runs(load_runs(select_runs(store, ["td3", "ddpg", "independent-td3"])))
     assert [g.label for g in groups] == ["TD3", "DDPG", "TD3 (independent)"]
     curves, smoothing = training_curves(groups)
     assert [c.label for c in curves] == [
@@ -410,12 +411,10 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     """Metrics tables written before the action statistics existed: the report builds, the
     other tables keep their numbers and the actions table says "no data"."""
     store = _two_seeds_one_old_table(tmp_path, list(ACTION_STATISTICS))
-    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
+    groups = group_runs(load_runs(select_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["action_saturation_n"] == 1).all() and (summary["rmse_3d_n"] == 2).all()
-    index = build_report(
-        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
-    )
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert any(
@@ -424,12 +423,10 @@ def test_old_metrics_tables_without_action_columns_still_build(tmp_path: Path) -
     caption = md.split("### Policy actions\n", 1)[1].split("\n\n")[1]
     assert "Some runs of TD3 have metrics stored before these statistics existed" in caption
     # only old tables: no data, and the tracking tables are unaffected
-    record = select_report_runs(store, ["td3"])[1]
+    record = select_runs(store, ["td3"])[1]
     path = record.table_path("eval_metrics")
     write_table(path, read_table(path).drop(columns=list(ACTION_STATISTICS)))
-    index = build_report(
-        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
-    )
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
@@ -444,12 +441,10 @@ def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
     builds, those cells read "–" and the other cells keep their numbers."""
     new_columns = [*TORQUE_STATISTICS, *SAFETY_STATISTICS]
     store = _two_seeds_one_old_table(tmp_path, new_columns)
-    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
+    groups = group_runs(load_runs(select_runs(store, ["td3"])))
     summary = metrics_summary(groups)
     assert (summary["torque_rate_rms_n"] == 1).all() and (summary["action_rms_n"] == 2).all()
-    index = build_report(
-        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
-    )
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     row = next(r for r in rows if r.startswith("| TD3 | circle | arm 2 |"))
@@ -458,12 +453,10 @@ def test_old_metrics_tables_without_torque_and_clearance_columns_show_a_dash(
     caption = md.split("### Policy actions\n", 1)[1].split("\n\n")[1]
     assert "before the torque and clearance columns existed" in caption
     # only old tables: a dash in each new cell
-    record = select_report_runs(store, ["td3"])[1]
+    record = select_runs(store, ["td3"])[1]
     path = record.table_path("eval_metrics")
     write_table(path, read_table(path).drop(columns=new_columns))
-    index = build_report(
-        select_report_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3"
-    )
+    index = build_report(select_runs(store, ["td3"]), tmp_path / "out", "softtrack report td3")
     md = index.read_text(encoding="utf-8")
     rows = _table_after(md, "### Policy actions\n")[2:]
     assert len(rows) == 3 * 2
@@ -479,7 +472,7 @@ def test_provenance_is_stated_once_per_controller(report: Path, store: RunStore)
     for label in ("TD3", "DDPG", "TD3 (independent)"):  # one paragraph per controller
         assert sum(p.startswith(f"**{label}**:") for p in paragraphs) == 1, label
         assert md.count(f"**{label}**: experiment") == 1, label
-    record = select_report_runs(store, ["td3"])[0]
+    record = select_runs(store, ["td3"])[0]
     td3 = next(p for p in paragraphs if p.startswith("**TD3**:"))
     for text in (
         "experiment `td3`",
@@ -531,7 +524,7 @@ def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Pat
     out = tmp_path / "ppo-report"
     (out / "figures").mkdir(parents=True)
     (out / "notes.txt").write_text("mine")  # someone else's file: must survive
-    index = build_report(select_report_runs(store, ["ppo"]), out, "softtrack report ppo --out x")
+    index = build_report(select_runs(store, ["ppo"]), out, "softtrack report ppo --out x")
     md = index.read_text(encoding="utf-8")
     for t in EVAL_TRAJECTORIES:
         assert (out / "figures" / f"trajectory_{t}.png").is_file()
@@ -542,7 +535,7 @@ def test_missing_eval_tables_give_no_data_figures(store: RunStore, tmp_path: Pat
     assert re.search(r"\| PPO \| both arms \| 1 of 1 \| -?\d+\.\d\d \|", md)
     # a rebuild with fewer figures removes only this report's stale figures
     (out / "figures" / "unrelated.png").write_bytes(b"x")
-    records = select_report_runs(store, ["ppo"])
+    records = select_runs(store, ["ppo"])
     build_report(records, out, "again")
     assert (out / "notes.txt").read_text() == "mine"
     assert (out / "figures" / "unrelated.png").exists()
@@ -630,10 +623,10 @@ def test_moment_peaks_read_the_old_and_the_new_table_format(tmp_path: Path) -> N
             record.table_path("eval_moment_peaks").unlink()
             write_table(record.table_path("eval_moments"), old.assign(run_id=record.run_id))
         store.mark_finished(record.run_id, "completed", global_step=BUDGET)
-    groups = group_runs(load_runs(select_report_runs(store, ["td3"])))
+    groups = group_runs(load_runs(select_runs(store, ["td3"])))
     table = moment_peaks(groups)
     assert (table["n"] == 2).all() and len(table) == 3 * 2 * 3
-    md = build_report(select_report_runs(store, ["td3"]), tmp_path / "out", "x").read_text("utf-8")
+    md = build_report(select_runs(store, ["td3"]), tmp_path / "out", "x").read_text("utf-8")
     peak_rows = _table_after(md, "### Peak element moments\n")[2:]
     assert peak_rows and not any("no data" in r for r in peak_rows)
 
@@ -771,9 +764,9 @@ def test_a_report_of_many_controllers_draws_a_few_unless_all_figures(
     the independent controller, side by side, one figure per trajectory; --all-figures gives
     one per controller and trajectory."""
     selection = ["td3", "ddpg", "independent-td3", "ppo"]
-    index = build_report(select_report_runs(store, selection), tmp_path / "few", "x")
+    index = build_report(select_runs(store, selection), tmp_path / "few", "x")
     figures = sorted(p.name for p in (tmp_path / "few" / "figures").iterdir())
-    groups = group_runs(load_runs(select_report_runs(store, selection)))
+    groups = group_runs(load_runs(select_runs(store, selection)))
     best = min(
         ("td3", "ddpg"),
         key=lambda slug: (
@@ -794,9 +787,7 @@ def test_a_report_of_many_controllers_draws_a_few_unless_all_figures(
     md = index.read_text(encoding="utf-8")
     assert f"Drawn: {best.upper()} (best centralized), TD3 (independent) (best independent)" in md
     assert "`softtrack report … --all-figures` draws every controller" in md
-    index = build_report(
-        select_report_runs(store, selection), tmp_path / "all", "x", all_figures=True
-    )
+    index = build_report(select_runs(store, selection), tmp_path / "all", "x", all_figures=True)
     figures = {p.name for p in (tmp_path / "all" / "figures").iterdir()}
     for slug in ("td3", "ddpg", "td3-independent", "ppo"):
         assert f"moments_{slug}.png" in figures
@@ -821,7 +812,7 @@ def test_trajectory_figure_labels_and_ticks_do_not_overlap(
         return save(fig, path, footer)
 
     monkeypatch.setattr(fg, "save_figure", keep)
-    runs = load_runs(select_report_runs(store, ["td3", "independent-td3"]))
+    runs = load_runs(select_runs(store, ["td3", "independent-td3"]))
     rows = []
     for run in runs[:1] + runs[-1:]:
         traj = run.trajectories[run.trajectories["trajectory"] == "figure8"]

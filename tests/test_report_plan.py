@@ -9,7 +9,7 @@ from typing import Any
 import pandas as pd
 import pytest
 
-from softtrack.evaluation.robustness import factor_axis_label
+from softtrack.evaluation.perturbations import factor_axis_label
 from softtrack.report.comparison_figures import budget_text
 from softtrack.report.data import Group, group_runs, load_runs
 from softtrack.report.families import (

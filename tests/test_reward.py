@@ -206,8 +206,8 @@ def test_action_penalty_is_the_weighted_mean_squares() -> None:
 
 
 def test_the_env_subtracts_the_action_penalties_from_the_step_after_reset() -> None:
-    from softtrack.env.config import make_config
     from softtrack.env.core import TrackingCore
+    from softtrack.env.settings import make_config
 
     plain = TrackingCore(1, make_config(target="circle"))
     smooth = TrackingCore(

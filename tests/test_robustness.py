@@ -12,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from softtrack.cli import app
-from softtrack.evaluation.robustness import (
+from softtrack.evaluation.perturbations import (
     ROBUSTNESS_TABLE,
     Setting,
     expand_settings,
@@ -21,8 +21,8 @@ from softtrack.evaluation.robustness import (
     part_path,
     perturbed_spec,
 )
-from softtrack.evaluation.runs import resolve_run
 from softtrack.spec import ExperimentSpec, SpecError
+from softtrack.store.selection import select_one_run
 from softtrack.store.tables import read_table
 from softtrack.workers import robustness_main as worker_main
 from tests.test_evaluate import _train_tiny
@@ -231,7 +231,7 @@ def test_robustness_table_nominal_rows_equal_evaluate(
 
 def test_full_grid_and_worker_parts_merge(trained: tuple[Path, str], tmp_path: Path) -> None:
     run = _copy(trained, tmp_path)
-    record = resolve_run(str(run))
+    record = select_one_run(str(run))
     setting = Setting((("obs_noise", "0.01"), ("action_delay", "1")))
     # a worker that ended after writing its part, before the parent merged it
     assert (

@@ -18,9 +18,9 @@ sys.path.insert(0, str(ROOT / "experiments"))
 from reproduce_study import FEATURED, KEEP_STEPS, lean, lean_validation  # noqa: E402
 
 from softtrack.evaluation import EVAL_TRAJECTORIES  # noqa: E402
-from softtrack.evaluation.runs import resolve_run  # noqa: E402
-from softtrack.evaluation.tables import VALIDATION_SCORED_COLUMNS, validation_score  # noqa: E402
+from softtrack.evaluation.episode_tables import VALIDATION_SCORED_COLUMNS, validation_score  # noqa: E402
 from softtrack.report.data import Group, episode_rmse, load_runs, representative_run  # noqa: E402
+from softtrack.store.selection import select_one_run  # noqa: E402
 from softtrack.store.tables import read_table  # noqa: E402
 
 MODELS_BUDGET = 100 * 1000 * 1000  # bytes of models/ in the tree
@@ -86,7 +86,7 @@ def test_lean_validation_keeps_what_scores_and_the_report_read(tmp_path: Path) -
     for step, rows in full.groupby("global_step"):
         kept = trimmed[trimmed["global_step"] == step]
         assert validation_score(kept, 12.0) == validation_score(rows, 12.0)
-    original, lean_run = load_runs([resolve_run(str(source)), resolve_run(str(run))])
+    original, lean_run = load_runs([select_one_run(str(source)), select_one_run(str(run))])
     assert lean_run.validation is not None and original.validation is not None
     pd.testing.assert_frame_equal(lean_run.validation, original.validation)
 
@@ -150,7 +150,7 @@ def test_the_runs_the_report_draws_keep_their_per_step_tables() -> None:
             by_name.setdefault(name, []).append(run)
     assert by_name
     for name, dirs in by_name.items():
-        runs = load_runs(resolve_run(str(d)) for d in dirs)
+        runs = load_runs(select_one_run(str(d)) for d in dirs)
         group = Group("", "", name, "", name, name, tuple(runs))
         for trajectory in EVAL_TRAJECTORIES:
             scored = sorted(

@@ -256,6 +256,20 @@ def spec() -> ExperimentSpec:
     )
 
 
+def test_a_prefix_selects_by_run_id_not_by_a_named_directory(
+    tmp_path: Path, spec: ExperimentSpec
+) -> None:
+    """``models/<name>-seed0`` is selected by its whole name or its run id's prefix; a prefix
+    of its name (``td3-sbx-64`` of ``td3-sbx-64-tuned-seed0``) selects nothing."""
+    store = RunStore(tmp_path / "runs")
+    record = store.create_run(spec, seed=0)
+    named = record.path.rename(tmp_path / "runs" / "td3-sbx-64-tuned-seed0")
+    assert store.get_run(named.name).run_id == named.name
+    assert store.get_run(record.run_id[:10]).path == named
+    with pytest.raises(RunNotFoundError, match="no run 'td3-sbx-64'"):
+        store.get_run("td3-sbx-64")
+
+
 def test_create_run(tmp_path: Path, spec: ExperimentSpec) -> None:
     store = RunStore(tmp_path / "runs")
     record = store.create_run(spec, seed=1, command=["softtrack", "train", "x.yaml"])

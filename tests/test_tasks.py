@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softtrack.env.config import make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.settings import make_config
 from softtrack.env.tasks import TaskConfig
+from softtrack.evaluation.episode_tables import metrics_table, trajectory_table
 from softtrack.evaluation.episodes import run_episode
-from softtrack.evaluation.tables import metrics_table, trajectory_table
 from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import ExperimentSpec, load_spec, spec_hash
 from softtrack.spec.env_config import env_config, env_kwargs

@@ -1,4 +1,4 @@
-"""The cooperative transport task (softtrack.env.transport, docs/environment.md "Transport")."""
+"""The cooperative transport task (softtrack.env.transport_env, docs/environment.md "Transport")."""
 
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ import pytest
 import yaml
 
 import softtrack.env  # noqa: F401  (registers the environments)
-from softtrack.env.config import make_config
 from softtrack.env.core import TrackingCore
+from softtrack.env.settings import make_config
 from softtrack.env.targets import BatchedTargets, TargetConfig, trajectory_position
 from softtrack.sim.params import InvalidParameterError
-from softtrack.spec.api import parse_spec, spec_hash
 from softtrack.spec.fields import SpecError
 from softtrack.spec.models import ExperimentSpec
+from softtrack.spec.spec_io import parse_spec, spec_hash
 
 SQUEEZE = np.zeros(24)
 SQUEEZE[0:6] = -0.03  # arm 1's normal values: negative curls toward +x, onto the sphere
@@ -207,8 +207,12 @@ def test_evaluation_rows_measure_the_sphere() -> None:
     """An evaluation episode of the transport task stores the sphere's metrics (against the
     goal the episode recorded as its target), the hold and no drop for a squeezing policy;
     the validation score is the sphere's 3-D RMSE."""
+    from softtrack.evaluation.episode_tables import (
+        metrics_table,
+        trajectory_table,
+        validation_score,
+    )
     from softtrack.evaluation.episodes import run_episode
-    from softtrack.evaluation.tables import metrics_table, trajectory_table, validation_score
 
     config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
     episode = run_episode(lambda obs: SQUEEZE, config, "circle", duration=1.0)
@@ -295,8 +299,8 @@ def test_mpc_with_the_sphere_in_its_model_holds_it() -> None:
     """The sampling planner scores plans by the sphere's distance and the hold it would lose:
     from the start it squeezes, and the sphere is held by both arms without a drop."""
     from softtrack.evaluation.episodes import run_episode
-    from softtrack.mpc.config import PlannerConfig
     from softtrack.mpc.controller import MpcController
+    from softtrack.mpc.planner_config import PlannerConfig
 
     config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
     controller = MpcController(PlannerConfig(samples=32, horizon=30, knots=3, replan_interval=5))
@@ -349,7 +353,7 @@ def test_letting_go_earns_less_than_holding() -> None:
 
 
 def test_reach_term_measures_each_arms_gap() -> None:
-    from softtrack.env.transport import TransportModel
+    from softtrack.env.transport_env import TransportModel
 
     config = make_config(task="transport", sphere={}, contact_k=1e6, contact_nu=600.0)
     core = TrackingCore(1, config)
@@ -427,7 +431,7 @@ def test_a_transport_validation_counts_the_steps_after_a_drop() -> None:
     """With the episodes' planned length, a dropped sphere counts 1 m for every second after its
     drop (hand-computed), a longer hold scores lower, an episode carried through scores its
     error, and a non-finite episode ∞; without the length any drop is ∞."""
-    from softtrack.evaluation.tables import LOST_OBJECT_ERROR, validation_score
+    from softtrack.evaluation.episode_tables import LOST_OBJECT_ERROR, validation_score
 
     assert LOST_OBJECT_ERROR == 1.0
     held = _carry_rows([0.04, 0.06], [None, None])

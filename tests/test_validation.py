@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from softtrack.cli import app
 from softtrack.evaluation import metrics_table, run_episode
 from softtrack.report.data import load_run
-from softtrack.report.summaries import validation_scores
+from softtrack.report.group_summaries import validation_scores
 from softtrack.rl.factory import algo_class
 from softtrack.rl.policy import deterministic_policy, model_paths
 from softtrack.rl.validation import VALIDATION_SEED, truncate_validation, validation_score

@@ -19,9 +19,9 @@ import numpy as np
 
 from softtrack.evaluation import EVAL_TRAJECTORIES, run_episode
 from softtrack.evaluation.metrics import tracking_metrics
-from softtrack.evaluation.runs import resolve_run
 from softtrack.rl.policy import load_policy
 from softtrack.spec.env_config import env_config
+from softtrack.store.selection import select_one_run
 
 
 def filtered(policy, alpha: float):
@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("run", help="run id, id prefix or run directory (e.g. models/...)")
     parser.add_argument("--alpha", type=float, nargs="+", default=[1.0, 0.5, 0.25])
     args = parser.parse_args()
-    record = resolve_run(args.run)
+    record = select_one_run(args.run)
     spec = record.load_spec()
     policy = load_policy(record, spec)
     config = env_config(spec)

@@ -23,9 +23,9 @@ import numpy as np
 from softtrack.env.observation import observation_labels
 from softtrack.evaluation import EVAL_TRAJECTORIES, run_episode
 from softtrack.evaluation.metrics import tracking_metrics
-from softtrack.evaluation.runs import resolve_run
 from softtrack.rl.policy import load_policy
 from softtrack.spec.env_config import env_config
+from softtrack.store.selection import select_one_run
 
 Policy = Callable[[np.ndarray], np.ndarray]
 TARGET_SPEED_INDEX = observation_labels(n_arms=2).index("target.speed")  # 77
@@ -57,7 +57,7 @@ def main() -> None:
         f"(target speed) fixed at {args.speed:g} m/s"
     )
     for reference in args.runs:
-        record = resolve_run(reference)
+        record = select_one_run(reference)
         spec = record.load_spec()
         if spec.controller != "centralized":
             raise SystemExit(

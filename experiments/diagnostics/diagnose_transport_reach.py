@@ -31,8 +31,8 @@ import dataclasses
 import numpy as np
 
 from softtrack import api
-from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
+from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import trajectory_position
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.spec.env_config import env_config

@@ -29,9 +29,9 @@ _HOME = {
     "RewardConfig": "softtrack.env.reward",
     "SingleArmTrackingEnv": "softtrack.env.tracking_env",
     "TargetConfig": "softtrack.env.targets",
-    "TrackingConfig": "softtrack.env.config",
+    "TrackingConfig": "softtrack.env.settings",
     "TrackingCore": "softtrack.env.core",
-    "make_config": "softtrack.env.config",
+    "make_config": "softtrack.env.settings",
 }
 
 __getattr__, __dir__ = lazy_exports(__name__, _HOME, __all__)

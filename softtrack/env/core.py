@@ -14,12 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from softtrack.env.config import TrackingConfig
 from softtrack.env.observation import build_observation, observation_size
 from softtrack.env.realism import RealismModel
 from softtrack.env.reward import action_penalty, collision_penalty, tracking_reward
+from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import BatchedTargets
-from softtrack.env.transport import TransportModel
+from softtrack.env.transport_env import TransportModel
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
 from softtrack.sim.params import MODEL_PARAMETERS
@@ -79,7 +79,7 @@ class TrackingCore:
         self.action_dim = self.n_arms * 2 * N_CONTROL_POINTS
         grip = config.task.action_offset() if config.task.grip else None
         self._action_offset = grip  # (24,) added to every action before clipping, or None
-        # the transport task (softtrack.env.transport): goal, observation, reward and drops
+        # the transport task (softtrack.env.transport_env): goal, observation, reward and drops
         self.transport: TransportModel | None = (
             TransportModel(self.n_envs, config) if config.task.carries_object else None
         )

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from softtrack.env.core import TrackingCore
-from softtrack.viz.frames import scene_frame
 from softtrack.viz.scene import SceneFrame
+from softtrack.viz.scene_frames import scene_frame
 
 __all__ = ["core_frame"]
 

@@ -10,7 +10,7 @@
   opposite sides. The trajectories, metrics, reward terms and cooperative bonus are those of
   the shared task, measured against each arm's own point.
 
-* ``transport`` (cooperative transport, :mod:`softtrack.env.transport`): the two arms hold
+* ``transport`` (cooperative transport, :mod:`softtrack.env.transport_env`): the two arms hold
   a rigid sphere (``SimParams.sphere``) between their tips, and the sphere's centre must
   follow the target. The goal starts at the sphere's centre and moves to the path's start
   over ``approach`` seconds (a smoothstep), then follows the path from its t = 0; the episode
@@ -19,7 +19,7 @@
 The observation keeps the study's 81 values in the shared and viewpoints tasks: the target
 block (indices 74–80) holds the target centre, its speed and direction; an arm's point is that
 centre plus the task's fixed offset, so the policy needs nothing more. The transport task's
-layout is in :mod:`softtrack.env.transport` (88 values).
+layout is in :mod:`softtrack.env.transport_env` (88 values).
 """
 
 from __future__ import annotations

@@ -7,9 +7,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
 from softtrack.env.render import core_frame
+from softtrack.env.settings import TrackingConfig, make_config
 from softtrack.sim.params import CONTACT_ON
 from softtrack.viz.scene import SceneRenderer
 
@@ -195,7 +195,7 @@ class DualArmTransportEnv(_TrackingEnv):
     (``SimParams.sphere``; default radius 0.05 m, 500 kg/m³, centred between the straight
     arms' tips, touching both, with friction μ = 0.5). Its centre must follow the goal: from
     its start to the path's start over ``approach`` seconds, then the target's path
-    (``softtrack.env.transport``).
+    (``softtrack.env.transport_env``).
 
     ## Action Space
     ``Box(-1, 1, (24,), float32)``, as :class:`DualArmTrackingEnv`.
@@ -208,7 +208,7 @@ class DualArmTransportEnv(_TrackingEnv):
     −w̄·d² + the study's bonuses on the sphere's distance d from the goal while both arms
     touch it, ``hold_bonus`` per arm touching it, −``reach_penalty`` × each other arm's gap to
     the sphere, an optional squeeze band penalty, −``drop_penalty`` on a drop
-    (``softtrack.env.transport``).
+    (``softtrack.env.transport_env``).
 
     ## Starting State
     Both arms straight and at rest, the sphere at rest at its centre, the goal there.

@@ -15,10 +15,10 @@ from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnvStepReturn,
 )
 
-from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.core import TrackingCore
 from softtrack.env.render import core_frame
 from softtrack.env.reward import reward_shares
+from softtrack.env.settings import TrackingConfig, make_config
 from softtrack.viz.scene import SceneRenderer
 
 __all__ = ["REWARD_SHARES_KEY", "TrackingVecEnv"]
@@ -44,7 +44,7 @@ class TrackingVecEnv(VecEnv):
             infos and in the info of every finished episode either way.
         reward_shares: add ``info["reward_shares"]``, the (A,) float32 per-arm split of the
             reward (:func:`softtrack.env.reward.reward_shares`; in the transport task
-            :meth:`softtrack.env.transport.TransportModel.reward_shares`), for per-arm critics.
+            :meth:`softtrack.env.transport_env.TransportModel.reward_shares`), for per-arm critics.
         **env_kwargs: keyword arguments of :func:`make_config` (e.g. ``target="circle"``).
     """
 

@@ -4,16 +4,16 @@
   random target (:func:`run_episode`, :class:`Episode`), the dual-arm policy of two single-arm
   ones (:func:`independent_policy`) and the seeds of held-out episodes.
 * :mod:`softtrack.evaluation.metrics`: the tracking and actuation metrics of docs/environment.md (pure NumPy).
-* :mod:`softtrack.evaluation.tables`: the tables of an episode (trajectory, metrics, moments).
+* :mod:`softtrack.evaluation.episode_tables`: the tables of an episode (trajectory, metrics, moments).
 * :mod:`softtrack.evaluation.scores`: the validation score of a checkpoint's metrics rows and
   the transport task's carry score (pandas only: the report and ``compare`` use it).
-* :mod:`softtrack.evaluation.runs`: evaluate a stored run's policy and write its ``eval_*``
+* :mod:`softtrack.evaluation.run_evaluation`: evaluate a stored run's policy and write its ``eval_*``
   tables, with the policy loader the caller passes in (``softtrack.rl.policy.load_policy``):
   this package sits below :mod:`softtrack.rl`, which uses it for validation, and never
   imports it.
 
 The names below are those of :mod:`~softtrack.evaluation.episodes` and
-:mod:`~softtrack.evaluation.tables`.
+:mod:`~softtrack.evaluation.episode_tables`.
 """
 
 from __future__ import annotations
@@ -46,21 +46,21 @@ _HOME = {
     "CONFIRM_SEED": "softtrack.evaluation.episodes",
     "EVAL_TRAJECTORIES": "softtrack.evaluation.episodes",
     "RANDOM_TARGET_SEED": "softtrack.evaluation.episodes",
-    "STEADY_START": "softtrack.evaluation.tables",
+    "STEADY_START": "softtrack.evaluation.episode_tables",
     "VALIDATION_SEED": "softtrack.evaluation.episodes",
     "Episode": "softtrack.evaluation.episodes",
     "Policy": "softtrack.evaluation.episodes",
     "accepts_batches": "softtrack.evaluation.episodes",
-    "element_moments_table": "softtrack.evaluation.tables",
-    "element_peaks_frame": "softtrack.evaluation.tables",
+    "element_moments_table": "softtrack.evaluation.episode_tables",
+    "element_peaks_frame": "softtrack.evaluation.episode_tables",
     "independent_policy": "softtrack.evaluation.episodes",
     "iter_episodes": "softtrack.evaluation.episodes",
-    "metrics_table": "softtrack.evaluation.tables",
-    "moment_peaks_table": "softtrack.evaluation.tables",
-    "moments_table": "softtrack.evaluation.tables",
+    "metrics_table": "softtrack.evaluation.episode_tables",
+    "moment_peaks_table": "softtrack.evaluation.episode_tables",
+    "moments_table": "softtrack.evaluation.episode_tables",
     "run_episode": "softtrack.evaluation.episodes",
     "run_episodes": "softtrack.evaluation.episodes",
-    "trajectory_table": "softtrack.evaluation.tables",
+    "trajectory_table": "softtrack.evaluation.episode_tables",
     "validation_score": "softtrack.evaluation.scores",
 }
 

@@ -5,7 +5,7 @@ the target follows a circle, rectangle or figure-eight (docs/environment.md), or
 target, and records every control step (:class:`Episode`). A centralized controller maps the
 81-value observation to 24 actions; an independent controller is two single-arm policies, each
 fed its arm's 37 values plus the target's 7 (:func:`independent_policy`). The tables of an
-episode are in :mod:`softtrack.evaluation.tables`.
+episode are in :mod:`softtrack.evaluation.episode_tables`.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softtrack.env.config import TrackingConfig
 from softtrack.env.core import TrackingCore
 from softtrack.env.observation import arm_view_columns
+from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.evaluation.metrics import arm_clearance
 

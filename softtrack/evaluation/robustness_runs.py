@@ -1,7 +1,7 @@
 """Run robustness evaluations of stored runs, in this process or on the local and SLURM executors.
 
 :func:`run_robustness` evaluates every (run, setting) cell not yet in the runs' tables
-(:func:`~softtrack.evaluation.robustness.done_settings`; ``redo`` evaluates them again):
+(:func:`~softtrack.evaluation.perturbations.done_settings`; ``redo`` evaluates them again):
 
 * ``executor="local"`` with one worker: in this process, each run's policy loaded once; the
   rows of every setting are stored as soon as it is done, so an interrupted evaluation loses at
@@ -24,7 +24,7 @@ from pathlib import Path
 import pandas as pd
 
 from softtrack.evaluation.episodes import Policy
-from softtrack.evaluation.robustness import (
+from softtrack.evaluation.perturbations import (
     Setting,
     copy_nominal,
     done_settings,

@@ -1,6 +1,6 @@
 """Scores computed from stored evaluation rows: a checkpoint's validation score and the
 transport task's carry score. Pure pandas/NumPy, so ``softtrack compare`` and the report
-read runs without loading the simulator (:mod:`softtrack.evaluation.tables` builds the rows)."""
+read runs without loading the simulator (:mod:`softtrack.evaluation.episode_tables` builds the rows)."""
 
 from __future__ import annotations
 

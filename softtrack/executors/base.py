@@ -60,7 +60,7 @@ class Job:
 
 class PoolJob(Protocol):
     """What :class:`~softtrack.executors.local.LocalPool` runs: a :class:`Job`, or another
-    worker command such as a ``softtrack tune`` worker (:mod:`softtrack.tune.run`)."""
+    worker command such as a ``softtrack tune`` worker (:mod:`softtrack.tune.command`)."""
 
     @property
     def key(self) -> str: ...

@@ -1,6 +1,6 @@
 """Model predictive control: sampling planners (MPPI, CEM) over the batched rod engine.
 
-* :mod:`softtrack.mpc.config`: :class:`PlannerConfig`, the planner settings (no numba).
+* :mod:`softtrack.mpc.planner_config`: :class:`PlannerConfig`, the planner settings (no numba).
 * :mod:`softtrack.mpc.planner`: :class:`SamplingPlanner`.
 * :mod:`softtrack.mpc.controller`: :class:`MpcController`, a planner as an evaluation policy.
 
@@ -15,7 +15,7 @@ __all__ = ["MpcController", "PlannerConfig", "SamplingPlanner"]
 
 _HOME = {
     "MpcController": "softtrack.mpc.controller",
-    "PlannerConfig": "softtrack.mpc.config",
+    "PlannerConfig": "softtrack.mpc.planner_config",
     "SamplingPlanner": "softtrack.mpc.planner",
 }
 

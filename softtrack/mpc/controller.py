@@ -6,7 +6,7 @@ episode's :class:`~softtrack.env.core.TrackingCore`, and at every replanning ste
 true state of the arms (full-state feedback: the realism's sensing noise and delays do not
 reach it) and the target's path over the horizon (the closed form of a circle, rectangle,
 figure-eight or fixed target; a random target extrapolated at its current velocity; in the
-transport task the sphere's goal, :meth:`~softtrack.env.transport.TransportModel.goal_ahead`), plans
+transport task the sphere's goal, :meth:`~softtrack.env.transport_env.TransportModel.goal_ahead`), plans
 with a :class:`~softtrack.mpc.planner.SamplingPlanner` and returns the plan's control values
 one step after the other (:func:`~softtrack.evaluation.episodes.run_episode` times each call).
 
@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from softtrack.env.targets import trajectory_position
-from softtrack.mpc.config import PlannerConfig
 from softtrack.mpc.planner import SamplingPlanner
+from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.params import MODEL_PARAMETERS
 
 if TYPE_CHECKING:

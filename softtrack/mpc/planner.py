@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from softtrack.mpc.config import PlannerConfig
+from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch, RodState
 from softtrack.sim.params import SimParams

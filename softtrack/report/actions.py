@@ -1,6 +1,6 @@
 """The "Policy actions" table of a report: per-arm action statistics across seeds.
 
-Built from :func:`softtrack.report.summaries.metrics_summary` (columns ``action_saturation``,
+Built from :func:`softtrack.report.group_summaries.metrics_summary` (columns ``action_saturation``,
 ``action_change``, ``action_rms`` of ``eval_metrics``); metrics tables written before the
 action statistics existed have no such columns, their cells read "no data", and only then
 does the caption say so. After them, the smoothness and safety columns (``torque_rate_rms``,
@@ -17,12 +17,12 @@ import pandas as pd
 
 from softtrack.evaluation.metrics import SATURATION_THRESHOLD
 from softtrack.report.data import Group
+from softtrack.report.group_summaries import summary_row
 from softtrack.report.reference import (
     CALIBRATION_ACTION_CHANGE,
     CALIBRATION_ACTION_SATURATION,
     TRAJECTORY_TITLES,
 )
-from softtrack.report.summaries import summary_row
 from softtrack.report.text import mean_pm_std
 
 __all__ = ["ACTIONS_HEADER", "actions_caption", "actions_rows"]

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from softtrack.evaluation.episodes import Episode, run_episode
-from softtrack.evaluation.frames import episode_frames
-from softtrack.evaluation.runs import RANDOM_TARGET_SEED, PolicyLoader
+from softtrack.evaluation.rollout_frames import episode_frames
+from softtrack.evaluation.run_evaluation import RANDOM_TARGET_SEED, PolicyLoader
 from softtrack.report.video import VideoError, film_strip, video_format, write_page, write_video
 from softtrack.report.viewer import Rollout, viewer_page
 from softtrack.spec.env_config import env_config

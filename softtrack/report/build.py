@@ -31,9 +31,9 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from softtrack.evaluation.runs import PolicyLoader
+from softtrack.evaluation.run_evaluation import PolicyLoader
 from softtrack.report.across_seeds import across_seeds_section
-from softtrack.report.contact import contact_section
+from softtrack.report.contact_section import contact_section
 from softtrack.report.data import group_runs, load_runs, trajectories_in
 from softtrack.report.document import (
     FIGURES_DIR,
@@ -50,21 +50,21 @@ from softtrack.report.evaluation_sections import (
     trajectories_section,
 )
 from softtrack.report.featured import featured_groups
+from softtrack.report.group_summaries import metrics_summary
+from softtrack.report.mpc_section import planning_section
 from softtrack.report.plan import plan_figures
-from softtrack.report.planning import planning_section
-from softtrack.report.robustness import robustness_section
-from softtrack.report.select import EmptySelectionError, select_report_runs
-from softtrack.report.summaries import metrics_summary
+from softtrack.report.robustness_section import robustness_section
 from softtrack.report.training_sections import (
     final_section,
     runs_section,
     training_section,
     validation_section,
 )
-from softtrack.report.transport import transport_section
+from softtrack.report.transport_section import transport_section
 from softtrack.report.tune_view import TuneView, tune_section
 from softtrack.store.atomic import atomic_write_json, atomic_write_text
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
+from softtrack.store.selection import EmptySelectionError, select_runs
 
 __all__ = ["build_report", "report_selection"]
 
@@ -102,7 +102,7 @@ def build_report(
     Reads only the runs' stored files. Missing tables give "no data" figures and table cells.
 
     Args:
-        records: the runs (see :func:`softtrack.report.select.select_report_runs`).
+        records: the runs (see :func:`softtrack.store.selection.select_runs`).
         out_dir: the report directory (created if needed; may already hold an older report).
         command_line: the command that built the report, shown in *Behind these numbers*.
         all_figures: draw the trajectory, error and moment figures of every controller (one
@@ -204,9 +204,9 @@ def report_selection(
     all_figures: bool = False,
     figures_for: Sequence[str] = (),
 ) -> Path:
-    """Select runs (:func:`select_report_runs`) under ``runs_dir`` and :func:`build_report` them."""
+    """Select runs (:func:`select_runs`) under ``runs_dir`` and :func:`build_report` them."""
     store = RunStore(resolve_runs_dir(runs_dir))
-    records = select_report_runs(store, selection)
+    records = select_runs(store, selection)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
     return build_report(

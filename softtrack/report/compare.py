@@ -1,7 +1,7 @@
 """``softtrack compare``: controllers side by side with across-seed statistics.
 
 Each controller is the set of runs one selection item names (an experiment name, a run id or
-prefix, a spec file: :func:`softtrack.report.select.select_report_runs`). Its scores are the
+prefix, a spec file: :func:`softtrack.store.selection.select_runs`). Its scores are the
 stored evaluation metric (default the 3-D RMSE, m) as a runs × cells matrix, a cell being a
 trajectory and arm. :func:`compare_controllers` gives, with the statistics of
 :mod:`softtrack.evaluation.seed_statistics`:
@@ -38,8 +38,8 @@ from softtrack.evaluation.seed_statistics import (
 from softtrack.evaluation.transport_metrics import TRANSPORT_STATISTICS
 from softtrack.report.data import RunData, load_runs
 from softtrack.report.reference import TRAJECTORY_TITLES
-from softtrack.report.select import RunIndex, select_report_runs
 from softtrack.store.runs import RunStore, RunStoreError, resolve_runs_dir
+from softtrack.store.selection import RunIndex, select_runs
 from softtrack.trajectories import EVAL_TRAJECTORIES
 
 __all__ = [
@@ -277,7 +277,7 @@ def compare_selection(
     ``random``: the cells are the held-out random-target episodes of ``eval_random`` (the same
     targets for every run, ``softtrack evaluate RUN --random N``), "random k" and arm, instead
     of ``trajectories``. In the transport task ``metric`` may also be
-    :data:`~softtrack.evaluation.tables.CARRY_SCORE`, derived from the stored columns.
+    :data:`~softtrack.evaluation.episode_tables.CARRY_SCORE`, derived from the stored columns.
 
     Raises:
         EmptySelectionError, RunNotFoundError: an item names no run (one line with the fix).
@@ -287,9 +287,7 @@ def compare_selection(
     index = RunIndex.of(store)
     tables = []
     for item in selection:
-        runs = load_runs(
-            select_report_runs(store, [item], index), ["random" if random else "metrics"]
-        )
+        runs = load_runs(select_runs(store, [item], index), ["random" if random else "metrics"])
         tables.append([(run.seed, scored_rows(run, random)) for run in runs])
     if random:
         episodes = {

@@ -236,7 +236,7 @@ def rmse_comparison_figure(
     mean ± sample std across seeds) with the study's values as markers.
 
     Args:
-        summary: :func:`softtrack.report.summaries.metrics_summary` output.
+        summary: :func:`softtrack.report.group_summaries.metrics_summary` output.
         study: ``{marker label: {(trajectory, arm): value}}``.
     """
     title = "3-D RMSE per trajectory and arm"
@@ -297,7 +297,7 @@ def validation_figure(
 
     Args:
         panels: (the family's selection, (group label, seed, policy) → rows ``global_step``,
-            ``score`` (m) of :func:`softtrack.report.summaries.validation_scores`).
+            ``score`` (m) of :func:`softtrack.report.group_summaries.validation_scores`).
     """
     panels = [(s, scores) for s, scores in panels if scores]
     if not panels:
@@ -363,7 +363,7 @@ def robustness_figure(
     levels; one line per shown controller (seed mean) with its min–max band across seeds.
 
     Args:
-        summary: rows of :func:`softtrack.report.robustness.robustness_summary` with a
+        summary: rows of :func:`softtrack.report.robustness_section.robustness_summary` with a
             numeric ``level``.
         axis_labels: factor → x label with its unit.
     """

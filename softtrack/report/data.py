@@ -3,7 +3,7 @@
 Everything here reads only the run directories (``run.json``, ``spec.yaml`` and
 ``tables/*.parquet``), so a report can be rebuilt at any time. Runs are grouped by
 (algorithm, controller, experiment, spec hash); a group's runs differ only in the seed.
-:mod:`softtrack.report.curves` and :mod:`softtrack.report.summaries` aggregate the groups
+:mod:`softtrack.report.curves` and :mod:`softtrack.report.group_summaries` aggregate the groups
 across seeds.
 """
 
@@ -111,7 +111,7 @@ class RunData:
         random: ``eval_random`` (one row per random-target episode and arm, m).
         validation: ``validation`` (one row per validated checkpoint, episode and arm, m).
         robustness: ``eval_robustness`` (one row per perturbation setting, trajectory,
-            episode and arm; :mod:`softtrack.evaluation.robustness`).
+            episode and arm; :mod:`softtrack.evaluation.perturbations`).
         snapshots: ``eval_snapshots`` (both arms' centreline nodes at a few instants, m).
         problems: one line per unreadable table.
     """

@@ -20,6 +20,12 @@ from softtrack.report.data import DIRECTIONS, Group, RunData, episode_rmse, repr
 from softtrack.report.document import NOT_IN_STUDY, Context, Doc, num_text, study_text
 from softtrack.report.families import MAX_SERIES
 from softtrack.report.featured import Featured
+from softtrack.report.group_summaries import (
+    controller_differences,
+    moment_peaks,
+    random_target_summary,
+    summary_row,
+)
 from softtrack.report.plan import PER_KIND
 from softtrack.report.reference import (
     STUDY_PEAK_MOMENTS,
@@ -28,12 +34,6 @@ from softtrack.report.reference import (
     TRAJECTORY_TITLES,
     study_peak_moment,
     study_rmse_3d,
-)
-from softtrack.report.summaries import (
-    controller_differences,
-    moment_peaks,
-    random_target_summary,
-    summary_row,
 )
 from softtrack.report.text import mean_pm_std
 
@@ -87,7 +87,7 @@ def errors_section(
     doc: Doc, ctx: Context, summary: pd.DataFrame, trajectories: Sequence[str]
 ) -> None:
     """Per-axis and 3-D tracking errors per group against the study, and the 3-D RMSE of all
-    groups side by side (``summary``: :func:`~softtrack.report.summaries.metrics_summary`)."""
+    groups side by side (``summary``: :func:`~softtrack.report.group_summaries.metrics_summary`)."""
     doc.h(2, "Tracking error (study Table 4)")
     header = [
         "trajectory",

@@ -46,7 +46,7 @@ class Featured:
 
 def mean_rmse(summary: pd.DataFrame, group: Group) -> tuple[int, float]:
     """(cells with a value, mean 3-D RMSE over them, m) of ``group`` in a
-    :func:`~softtrack.report.summaries.metrics_summary`; (0, inf) without metrics."""
+    :func:`~softtrack.report.group_summaries.metrics_summary`; (0, inf) without metrics."""
     if summary.empty or "rmse_3d_mean" not in summary:
         return 0, float("inf")
     values = summary.loc[summary["group"] == group.label, "rmse_3d_mean"].to_numpy(float)

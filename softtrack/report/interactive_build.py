@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from softtrack.evaluation.runs import PolicyLoader
+from softtrack.evaluation.run_evaluation import PolicyLoader
 from softtrack.report.across_seeds import headline_scores
 from softtrack.report.animation import replay_run, rollout_of
 from softtrack.report.compare import compare_controllers
@@ -19,9 +19,9 @@ from softtrack.report.curves import training_curves
 from softtrack.report.data import RunData
 from softtrack.report.document import Context, Doc
 from softtrack.report.featured import Featured
+from softtrack.report.group_summaries import validation_scores
 from softtrack.report.interactive import AnswerTable, CurvePanel, interactive_page
 from softtrack.report.reference import TRAJECTORY_TITLES, study_rmse_3d
-from softtrack.report.summaries import validation_scores
 from softtrack.report.training_sections import runs_section
 from softtrack.report.tune_view import TuneView, tune_html_section
 from softtrack.report.video import write_page

@@ -35,8 +35,8 @@ from softtrack.report.families import (
     training_groups,
 )
 from softtrack.report.featured import mean_rmse
+from softtrack.report.group_summaries import validation_scores
 from softtrack.report.reference import STUDY_TOTAL_TIMESTEPS
-from softtrack.report.summaries import validation_scores
 
 __all__ = ["PER_KIND", "FigurePlan", "Selection", "headline", "plan_figures"]
 
@@ -198,7 +198,7 @@ def _nominal_robustness(group: Group) -> float:
 
 def plan_figures(groups: Sequence[Group], summary: pd.DataFrame) -> FigurePlan:
     """The selections and colours of a report of ``groups`` (``summary``:
-    :func:`~softtrack.report.summaries.metrics_summary`)."""
+    :func:`~softtrack.report.group_summaries.metrics_summary`)."""
     trained = [g for g in training_groups(groups) if g.controller != "mpc"]
     final_score = _final_return_score(final_stage_table(trained))
     training = tuple(

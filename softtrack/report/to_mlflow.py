@@ -37,11 +37,11 @@ from typing import Any
 
 import pandas as pd
 
-from softtrack.report.select import select_report_runs
 from softtrack.store.errors import RunStoreError
 from softtrack.store.location import resolve_runs_dir
 from softtrack.store.query import ResultsDatabase
 from softtrack.store.runs import RunStore
+from softtrack.store.selection import select_runs
 
 __all__ = ["DEFAULT_TRACKING_URI", "SyncOutcome", "sync_mlflow"]
 
@@ -303,7 +303,7 @@ def sync_mlflow(
     with ResultsDatabase(root) as db:
         runs = db.query("SELECT * FROM runs ORDER BY dir")
         if selection:
-            chosen = {r.info.run_id for r in select_report_runs(RunStore(root), selection)}
+            chosen = {r.info.run_id for r in select_runs(RunStore(root), selection)}
             runs = runs[runs["run_id"].isin(chosen)]
         ids = list(runs["run_id"])
         tables = {

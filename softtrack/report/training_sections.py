@@ -17,8 +17,8 @@ from softtrack.report import comparison_figures as cf
 from softtrack.report.curves import final_stage_table, training_curves
 from softtrack.report.data import RunData
 from softtrack.report.document import NOT_IN_STUDY, Context, Doc, commit_text, seeds_text
+from softtrack.report.group_summaries import validation_scores, validation_summary
 from softtrack.report.plan import Selection
-from softtrack.report.summaries import validation_scores, validation_summary
 from softtrack.report.text import mean_pm_std
 from softtrack.store.status import training_seconds
 

@@ -18,7 +18,7 @@ from typing import Any
 
 from softtrack.store.catalog import file_stamp, read_catalog
 from softtrack.store.location import resolve_runs_dir
-from softtrack.store.summaries import summary_from_row
+from softtrack.store.run_summaries import summary_from_row
 
 __all__ = ["WatchRow", "sparkline", "watch_rows", "watch_table"]
 
@@ -77,7 +77,7 @@ class _ScoreCache:
 
 def _read_scores(run_path: Path) -> tuple[float, ...]:
     from softtrack.report.data import load_run  # pandas: only for runs with a validation table
-    from softtrack.report.summaries import validation_scores
+    from softtrack.report.group_summaries import validation_scores
     from softtrack.store.runs import RunStore, RunStoreError
 
     try:

@@ -9,7 +9,7 @@
 * :mod:`softtrack.rl.policy`: a run's deterministic policy loaded from its model file(s).
 * Model selection: :mod:`softtrack.rl.validation` (held-out episodes after each checkpoint,
   best-validated model) and :mod:`softtrack.rl.confirmation` (best vs last on more episodes).
-* :mod:`softtrack.rl.export`: exported runs with inference-only model copies.
+* :mod:`softtrack.rl.policy_export`: exported runs with inference-only model copies.
 * :mod:`softtrack.rl.variants`: research variants (per-arm critics, mirror replay) and their
   registry.
 * :mod:`softtrack.rl.moved`: old module paths of moved modules, for model files pickled

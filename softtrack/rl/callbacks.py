@@ -18,7 +18,7 @@
   ``training.randomisation_warmup_steps`` env steps (a curriculum); it follows the model's step
   count, so a resumed run continues the ramp where it stopped.
 * :class:`GoalMotionWarmup` (``training.goal_warmup_steps``) likewise raises the transport
-  goal's motion from still to full (:mod:`softtrack.env.transport`).
+  goal's motion from still to full (:mod:`softtrack.env.transport_env`).
 * :class:`ProgressMonitor` updates run.json's heartbeat, shows a progress bar (steps/s and the
   latest episode return) on a terminal, or otherwise (a log file, a cluster job) prints whole
   progress lines: one at every :data:`PROGRESS_LINE_PERCENT` % of the budget and at least
@@ -311,7 +311,7 @@ class GoalMotionWarmup(LinearWarmup):
     """Raises the transport goal's motion in the training environments (``env``, as for
     :class:`RandomisationWarmup`) from still at the sphere's start to the full approach and
     path over ``warmup_steps`` env steps (``training.goal_warmup_steps``;
-    :attr:`softtrack.env.transport.TransportModel.goal_motion`).
+    :attr:`softtrack.env.transport_env.TransportModel.goal_motion`).
 
     Raises:
         ValueError: ``warmup_steps`` ≤ 0, or an environment without the transport task.

@@ -161,8 +161,8 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
 
 def mpc_controller(spec: ExperimentSpec, seed: int) -> Policy:
     """The sampling MPC of ``spec``'s ``mpc:`` section (arm weights from ``env.reward``)."""
-    from softtrack.mpc.config import PlannerConfig
     from softtrack.mpc.controller import MpcController
+    from softtrack.mpc.planner_config import PlannerConfig
 
     config = PlannerConfig(
         **spec.mpc.planner_kwargs(), arm_weights=tuple(spec.env.reward.arm_weights)

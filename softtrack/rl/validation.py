@@ -48,7 +48,7 @@ from typing import Any
 
 import pandas as pd
 
-from softtrack.env.config import TrackingConfig
+from softtrack.env.settings import TrackingConfig
 from softtrack.evaluation import (
     VALIDATION_SEED,
     Episode,

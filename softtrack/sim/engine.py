@@ -113,7 +113,7 @@ class RodBatch:
         )  # (7,) R, m, J, k, ν, c_v, μ; R = 0: no sphere
         self._sphere_out = np.zeros((n_envs, 6))  # per-arm force, overlap, contact steps
         # each environment's neighbour list of element pairs for rod–rod contact (kept between
-        # advances; −1: none yet), softtrack.sim.contact
+        # advances; −1: none yet), softtrack.sim.rod_contact
         self._contact_pairs = np.zeros((n_envs, p.n_elem * p.n_elem, 2), dtype=np.int64)
         self._contact_listed = np.full(n_envs, -1, dtype=np.int64)
         self._contact_anchor = np.zeros((n_envs, 2, 4, p.n_nodes))

@@ -2,7 +2,7 @@
 
 One compiled call, :func:`advance`, integrates every rod of a batch by ``n_steps`` Position
 Verlet steps. Without contact each rod is integrated to the end before the next one starts, so
-its whole state (a few kB) stays in L1 cache; with rod–rod contact (:mod:`softtrack.sim.contact`)
+its whole state (a few kB) stays in L1 cache; with rod–rod contact (:mod:`softtrack.sim.rod_contact`)
 the rods of an environment advance together and the contact stage runs inside every step,
 between the forces and the kick, as PyElastica's synchronize stage.
 
@@ -23,7 +23,7 @@ Small rotations (all of them, in practice) use Taylor series instead of sin/cos/
 with a large rotation in a step falls back to the trigonometric formulas for that step.
 
 Development note: numba caches each kernel keyed on this file's modification time, and the
-contact stage (:mod:`softtrack.sim.contact`) is inlined into the contact kernel; after editing
+contact stage (:mod:`softtrack.sim.rod_contact`) is inlined into the contact kernel; after editing
 contact.py alone, touch this file (or delete ``__pycache__/*.nbi``) so the kernel recompiles.
 
 Array layout (float64): positions/velocities (env, arm, 3, node), directors
@@ -39,7 +39,7 @@ from collections.abc import Callable
 import numpy as np
 from numba import njit
 
-from softtrack.sim.contact import rod_rod_contact
+from softtrack.sim.rod_contact import rod_rod_contact
 from softtrack.sim.sphere_contact import sphere_drift, sphere_stage
 
 __all__ = ["advance"]
@@ -771,7 +771,7 @@ def _node_forces(f_elem, damp_f, weight, gravity, node_force, n_pad):
 
 
 def _build_advance_contact(n_pad):
-    """The integrator of two rods in contact (:mod:`softtrack.sim.contact`), padded as
+    """The integrator of two rods in contact (:mod:`softtrack.sim.rod_contact`), padded as
     :func:`_build_advance`: both rods of an environment advance together, step by step, and
     the contact stage runs between the forces and the kick of every step (PyElastica's
     synchronize stage).
@@ -1184,7 +1184,7 @@ def advance(
         contact_pairs: (E, N², 2) int64, contact_listed: (E,) int64 and contact_anchor:
             (E, 2, 4, N+1): each environment's neighbour list of element pairs, its length (−1:
             none, built at the next step) and the nodes and reaches it was built at
-            (:mod:`softtrack.sim.contact`); kept between calls.
+            (:mod:`softtrack.sim.rod_contact`); kept between calls.
     """
     n_pad = (rest_lengths.shape[0] // 8 + 1) * 8  # multiple of 8, > N: room for the tip node
     contact = (contact_k > 0.0 or sphere_params[0] > 0.0) and position.shape[1] == 2

@@ -27,7 +27,10 @@ Errors a user can make raise :class:`SpecError`, whose ``str`` is one line::
 """
 
 from softtrack.spec.algo_models import OFF_POLICY_ALGOS, AlgoSpec, PolicyKwargsSpec
-from softtrack.spec.api import (
+from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RealismSpec, RewardSpec, TargetSpec
+from softtrack.spec.fields import SpecError
+from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
+from softtrack.spec.spec_io import (
     chain_comment,
     load_spec,
     parse_spec,
@@ -36,9 +39,6 @@ from softtrack.spec.api import (
     spec_json_schema,
     spec_to_yaml,
 )
-from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RealismSpec, RewardSpec, TargetSpec
-from softtrack.spec.fields import SpecError
-from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
 from softtrack.spec.tune_models import PrunerSpec, TuneParamSpec, TuneSpec
 
 __all__ = [

@@ -1,4 +1,4 @@
-"""The environment settings of a spec: ``env`` → :class:`~softtrack.env.config.TrackingConfig`.
+"""The environment settings of a spec: ``env`` → :class:`~softtrack.env.settings.TrackingConfig`.
 
 The one translation from the spec's ``env`` section to the environment's configuration, used
 by training (:mod:`softtrack.rl.factory`), validation, confirmation and evaluation. The
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from softtrack.env.config import TrackingConfig, make_config
 from softtrack.env.reward import RewardConfig
+from softtrack.env.settings import TrackingConfig, make_config
 from softtrack.spec.models import ExperimentSpec
 
 __all__ = ["env_config", "env_kwargs"]

@@ -12,7 +12,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from softtrack.mpc.config import PlannerConfig
+from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.params import MODEL_PARAMETERS
 from softtrack.spec.fields import Float, Int, SpecModel, custom_error, unit_field
 

@@ -292,9 +292,10 @@ def _describe(error: ErrorDetails, loc: tuple[Any, ...]) -> tuple[str, str]:
     """(problem, fix) for one pydantic error."""
     kind, ctx, value = error["type"], error.get("ctx") or {}, error.get("input")
     msg = error["msg"]
-    if kind == ERROR_TYPE:
-        problem, _, fix = str(ctx.get("message", msg)).partition("; ")
-        return problem, fix
+    if kind in (ERROR_TYPE, "value_error", "assertion_error"):  # a validator's own words
+        text = ctx.get("message", re.sub(r"^(Value|Assertion) error, ", "", msg))
+        problem, _, fix = str(text).partition("; ")
+        return problem, fix or "fix the value (see `softtrack spec --schema`)"
     if kind == "extra_forbidden":
         parent = _model_for(loc[:-1])
         name = str(loc[-1])

@@ -11,7 +11,7 @@ Layout of one run (``<runs dir>/<run id>/``)::
                           and checkpoints/ (instead of the three entries above)
     tables/*.parquet      e.g. train_episodes.parquet, appended as episodes finish; validation
                           and confirmation (softtrack.rl.validation, softtrack.rl.confirmation);
-                          eval_*.parquet (softtrack.evaluation.runs)
+                          eval_*.parquet (softtrack.evaluation.run_evaluation)
 
 Every file is written atomically (temporary file in the same directory + fsync + rename), so
 a process killed at any point leaves each file either complete or absent.

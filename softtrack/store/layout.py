@@ -17,7 +17,7 @@ written atomically and only when it beats the previous one, so the newest is the
 With ``training.confirm_episodes`` it also gets ``confirmed.json`` after training, naming the
 model its confirmation kept (:mod:`softtrack.rl.confirmation`).
 
-An *exported* policy directory (``softtrack export``, :mod:`softtrack.store.export`) is laid
+An *exported* policy directory (``softtrack export``, :mod:`softtrack.store.run_export`) is laid
 out for users instead: ``model.zip`` is the policy itself, whichever model the run selected,
 the other models sit in ``other_models/<last|best>/``, and ``policy.json`` says which model
 ``model.zip`` is::

@@ -35,7 +35,7 @@ from softtrack.store.atomic import atomic_write_text, is_temp_file
 from softtrack.store.catalog import note_run, read_catalog
 from softtrack.store.disk import FULL_ERRNOS
 from softtrack.store.errors import RunStoreError
-from softtrack.store.ids import create_unique_dir
+from softtrack.store.ids import create_unique_dir, is_valid_id
 from softtrack.store.layout import PolicyDir
 from softtrack.store.liveness import LOCK_NAME, lock_file_held, pid_alive
 from softtrack.store.location import RUNS_DIR_ENV, resolve_runs_dir
@@ -46,7 +46,7 @@ from softtrack.store.provenance import (
     portable_command,
     portable_path,
 )
-from softtrack.store.summaries import unreadable_fix
+from softtrack.store.run_summaries import unreadable_fix
 
 __all__ = [
     "RUNS_DIR_ENV",
@@ -411,10 +411,12 @@ class RunStore:
         if run_id and (exact / "run.json").is_file():
             return exact
         key = run_id.upper()
+        # a prefix selects by run id only: a directory named otherwise (models/<name>) is
+        # matched by its whole name, so `td3-sbx-64` is never a run of `td3-sbx-64-tuned`
         matches = [
             p
             for p in self.root.iterdir()
-            if key and p.name.upper().startswith(key) and (p / "run.json").is_file()
+            if key and is_valid_id(p.name) and p.name.startswith(key) and (p / "run.json").is_file()
         ]
         if not matches and key:  # a directory named otherwise (models/<name>): its run.json id
             columns = read_catalog(self.root).columns(["dir", "run_id"])

@@ -16,8 +16,7 @@ import numpy as np
 import pandas as pd
 
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, stale_after_s
-from softtrack.store.runs import RunRecord
-from softtrack.store.summaries import (
+from softtrack.store.run_summaries import (
     RUN_TABLE_COLUMNS,
     format_failures,
     format_runs_table,
@@ -25,6 +24,7 @@ from softtrack.store.summaries import (
     summary_from_row,
     unreadable_summary,
 )
+from softtrack.store.runs import RunRecord
 from softtrack.store.tables import TableError, read_table
 
 __all__ = [

@@ -2,7 +2,7 @@
 
 Earlier versions stored every element torque at every step in ``eval_moments`` (about 7 MB a
 run) and positions as float64 in ``eval_trajectories``. The current format (see
-:mod:`softtrack.evaluation.runs`) keeps the summaries of docs/environment.md by default:
+:mod:`softtrack.evaluation.run_evaluation`) keeps the summaries of docs/environment.md by default:
 
 * ``eval_moments``: the per-step spatial RMS per arm and direction, float32;
 * ``eval_moment_peaks``: each element's largest absolute torque over the episode;

@@ -9,7 +9,7 @@ one run of the run store, trained like ``softtrack train`` with the sampled valu
   stays exact across workers), dead workers, status and the best trial.
 * :mod:`softtrack.tune.worker`: a worker: take a trial, train its run, report its score; also
   ``python -m softtrack.tune.worker``, the process the executors start.
-* :mod:`softtrack.tune.run`: the ``softtrack tune`` command: create or continue a study, run
+* :mod:`softtrack.tune.command`: the ``softtrack tune`` command: create or continue a study, run
   its workers in-process, in a local pool or on SLURM, write the best trial as a spec.
 
 Importing this package does not import Optuna (it is imported when a study is opened).

@@ -1,6 +1,6 @@
 """Scene frames from plain arrays (:func:`scene_frame`): the environments draw their state
 with it (``softtrack.env.render``), animations a recorded episode's instants
-(``softtrack.evaluation.frames``)."""
+(``softtrack.evaluation.rollout_frames``)."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Which model is a run's policy depends on its spec (``training.final_policy``,
 ``training.confirm_episodes``): the last model of training or the best-validated one. An
-exported run makes that explicit (:mod:`softtrack.store.export`): every policy directory's
+exported run makes that explicit (:mod:`softtrack.store.run_export`): every policy directory's
 ``model.zip`` is the policy, so ``sbx.TD3.load("models/<run>/model.zip")`` gives exactly the
 controller ``softtrack evaluate`` runs; the other model sits in ``other_models/<last|best>/``;
 ``policy.json`` records the choice and the steps.
@@ -30,8 +30,8 @@ from typing import Any, Literal
 from softtrack.rl.factory import model_class
 from softtrack.rl.policy import candidate_path, policy_choice
 from softtrack.spec import ExperimentSpec
-from softtrack.store.export import ModelCopy, export_run
 from softtrack.store.layout import OTHER_MODELS_DIR, PolicyDir
+from softtrack.store.run_export import ModelCopy, export_run
 from softtrack.store.runs import RunRecord, RunStore
 
 __all__ = [

@@ -17,7 +17,7 @@ domain-randomized policy and a nominal one meet the same perturbation. ``keep_re
 keeps the run's realism settings as the baseline instead.
 
 The rows (:func:`evaluate_setting`) are those of
-:func:`softtrack.evaluation.tables.metrics_table` (one per trajectory, episode and arm) with
+:func:`softtrack.evaluation.episode_tables.metrics_table` (one per trajectory, episode and arm) with
 the setting in front: ``perturbation`` (the factor names joined by ``+``, or ``nominal``),
 ``level`` (the level of a one-factor numeric setting, else NaN), ``setting`` (e.g.
 ``action_delay=2`` or ``obs_noise=0.005 action_delay=2``), ``baseline`` (``idealised`` or
@@ -40,13 +40,13 @@ from typing import Any
 import pandas as pd
 import yaml
 
+from softtrack.evaluation.episode_tables import metrics_table
 from softtrack.evaluation.episodes import Policy, iter_episodes
-from softtrack.evaluation.tables import metrics_table
 from softtrack.sim.params import CONTACT_ON
 from softtrack.spec import ExperimentSpec, SpecError
-from softtrack.spec.api import parse_spec
 from softtrack.spec.env_config import env_config
 from softtrack.spec.env_models import RealismSpec
+from softtrack.spec.spec_io import parse_spec
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord
 from softtrack.store.tables import read_table, write_table

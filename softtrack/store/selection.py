@@ -1,17 +1,28 @@
-"""Resolve a report selection (experiment names, run ids or id prefixes, spec files) to runs."""
+"""Run selection, the same in every command: an item is a run directory, a spec file, an
+experiment name or a run id (or a unique prefix of one). :func:`select_runs` gives every run an
+item names; :func:`select_one_run` the single run a command that works on one run needs (an
+experiment of several runs is one line naming them)."""
 
 from __future__ import annotations
 
 import difflib
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from softtrack.spec import load_spec, spec_hash
 from softtrack.store.catalog import read_catalog
-from softtrack.store.runs import RunNotFoundError, RunRecord, RunStore, RunStoreError
+from softtrack.store.runs import (
+    RunNotFoundError,
+    RunRecord,
+    RunStore,
+    RunStoreError,
+    UnreadableRun,
+    resolve_runs_dir,
+)
 
-__all__ = ["EmptySelectionError", "RunIndex", "select_report_runs"]
+__all__ = ["EmptySelectionError", "RunIndex", "select_one_run", "select_runs"]
 
 _SPEC_SUFFIXES = (".yaml", ".yml")
 
@@ -24,13 +35,15 @@ def _looks_like_spec(item: str) -> bool:
     return item.lower().endswith(_SPEC_SUFFIXES) or Path(item).is_file()
 
 
-def select_report_runs(
+def select_runs(
     store: RunStore, selection: Sequence[str], index: RunIndex | None = None
 ) -> list[RunRecord]:
-    """The runs a report covers, in selection order, each once.
+    """The runs ``selection`` names, in selection order, each once.
 
     Each item of ``selection`` is, in this order of precedence:
 
+    * a run directory (any directory holding ``run.json``, e.g. ``models/td3-sbx-1e7-seed0``
+      or one copied from another machine), read where it is;
     * a spec file (``*.yaml``/``*.yml`` or an existing file): every run whose ``spec_hash``
       equals the hash of that spec (:func:`softtrack.spec.spec_hash`, seed-independent);
     * an experiment name (``run.json`` ``name``): every run of that experiment;
@@ -47,12 +60,17 @@ def select_report_runs(
     items = [str(item).strip() for item in selection if str(item).strip()]
     if not items:
         raise EmptySelectionError(
-            "nothing to report: give one or more experiment names, run ids or spec files "
+            "nothing selected: give one or more experiment names, run ids, run directories or "
+            "spec files "
             f"(list the runs with `softtrack runs --runs-dir {store.root}`)"
         )
-    index = index or RunIndex.of(store)
     chosen: dict[str, RunRecord] = {}
     for item in items:
+        directory = _run_directory(item)
+        if directory is not None:
+            chosen.setdefault(directory.run_id, directory)
+            continue
+        index = index or RunIndex.of(store)
         found = _match(store, index, item)
         for record in sorted(found, key=lambda r: (r.info.name, r.info.seed, r.run_id)):
             chosen.setdefault(record.run_id, record)
@@ -90,6 +108,44 @@ class RunIndex:
                 except RunStoreError:
                     continue  # changed since the catalog saw it: unreadable now
         return found
+
+
+def _run_directory(item: str) -> RunRecord | None:
+    """The run in directory ``item`` (``None`` if it is not one; an id is not a path).
+
+    Raises:
+        RunStoreError: the directory holds a run whose ``run.json`` is missing.
+    """
+    path = Path(item)
+    if (path / "run.json").is_file():
+        path = path.resolve()
+        return RunStore(path.parent).get_run(path.name)
+    if path.is_dir() and (path / "spec.yaml").is_file():
+        raise RunStoreError(
+            f"{path / 'run.json'}: the run record is missing, so the run cannot be used; "
+            f"{UnreadableRun(path, '').fix}"
+        )
+    return None
+
+
+def select_one_run(item: str, runs_dir: str | os.PathLike[str] | None = None) -> RunRecord:
+    """The one run ``item`` names (a run directory, a run id or unique prefix, or an experiment
+    or spec with a single run) under ``runs_dir`` (default :func:`resolve_runs_dir`).
+
+    Raises:
+        EmptySelectionError, RunNotFoundError: ``item`` names no run.
+        RunStoreError: it names several (one line listing them and how to pick one).
+    """
+    store = RunStore(resolve_runs_dir(runs_dir))
+    found = select_runs(store, [item])
+    if len(found) > 1:
+        listed = ", ".join(f"{r.run_id} (seed {r.info.seed})" for r in found[:4])
+        more = f" and {len(found) - 4} more" if len(found) > 4 else ""
+        raise RunStoreError(
+            f"{item!r} names {len(found)} runs ({listed}{more}); this command takes one: "
+            "give its run id or run directory"
+        )
+    return found[0]
 
 
 def _match(store: RunStore, index: RunIndex, item: str) -> list[RunRecord]:

@@ -35,13 +35,20 @@ Both evaluate the run's policy unless told another of its models (``model``:
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import pandas as pd
 
-from softtrack.env.config import TrackingConfig
+from softtrack.env.settings import TrackingConfig
+from softtrack.evaluation.episode_tables import (
+    element_moments_table,
+    metrics_table,
+    moment_peaks_table,
+    moments_table,
+    snapshot_table,
+    trajectory_table,
+)
 from softtrack.evaluation.episodes import (
     EVAL_TRAJECTORIES,
     RANDOM_TARGET_SEED,
@@ -50,24 +57,12 @@ from softtrack.evaluation.episodes import (
     iter_episodes,
     run_episode,
 )
-from softtrack.evaluation.tables import (
-    element_moments_table,
-    metrics_table,
-    moment_peaks_table,
-    moments_table,
-    snapshot_table,
-    trajectory_table,
-)
 from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
 from softtrack.store.layout import ModelChoice
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import (
     RunRecord,
-    RunStore,
-    RunStoreError,
-    UnreadableRun,
-    resolve_runs_dir,
 )
 from softtrack.store.tables import read_table, write_table, write_tables
 
@@ -80,32 +75,12 @@ __all__ = [
     "evaluate_random_targets",
     "evaluate_run",
     "has_evaluation",
-    "resolve_run",
 ]
 
 EVAL_TABLES = ("eval_trajectories", "eval_metrics", "eval_moments", "eval_moment_peaks")
 ELEMENT_MOMENTS_TABLE = "eval_element_moments"
 SNAPSHOT_TABLE = "eval_snapshots"  # the arms' shapes at four instants (figures)
 RANDOM_TABLE = "eval_random"
-
-
-def resolve_run(reference: str, runs_dir: str | os.PathLike[str] | None = None) -> RunRecord:
-    """A run from an id (or unique prefix) in the runs directory, or from a run directory path
-    (any directory holding ``run.json`` and ``spec.yaml``, e.g. copied from another machine).
-
-    Raises:
-        RunNotFoundError: neither exists.
-    """
-    path = Path(reference)
-    if (path / "run.json").is_file():
-        path = path.resolve()
-        return RunStore(path.parent).get_run(path.name)
-    if path.is_dir() and (path / "spec.yaml").is_file():
-        raise RunStoreError(
-            f"{path / 'run.json'}: the run record is missing, so the run cannot be used; "
-            f"{UnreadableRun(path, '').fix}"
-        )
-    return RunStore(resolve_runs_dir(runs_dir)).get_run(reference)
 
 
 def has_evaluation(record: RunRecord, trajectories: Sequence[str] = EVAL_TRAJECTORIES) -> bool:
@@ -232,7 +207,7 @@ def evaluate_random_targets(
 
     Returns:
         One row per episode and arm: ``episode``, ``seed`` and the columns of
-        :func:`softtrack.evaluation.tables.metrics_table` (``trajectory`` is ``random``).
+        :func:`softtrack.evaluation.episode_tables.metrics_table` (``trajectory`` is ``random``).
     """
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")

@@ -64,7 +64,7 @@ def export_run(
         manifests: ``policy.json`` contents by policy directory (relative to ``dest``).
         dest: the new directory; it must not exist. It appears complete or not at all.
         write_model: writes one model file (source, destination), e.g. an inference-only
-            copy (:func:`softtrack.rl.export.save_inference_model`).
+            copy (:func:`softtrack.rl.policy_export.save_inference_model`).
 
     Returns:
         ``dest`` as a :class:`Path`.

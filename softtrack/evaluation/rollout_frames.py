@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from softtrack.env.config import TrackingConfig
+from softtrack.env.settings import TrackingConfig
 from softtrack.evaluation.episodes import Episode
-from softtrack.viz.frames import scene_frame
 from softtrack.viz.scene import SceneFrame
+from softtrack.viz.scene_frames import scene_frame
 
 __all__ = ["episode_frames"]
 

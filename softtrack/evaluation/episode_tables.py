@@ -1,6 +1,6 @@
 """The tables of an evaluation episode (:class:`~softtrack.evaluation.episodes.Episode`).
 
-One function per table a run stores (:mod:`softtrack.evaluation.runs`): tip and target
+One function per table a run stores (:mod:`softtrack.evaluation.run_evaluation`): tip and target
 positions per step (``eval_trajectories``), the metrics of docs/environment.md per arm (``eval_metrics``, also
 the rows of ``validation``, ``confirmation`` and ``eval_random``), the spatial RMS of the
 element torques per step (``eval_moments``), each element's peak torque (``eval_moment_peaks``)

@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation.robustness import ROBUSTNESS_SEED, factor_axis_label
+from softtrack.evaluation.perturbations import ROBUSTNESS_SEED, factor_axis_label
 from softtrack.report import comparison_figures as cf
 from softtrack.report.data import Group
 from softtrack.report.document import Context, Doc

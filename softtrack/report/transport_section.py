@@ -25,7 +25,7 @@ from softtrack.env.targets import EVAL_TRAJECTORIES
 from softtrack.evaluation.scores import CARRY_SCORE, with_carry_score
 from softtrack.report import figures as fg
 from softtrack.report.compare import compare_controllers, controller_scores, scored_rows
-from softtrack.report.contact import draw_arm
+from softtrack.report.contact_section import draw_arm
 from softtrack.report.data import Group, RunData
 from softtrack.report.document import Context, Doc
 from softtrack.report.families import MAX_SERIES
@@ -102,7 +102,7 @@ def transport_summary(groups: Sequence[Group]) -> pd.DataFrame:
 
 
 def _carry_score(run: RunData, rows: pd.DataFrame) -> float:
-    """The :data:`~softtrack.evaluation.tables.CARRY_SCORE` of the first of ``rows`` (one
+    """The :data:`~softtrack.evaluation.episode_tables.CARRY_SCORE` of the first of ``rows`` (one
     episode's rows of ``run``), m; NaN without the run's planned episode length."""
     scored = with_carry_score(rows, run.eval_duration)
     return float(scored[CARRY_SCORE].iloc[0]) if CARRY_SCORE in scored else float("nan")

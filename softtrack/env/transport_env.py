@@ -56,7 +56,7 @@ import numpy as np
 from softtrack.env.observation import build_observation, observation_size
 
 if TYPE_CHECKING:
-    from softtrack.env.config import TrackingConfig
+    from softtrack.env.settings import TrackingConfig
     from softtrack.env.targets import BatchedTargets
     from softtrack.sim.engine import RodBatch
 
