@@ -47,6 +47,7 @@ from softtrack.spec import (
 )
 from softtrack.store.atomic import atomic_dir, is_temp_file
 from softtrack.store.location import QUICKSTART_PRETRAINED
+from softtrack.store.model_zip import deflate_model_zip
 from softtrack.store.provenance import portable_command, portable_path
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.selection import select_one_run, select_runs
@@ -401,12 +402,13 @@ def upgrade(
 ) -> dict[Path, list[str]]:
     """Rewrite run directories made by earlier versions in the current format: evaluation
     tables (:mod:`softtrack.store.upgrade`) and, for exported runs, the model layout
-    (:func:`softtrack.rl.policy_export.relayout_exported_run`). Every directory is checked before
-    any is changed.
+    (:func:`softtrack.rl.policy_export.relayout_exported_run`) and model files stored
+    uncompressed (deflated: :mod:`softtrack.store.model_zip`; the same bytes once read). Every
+    directory is checked before any is changed.
 
     Returns:
-        ``{run directory: what was rewritten}`` (table names, ``models``; empty: already
-        current).
+        ``{run directory: what was rewritten}`` (table names, ``models``, ``model.zip``;
+        empty: already current).
 
     Raises:
         RunStoreError: a path is not a run directory (no ``tables/`` or no ``run.json``).
@@ -425,6 +427,9 @@ def upgrade(
         done[path] = upgrade_run_tables(path, keep_full_moments)
         if relayout_exported_run(path):
             done[path].append("models")
+        models = [m for m in sorted(path.rglob("model.zip")) if "checkpoints" not in m.parts]
+        if sum(deflate_model_zip(m) for m in models):
+            done[path].append("model.zip")
     return done
 
 

@@ -162,7 +162,7 @@ def test_report_without_a_selection_is_a_one_line_error(runs_dir: Path) -> None:
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: nothing to report: give one or more experiment names")
+    assert lines[0].startswith("error: nothing selected: give one or more experiment names")
     assert f"softtrack runs --runs-dir {runs_dir}" in lines[0]
     assert "Usage" not in result.output and "╭" not in result.output
     assert not (runs_dir.parent / "report").exists()

@@ -92,7 +92,7 @@ def test_cli_prints_the_tables_and_writes_the_profile(store: RunStore, tmp_path:
     ("args", "message"),
     [
         (["good"], "needs at least two controllers"),
-        (["good", "nobody"], "'nobody' is neither an experiment name"),
+        (["good", "nobody"], "no run 'nobody': it is neither an experiment name"),
     ],
 )
 def test_bad_selections_are_one_line(store: RunStore, args: list[str], message: str) -> None:

@@ -522,7 +522,9 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
     mine = tmp_path / "mine"
     shutil.copytree(shipped, mine / shipped.name)
     result = runner.invoke(
-        app, ["evaluate", str(mine / shipped.name), "-t", "circle", "--in-place"]
+        app, ["evaluate", str(mine / shipped.name), "-t", "circle", "--full-moments", "--in-place"]
     )
     assert result.exit_code == 0 and "read-only" not in result.stderr
-    assert _files(mine / shipped.name) != _files(shipped)  # written where asked
+    # written where asked (the circle's rows may come out byte-identical on this CPU: the
+    # element moments are a table the shipped run does not have)
+    assert (mine / shipped.name / "tables" / "eval_element_moments.parquet").is_file()

@@ -163,3 +163,30 @@ def test_exported_policy_in_plain_gymnasium_tracks_as_softtrack_evaluate(
         steps, done = steps + 1, terminated or truncated
     expected = api.evaluate([str(dest)], ["circle"], write=False).sort_values("arm")
     np.testing.assert_allclose(np.sqrt(squared / steps), expected["rmse_3d"], rtol=1e-12)
+
+
+def test_a_stored_model_zip_is_deflated_to_the_same_bytes(tmp_path: Path) -> None:
+    """Stable-Baselines3 stores its members uncompressed; ``deflate_model_zip`` (export and
+    ``softtrack upgrade``) rewrites them deflated: the same names, dates and bytes once read,
+    a smaller file, and a second call changes nothing."""
+    import zipfile
+
+    from softtrack.store.model_zip import deflate_model_zip, is_deflated
+
+    path = tmp_path / "model.zip"
+    data = {
+        "data": b'{"params": "' + b"QUJD" * 20_000 + b'"}',
+        "_stable_baselines3_version": b"2.9",
+    }
+    with zipfile.ZipFile(path, "w") as archive:  # ZIP_STORED, as the libraries write it
+        for name, payload in data.items():
+            archive.writestr(zipfile.ZipInfo(name, date_time=(2026, 12, 4, 10, 14, 0)), payload)
+    before = path.stat().st_size
+    assert not is_deflated(path)
+    assert deflate_model_zip(path) and is_deflated(path)
+    assert path.stat().st_size < before / 10
+    with zipfile.ZipFile(path) as archive:
+        assert {i.filename: archive.read(i) for i in archive.infolist()} == data
+        assert {i.date_time for i in archive.infolist()} == {(2026, 12, 4, 10, 14, 0)}
+    assert not deflate_model_zip(path)
+    assert [p.name for p in tmp_path.iterdir()] == ["model.zip"]  # no temporary left

@@ -168,12 +168,16 @@ def test_train_refuses_and_evaluate_creates_the_run(tmp_path: Path) -> None:
     assert not list(exported.rglob("*.zip")) and not list(exported.rglob("policy.json"))
 
 
-def test_evaluate_refuses_a_spec_that_needs_training(tmp_path: Path) -> None:
+def test_evaluate_of_an_untrained_spec_says_to_train_it(tmp_path: Path) -> None:
+    """A spec file selects the runs trained from it (as in every command); a learned
+    controller's spec without runs is one line that says how to train it."""
     path = tmp_path / "td3.yaml"
     path.write_text(yaml.safe_dump({"name": "td3", "seeds": [0]}), encoding="utf-8")
     result = runner.invoke(app, ["evaluate", str(path), "--runs-dir", str(tmp_path / "runs")])
     assert result.exit_code == 2
-    assert "needs training" in result.output
+    assert (
+        "no run in" in result.output and f"train it with `softtrack train {path}`" in result.output
+    )
 
 
 def test_budget_benchmark_writes_its_table_and_figure(

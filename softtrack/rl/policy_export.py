@@ -31,6 +31,7 @@ from softtrack.rl.factory import model_class
 from softtrack.rl.policy import candidate_path, policy_choice
 from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import OTHER_MODELS_DIR, PolicyDir
+from softtrack.store.model_zip import deflate_model_zip
 from softtrack.store.run_export import ModelCopy, export_run
 from softtrack.store.runs import RunRecord, RunStore
 
@@ -95,6 +96,7 @@ def save_inference_model(spec: ExperimentSpec, source: Path, dest: Path) -> None
     model = model_class(spec).load(str(source), device="cpu")
     strip_training_state(model)
     model.save(str(dest))
+    deflate_model_zip(dest)  # the libraries store their members uncompressed: half the size
 
 
 def export_plan(

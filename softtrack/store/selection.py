@@ -176,6 +176,7 @@ def _match(store: RunStore, index: RunIndex, item: str) -> list[RunRecord]:
             + (f" and {len(names) - 5} more" if len(names) > 5 else "")
         )
         raise EmptySelectionError(
-            f"{store.root}: {item!r} is neither an experiment name ({known}), a run id "
-            f"nor a spec file; list the runs with `softtrack runs --runs-dir {store.root}`"
+            f"{store.root}: no run {item!r}: it is neither an experiment name ({known}), a run "
+            f"id, a run directory nor a spec file; list the runs with `softtrack runs "
+            f"--runs-dir {store.root}`"
         ) from None
