@@ -89,6 +89,7 @@ FEATURED = ("td3-sbx-1e7", "td3-sbx-128-mirror-val-confirm", "independent-td3-sb
 KEEP_STEPS = (
     *FEATURED,
     "td3-sbx-128-mirror-fast-contact",
+    "td3-sbx-128-mirror-tta-solid",
     "td3-sbx-128-mirror-fast-viewpoints",
     "mpc-mppi-64x50-contact",
     "mpc-mppi-64x50-viewpoints",
@@ -101,6 +102,26 @@ KEEP_STEPS = (
     "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity",
 )
 RANDOM_EPISODES = 20  # held-out random-target episodes per run (`softtrack evaluate --random`)
+#: Experiments no longer shipped in models/ (superseded variants, to keep models/ under 60 MB),
+#: with the commit whose tree last holds their runs: `git checkout COMMIT -- models/<dest>`
+#: restores one; their numbers stay in docs/results/ and docs/models.md ("Retired runs").
+#: Their jobs run only when named with --only, and the report leaves them out.
+RETIRED: dict[str, str] = {
+    name: "9dcb49c"
+    for name in (
+        "td3-sbx-128-mirror-fast-contact",
+        "independent-td3-sbx-128-fast-contact",
+        "td3-sbx-128-mirror-tta-viewpoints",
+        "td3-sbx-128-mirror-tta-viewpoints-apart",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-long",
+        "td3-sbx-128-mirror-dr-warmup",
+        "td3-sbx-128-val",
+        "mpc-mppi-64x50-transport-grip",
+        "td3-sbx-128-per-arm",
+        "td3-sbx-128-mirror-fast-nstep3",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-track",
+    )
+}
 
 
 @functools.cache
@@ -870,7 +891,11 @@ def main(argv: list[str] | None = None) -> None:
         help="do not rebuild the report (e.g. for two --only processes at once)",
     )
     args = parser.parse_args(argv)
-    jobs = [j for j in JOBS if not args.only or {j.name, j.spec} & set(args.only)]
+    jobs = [
+        j
+        for j in JOBS
+        if ({j.name, j.spec} & set(args.only) if args.only else j.name not in RETIRED)
+    ]
     unknown = sorted(set(args.only or ()) - {j.name for j in JOBS} - {j.spec for j in JOBS})
     if unknown and not args.robustness:
         parser.exit(
@@ -882,6 +907,8 @@ def main(argv: list[str] | None = None) -> None:
         for job in jobs:
             spec = load_experiment(job.spec)
             state = "done" if (ROOT / "models" / job.dest).is_dir() else "to do"
+            if job.name in RETIRED:
+                state = f"retired: last shipped at commit {RETIRED[job.name]}"
             per_arm = " per arm" if spec.controller == "independent" else ""
             how = f"derived from models/{job.derive_from}, " if job.derive_from else ""
             budget = (
@@ -927,10 +954,10 @@ def main(argv: list[str] | None = None) -> None:
     if args.no_report:
         return
     shipped = {job.name for job in JOBS if (ROOT / "models" / job.dest).is_dir()}
-    waiting = [name for name in REPORTED if name not in shipped]
+    waiting = [name for name in REPORTED if name not in shipped and name not in RETIRED]
     if waiting:
         print(f"not in the report yet (no finished run in models/): {', '.join(waiting)}")
-    reported = [name for name in REPORTED if name in shipped]
+    reported = [name for name in REPORTED if name in shipped and name not in RETIRED]
     figures = [arg for name in FEATURED if name in reported for arg in ("--figures-for", name)]
     _softtrack("report", *reported, "--runs-dir", "models", "--out", REPORT_DIR, *figures)
 

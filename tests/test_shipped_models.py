@@ -1,4 +1,4 @@
-"""The runs shipped under models/ stay lean: within the repository's 100 MB, and per-step tables
+"""The runs shipped under models/ stay lean: within 60 MB, and per-step tables
 only where the report draws them (experiments/reproduce_study.py ``KEEP_STEPS``)."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from softtrack.report.data import Group, episode_rmse, load_runs, representative
 from softtrack.store.selection import select_one_run  # noqa: E402
 from softtrack.store.tables import read_table  # noqa: E402
 
-MODELS_BUDGET = 100 * 1000 * 1000  # bytes of models/ in the tree
+MODELS_BUDGET = 60 * 1000 * 1000  # bytes of models/ in the tree
 PER_STEP_TABLES = ("eval_trajectories", "eval_moments")
 
 

@@ -166,7 +166,7 @@ def evaluate_run(
     for trajectory in trajectories:
         episode = run_episode(policy, config, trajectory, duration)
         for name, make_table in tables.items():
-            frames[name].append(make_table(record.run_id, episode))
+            frames[name].append(make_table(record.info.run_id, episode))
         frames["eval_metrics"][-1]["cpu"] = cpu
         if on_episode is not None:
             on_episode(record, episode, frames["eval_metrics"][-1])
@@ -217,7 +217,7 @@ def evaluate_random_targets(
     seeds = [RANDOM_TARGET_SEED + k for k in range(episodes)]
     for k, episode in enumerate(iter_episodes(policy, config, "random", duration, seeds)):
         seed = seeds[k]
-        metrics = metrics_table(record.run_id, episode)
+        metrics = metrics_table(record.info.run_id, episode)
         metrics.insert(2, "episode", k)
         metrics.insert(3, "seed", seed)
         metrics["cpu"] = cpu

@@ -40,6 +40,9 @@ __all__ = [
 _MAX_FIGURE_GROUPS = 4  # controllers drawn in the contact figures (the rest: the table)
 
 
+_TASK_ORDER = {"shared": 0, "viewpoints": 1, "transport": 2}
+
+
 def _spec_value(run: RunData, section: str, key: str, default: object) -> object:
     spec = run.record.raw_spec()
     value = spec.get("env", {}).get(section, {}) if isinstance(spec, dict) else {}
@@ -171,9 +174,16 @@ def contact_section(doc: Doc, ctx: Context) -> None:
             comparison,
         )
     touching = set(summary.loc[summary["contact"] == "on", "group"])
-    drawn = [g for g in ctx.groups if g.label in touching][:_MAX_FIGURE_GROUPS]
     trajectory = "circle"
-    runs = [(g.label, run) for g in drawn if (run := representative_run(g, trajectory)) is not None]
+    # the controllers with a drawable run, the shared target first, then viewpoints, transport
+    drawable = [
+        (g, run)
+        for g in ctx.groups
+        if g.label in touching and (run := representative_run(g, trajectory)) is not None
+    ]
+    drawable.sort(key=lambda item: _TASK_ORDER.get(_task(item[1]), len(_TASK_ORDER)))
+    drawn = [g for g, _ in drawable[:_MAX_FIGURE_GROUPS]]
+    runs = [(g.label, run) for g, run in drawable[:_MAX_FIGURE_GROUPS]]
     if not runs:
         return
     path, rel = ctx.figure("contact_timeline.png")
@@ -325,6 +335,8 @@ def arms_figure(
             continue
         snap = snap[snap["trajectory"] == trajectory]
         targets = run.trajectories
+        for ax in axes[:, snap["step"].nunique() :].ravel():  # the episode ended before
+            ax.set_axis_off()
         for col, (step, part) in enumerate(snap.groupby("step")):
             for row, (a, b, names) in enumerate(((0, 1, ("x", "y")), (0, 2, ("x", "z")))):
                 ax = axes[row, col]

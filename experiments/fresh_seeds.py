@@ -1,0 +1,325 @@
+"""Claims from fresh seeds: train a recipe on seeds that no choice saw and count how many reach
+the study.
+
+Seeds 0–9 are where recipes are chosen (docs/results/time-to-accuracy.md); a claim about a
+recipe ("reaches the study", "minutes to accuracy", "final accuracy") is measured here, on seeds
+100 and up. Per seed this runs one ``softtrack train SPEC --seed S`` (one seed at a time per
+core of ``--cores``), stamps every validation line the training prints with the seconds since
+that command started (start-up, compilation, warm-up, training and the validations before it
+all count), then evaluates the run's kept model on the circle, rectangle and figure-eight.
+It prints per seed whether the kept model is at or below the study's 3-D RMSE in all six
+trajectory × arm cells, the minutes from the command's start to the first validated checkpoint
+at the study, the whole command's minutes and the kept cells; then the pass rate with its 95 %
+Wilson interval and the interquartile mean of the kept models' cells with its 95 % stratified
+bootstrap interval (``softtrack compare``'s statistics).
+
+Running it again continues: a seed with a completed run is read, not retrained (its timing from
+the first time); an interrupted run resumes (its minutes then cover the resumed session only,
+marked ``resumed``). Timings are kept in ``<runs dir>/.fresh-seeds/``.
+
+Usage (one core, the others idle or busy with other work; say which in a claim)::
+
+    .venv/bin/python experiments/fresh_seeds.py experiments/variants/td3-sbx-128-3e6-mirror-tta.yaml \\
+        --seeds 100-109 --runs-dir runs/fresh --cores 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from softtrack.evaluation.seed_statistics import stratified_bootstrap
+from softtrack.executors.sweep import parse_seeds
+from softtrack.report.reference import STUDY_RMSE_3D
+from softtrack.spec import ExperimentSpec, SpecError, load_spec, spec_hash
+from softtrack.store.provenance import cpu_kind
+from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
+from softtrack.store.tables import read_table
+
+ROOT = Path(__file__).resolve().parent.parent
+#: The seeds recipes are chosen on; a fresh seed is none of them.
+CHOSEN_SEEDS = range(0, 10)
+TRAJECTORIES = ("circle", "rectangle", "figure8")
+CELLS = tuple((t, arm) for t in TRAJECTORIES for arm in (0, 1))
+VALIDATION_LINE = re.compile(r"validation at ([\d,]+) steps")
+TIMINGS_DIR = ".fresh-seeds"
+
+
+@dataclass(frozen=True)
+class SeedResult:
+    """One fresh seed: its run, the kept model's cells (m, in :data:`CELLS` order), the
+    minutes from the command's start to the first checkpoint at the study (``None``: never),
+    the whole command's minutes, and whether its clock covers a resumed session only."""
+
+    seed: int
+    run_id: str
+    kept: tuple[float, ...]
+    minutes_to_study: float | None
+    minutes_total: float
+    resumed: bool
+
+    @property
+    def reached(self) -> bool:
+        return all(v <= study for v, study in zip(self.kept, study_cells(), strict=True))
+
+
+def study_cells() -> tuple[float, ...]:
+    """The study's centralized TD3 3-D RMSE per cell (m), in :data:`CELLS` order."""
+    return tuple(STUDY_RMSE_3D["centralized"][t][arm] for t, arm in CELLS)
+
+
+def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
+    """The Wilson score interval of a binomial proportion (95 % by default)."""
+    if trials <= 0:
+        raise ValueError("no trials")
+    p = successes / trials
+    denominator = 1.0 + z * z / trials
+    centre = (p + z * z / (2 * trials)) / denominator
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def check_request(spec: ExperimentSpec, seeds: Sequence[int]) -> None:
+    """Refuse (SpecError, one line) seeds that overlap the chosen ones and a recipe whose
+    checkpoints do not track the three trajectories (no time to the study's accuracy)."""
+    overlap = sorted(set(seeds) & set(CHOSEN_SEEDS))
+    if overlap:
+        raise SpecError(
+            "--seeds",
+            f"seeds {', '.join(map(str, overlap))} are among the seeds recipes are chosen on "
+            f"({CHOSEN_SEEDS.start}–{CHOSEN_SEEDS.stop - 1})",
+            "give fresh seeds, e.g. --seeds 100-109",
+        )
+    if spec.controller != "centralized" or not spec.training.validation_trajectories:
+        raise SpecError(
+            spec.name,
+            "the recipe's checkpoints do not track the circle, rectangle and figure-eight",
+            "use a centralized spec with training.validation_trajectories: true",
+        )
+
+
+def _runs_of(store: RunStore, spec: ExperimentSpec) -> dict[int, RunRecord]:
+    digest = spec_hash(spec)
+    found: dict[int, RunRecord] = {}
+    for record in store.list_runs():
+        if record.info.spec_hash == digest and record.info.name == spec.name:
+            found.setdefault(record.info.seed, record)
+    return found
+
+
+def _train(args: list[str], core: int | None, echo: str) -> tuple[str, float, list[float], int]:
+    """Run ``softtrack ARGS`` (taskset to ``core``); returns (its stdout's first line, seconds
+    it took, seconds since its start at each validation line, exit code)."""
+    command = [sys.executable, "-m", "softtrack.cli", *args]
+    if core is not None:
+        command = ["taskset", "-c", str(core), *command]
+    start = time.monotonic()
+    process = subprocess.Popen(
+        command,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},  # whole progress lines, no bar
+    )
+    stamps: list[float] = []
+
+    def read_stderr() -> None:
+        assert process.stderr is not None
+        for line in process.stderr:
+            if VALIDATION_LINE.search(line):
+                stamps.append(time.monotonic() - start)
+            print(f"{echo} {line.rstrip()}", file=sys.stderr, flush=True)
+
+    reader = threading.Thread(target=read_stderr, daemon=True)
+    reader.start()
+    assert process.stdout is not None
+    out = process.stdout.read()
+    code = process.wait()
+    reader.join()
+    return (out.strip().splitlines() or [""])[0], time.monotonic() - start, stamps, code
+
+
+def train_seed(spec_path: Path, seed: int, store: RunStore, core: int | None) -> None:
+    """Train (or resume, or leave) ``seed`` and keep its timing in ``.fresh-seeds/``."""
+    spec = load_spec(spec_path)
+    existing = _runs_of(store, spec).get(seed)
+    if existing is not None and existing.info.status == "completed":
+        return
+    timing_dir = store.root / TIMINGS_DIR
+    timing_dir.mkdir(parents=True, exist_ok=True)
+    if existing is not None:
+        args = ["train", "--resume", existing.run_id, "--runs-dir", str(store.root)]
+    else:
+        args = ["train", str(spec_path), "--seed", str(seed), "--runs-dir", str(store.root)]
+    run_id, seconds, stamps, code = _train(args, core, f"[seed {seed}]")
+    run_id = existing.run_id if existing is not None else run_id
+    if code != 0 or not run_id:
+        raise RuntimeError(f"seed {seed}: softtrack train ended with exit code {code}")
+    timing = {
+        "run_id": run_id,
+        "seed": seed,
+        "seconds": seconds,
+        "validation_seconds": stamps,
+        "resumed": existing is not None,
+        "cpu": cpu_kind(),
+        "core": core,
+    }
+    (timing_dir / f"{spec.name}-seed{seed}.json").write_text(json.dumps(timing, indent=1))
+
+
+def _kept_cells(record: RunRecord, store: RunStore) -> tuple[float, ...]:
+    path = record.table_path("eval_metrics")
+    if not path.is_file():
+        subprocess.run(
+            [
+                *(sys.executable, "-m", "softtrack.cli", "evaluate", record.run_id),
+                *("-t", "all", "--runs-dir", str(store.root)),
+            ],
+            cwd=ROOT,
+            check=True,
+            stdout=subprocess.DEVNULL,
+            env={**os.environ, "CI": "1"},
+        )
+    metrics = read_table(path, ["trajectory", "arm", "rmse_3d"])
+    value = {(str(t), int(a)): float(v) for t, a, v in metrics.itertuples(index=False)}
+    return tuple(value[cell] for cell in CELLS)
+
+
+def _minutes_to_study(record: RunRecord, stamps: Sequence[float]) -> float | None:
+    """Minutes from the command's start to the first checkpoint whose six cells are all at or
+    below the study (the k-th validated checkpoint is the k-th validation line)."""
+    table = read_table(
+        record.table_path("validation"), ["global_step", "trajectory", "arm", "rmse_3d"]
+    )
+    steps = sorted(set(int(s) for s in table["global_step"]))
+    study = dict(zip(CELLS, study_cells(), strict=True))
+    for k, step in enumerate(steps[: len(stamps)]):
+        rows = table[(table["global_step"] == step) & table["trajectory"].isin(TRAJECTORIES)]
+        cells = {(str(t), int(a)): float(v) for _, t, a, v in rows.itertuples(index=False)}
+        if len(cells) == len(CELLS) and all(cells[c] <= study[c] for c in CELLS):
+            return stamps[k] / 60.0
+    return None
+
+
+def collect(spec_path: Path, seeds: Sequence[int], store: RunStore) -> list[SeedResult]:
+    """The results of the seeds that have a completed run and a timing."""
+    spec = load_spec(spec_path)
+    runs = _runs_of(store, spec)
+    results = []
+    for seed in seeds:
+        record = runs.get(seed)
+        timing_path = store.root / TIMINGS_DIR / f"{spec.name}-seed{seed}.json"
+        if record is None or record.info.status != "completed" or not timing_path.is_file():
+            continue
+        timing = json.loads(timing_path.read_text())
+        results.append(
+            SeedResult(
+                seed=seed,
+                run_id=record.run_id,
+                kept=_kept_cells(record, store),
+                minutes_to_study=_minutes_to_study(record, timing["validation_seconds"]),
+                minutes_total=float(timing["seconds"]) / 60.0,
+                resumed=bool(timing["resumed"]),
+            )
+        )
+    return results
+
+
+def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
+    """The per-seed table, the pass rate with its Wilson interval, the IQM with its interval."""
+    lines = [
+        "seed  run                         kept at study  min to study  min in all  "
+        "kept 3-D RMSE (m): circle 1/2, rectangle 1/2, figure-eight 1/2"
+    ]
+    for r in results:
+        to_study = "never" if r.minutes_to_study is None else f"{r.minutes_to_study:.1f}"
+        note = " (resumed)" if r.resumed else ""
+        lines.append(
+            f"{r.seed:4d}  {r.run_id:26s}  {'yes' if r.reached else 'no':13s}  {to_study:>12s}  "
+            f"{r.minutes_total:10.1f}  {' '.join(f'{v:.4f}' for v in r.kept)}{note}"
+        )
+    n = len(results)
+    if not n:
+        return "no fresh seed has a completed run yet"
+    passed = [
+        r
+        for r in results
+        if r.reached and r.minutes_to_study is not None and r.minutes_to_study <= budget_minutes
+    ]
+    reached = [r for r in results if r.reached]
+    for label, group in (
+        ("kept model at the study", reached),
+        (f"kept model at the study and a checkpoint at it within {budget_minutes:g} min", passed),
+    ):
+        low, high = wilson_interval(len(group), n)
+        lines.append(f"{label}: {len(group)} of {n} [95 % Wilson {low:.2f}, {high:.2f}]")
+    iqm = stratified_bootstrap(np.array([r.kept for r in results]))
+    mean_study = float(np.mean(study_cells()))
+    lines.append(
+        f"kept models, IQM over runs and cells: {iqm.value:.4f} m [{iqm.low:.4f}, {iqm.high:.4f}] "
+        f"= {iqm.value / mean_study:.2f}x the study's mean cell ({mean_study:.4f} m); CPU here: "
+        f"{cpu_kind()}"
+    )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("spec", type=Path, help="the recipe's spec file")
+    parser.add_argument("--seeds", default="100-109", help="fresh seeds, e.g. 100-109 [100-109]")
+    parser.add_argument("--runs-dir", default=None, help="where the runs go [runs/]")
+    parser.add_argument(
+        "--cores",
+        default=None,
+        help="train one seed at a time on each of these cores, e.g. 1 or 0,1",
+    )
+    parser.add_argument("--no-train", action="store_true", help="only summarise what is there")
+    parser.add_argument(
+        "--budget-minutes", type=float, default=5.0, help="the time target per seed, min [5]"
+    )
+    args = parser.parse_args(argv)
+    try:
+        spec = load_spec(args.spec)
+        seeds = parse_seeds(args.seeds) or []
+        check_request(spec, seeds)
+    except (SpecError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    store = RunStore(resolve_runs_dir(args.runs_dir))
+    if not args.no_train:
+        cores = [int(c) for c in args.cores.split(",")] if args.cores else [None]
+        pending = list(seeds)
+        lock = threading.Lock()
+
+        def worker(core: int | None) -> None:
+            while True:
+                with lock:
+                    if not pending:
+                        return
+                    seed = pending.pop(0)
+                train_seed(args.spec, seed, store, core)
+
+        threads = [threading.Thread(target=worker, args=(core,)) for core in cores]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    print(summary(collect(args.spec, seeds, store), args.budget_minutes))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
