@@ -174,11 +174,15 @@ def _payload(view: TuneView) -> dict[str, object]:
             "ticks": [(0.0, _value_text(high)), (1.0, _value_text(low))],
         }
     )
+    complete = [t.score for t in view.best()]
+    c_low, c_high = (min(complete), max(complete)) if complete else (low, high)
     trials = []
     for t in view.trials:
         if t.state not in ("COMPLETE", "PRUNED") or t.score is None:
             continue
         score = 0.5 if high == low else (t.score - low) / (high - low)
+        # the colour spans the complete trials' scores (pruned lines are grey)
+        shade = 0.5 if c_high == c_low else (t.score - c_low) / (c_high - c_low)
         points = [_position(a, t.values.get(a.path)) for a in view.axes]
         trials.append(
             {
@@ -186,7 +190,7 @@ def _payload(view: TuneView) -> dict[str, object]:
                 "pruned": t.state == "PRUNED",
                 # the best score at the top of its axis
                 "points": [*points, 1.0 - score],
-                "shade": score,
+                "shade": min(1.0, max(0.0, shade)),
                 "text": f"trial {t.number} ({t.state.lower()}"
                 + (f" at step {t.step:,}" if t.state == "PRUNED" and t.step else "")
                 + f"): {t.score:.4g} m; "

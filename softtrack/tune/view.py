@@ -55,7 +55,7 @@ def _trial(t: Any, axes: tuple[TuneAxis, ...]) -> TuneTrial:
 def _importance(ts: TuneStudy) -> tuple[tuple[tuple[str, float], ...], str, str]:
     """(path, share) largest first, the evaluator's description, and why there is none."""
     optuna = optuna_module()
-    method = "Optuna's PED-ANOVA over the complete trials (optuna.importance)"
+    method = "Optuna's PedAnovaImportanceEvaluator over the complete trials"
     complete = ts.trials("COMPLETE")
     if len(complete) < MIN_TRIALS_FOR_IMPORTANCE:
         return (
