@@ -661,3 +661,95 @@ def test_resume_keeps_started_the_killed_sessions_step_and_every_env_step(tmp_pa
     # every env step up to the checkpoint lies in one episode row (whole or truncated)
     before = episodes[episodes["global_step"] <= checkpoint]
     assert int(before["length"].sum()) == checkpoint
+
+
+@pytest.mark.faults("lost")
+@pytest.mark.parametrize("damage", ["a file", "missing"])
+def test_resume_without_its_checkpoints_refuses_and_changes_nothing(
+    tmp_path: Path, damage: str
+) -> None:
+    """Resuming a run whose ``checkpoints`` became a file marked it failed and cut its
+    ``train_episodes``; with ``checkpoints/`` gone it silently started again at step 0. Now
+    both refuse in one line and every file stays as it was."""
+    root, run_id = _interrupted_run(tmp_path)
+    checkpoints = root / run_id / "checkpoints"
+    shutil.rmtree(checkpoints)
+    if damage == "a file":
+        checkpoints.write_text("not a directory")
+    before = _snapshot(root / run_id)
+    for args in (["train", "--resume", run_id], ["resume", run_id]):
+        result = _cli(*args, "--runs-dir", str(root))
+        assert result.exit_code == 2, result.output
+        line = _one_line(result)
+        assert "checkpoints" in line and "cannot resume" in line, line
+        assert _snapshot(root / run_id) == before
+    assert RunStore(root).get_run(run_id).info.status == "interrupted"
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("dt", ["1e-300", "5e-9"])
+def test_a_meaningless_time_step_is_refused_at_validation(tmp_path: Path, dt: str) -> None:
+    """``dt = 1e-300`` passed validation and training, then evaluate ended in a traceback (an
+    episode of 1e301 steps); every command that reads the spec now refuses it in one line."""
+    spec = _spec(tmp_path)
+    runs = tmp_path / "runs"
+    for command in (["validate", str(spec)], ["train", str(spec), "--runs-dir", str(runs)]):
+        result = _cli(*command, "--set", f"env.physics.dt={dt}")
+        assert result.exit_code == 2, result.output
+        line = _one_line(result)
+        assert "env.physics.dt" in line and "integration steps" in line, line
+    assert not runs.exists()
+
+
+@pytest.mark.faults("traceback")
+def test_export_destinations_that_cannot_hold_the_run_are_one_line(
+    runs: tuple[Path, str], tmp_path: Path
+) -> None:
+    """``export`` onto a path under a file gave a traceback, and into a directory already
+    holding the run made its id appear twice there (``compare`` counted it twice)."""
+    root, run_id = runs
+    before = _snapshot(root / run_id)
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    cases = {
+        str(afile / "sub"): "is a file, not a directory",
+        str(root / "second-copy"): f"already holds run {run_id}",
+        str(root / run_id / "inside"): "inside the run directory",
+    }
+    for dest, words in cases.items():
+        result = _cli("export", run_id, dest, "--runs-dir", str(root))
+        assert result.exit_code == 2 and words in _one_line(result), result.output
+    assert _snapshot(root / run_id) == before and not (root / "second-copy").exists()
+
+
+@pytest.mark.faults("lost")
+def test_a_killed_exports_copy_is_removed_and_a_racing_export_is_one_line(
+    runs: tuple[Path, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A killed export left its whole temporary copy behind for good; the next export to that
+    destination removes it. Two exports to one destination: the second says so in one line
+    and keeps nothing, the first's copy stays whole."""
+    from softtrack.store import run_export
+
+    root, run_id = runs
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = out / ".mine.tmp-999999-0badf00d"  # a temporary of a writer that is gone
+    (dead / "tables").mkdir(parents=True)
+    (dead / "model.zip").write_bytes(b"0" * 1000)
+    result = _cli("export", run_id, str(out / "mine"), "--runs-dir", str(root))
+    assert result.exit_code == 0, result.output
+    assert not dead.exists() and sorted(p.name for p in out.iterdir()) == ["mine"]
+
+    copy = run_export._copy_run
+    race = tmp_path / "race"
+    race.mkdir()
+    monkeypatch.setattr(  # another export takes the name while this one copies
+        run_export,
+        "_copy_run",
+        lambda *args: (copy(*args), shutil.copytree(out / "mine", race / "second")),
+    )
+    result = _cli("export", run_id, str(race / "second"), "--runs-dir", str(root))
+    assert result.exit_code == 2 and "created by another process" in _one_line(result)
+    assert sorted(p.name for p in race.iterdir()) == ["second"]  # no temporary left
+    assert (race / "second" / "run.json").is_file()  # the other export's copy, whole

@@ -226,7 +226,7 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
     """
     records = store.list_runs()
     if not selection:
-        return [r for r in records if resumable(r) and r.spec_problem() is None]
+        return [r for r in records if resumable(r) and _resumes(r)]
     chosen: dict[str, RunRecord] = {}
     for item in selection:
         group = [
@@ -236,7 +236,7 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
             or str((r.info.notes or {}).get("sweep", "")).upper() == item.upper()
         ]
         if group:
-            chosen.update((r.run_id, r) for r in group if resumable(r) and r.spec_problem() is None)
+            chosen.update((r.run_id, r) for r in group if resumable(r) and _resumes(r))
             continue
         record = store.get_run(item)  # raises RunNotFoundError with the fix
         problem = record.spec_problem()
@@ -244,6 +244,9 @@ def select_resumable_runs(store: RunStore, selection: Sequence[str]) -> list[Run
             raise RunStoreError(problem)
         if record.info.status == "completed":
             raise RunStoreError(f"run {record.run_id} is already completed; nothing to resume")
+        problem = record.checkpoint_problem()
+        if problem is not None:
+            raise RunStoreError(problem)
         if lock_held(record) is True:
             raise RunStoreError(
                 f"run {record.run_id} is still training (pid {record.info.pid} "
@@ -261,10 +264,15 @@ def unresumable_runs(store: RunStore) -> list[str]:
         for item in store.list_unreadable()
     ]
     for record in store.list_runs():
-        problem = record.spec_problem()
+        problem = record.spec_problem() or record.checkpoint_problem()
         if problem is not None and resumable(record):
             lines.append(f"run {record.run_id} left out: {problem}")
     return lines
+
+
+def _resumes(record: RunRecord) -> bool:
+    """Whether a resumable run can resume: its spec reads and its checkpoints are there."""
+    return record.spec_problem() is None and record.checkpoint_problem() is None
 
 
 def new_sweep_id() -> str:

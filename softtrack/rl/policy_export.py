@@ -143,13 +143,18 @@ def export_plan(
 
 
 def export_policy_run(
-    record: RunRecord, dest: str | os.PathLike[str], policy_only: bool = False
+    record: RunRecord,
+    dest: str | os.PathLike[str],
+    policy_only: bool = False,
+    *,
+    replacing: bool = False,
 ) -> Path:
     """Export ``record`` to the new directory ``dest`` (module docstring; ``policy_only``:
-    :func:`export_plan`). Returns ``dest``."""
+    :func:`export_plan`; ``replacing``: ``dest`` will take the run's place). Returns ``dest``."""
     spec = record.load_spec()
     models, manifests = export_plan(record, spec, policy_only)
-    return export_run(record, models, manifests, dest, partial(save_inference_model, spec))
+    write = partial(save_inference_model, spec)
+    return export_run(record, models, manifests, dest, write, replacing=replacing)
 
 
 def _selection(spec: ExperimentSpec) -> str:
@@ -203,7 +208,7 @@ def relayout_exported_run(run_dir: Path) -> bool:
     for leftover in (fresh, old):
         if leftover.exists():
             shutil.rmtree(leftover)
-    export_policy_run(record, fresh)
+    export_policy_run(record, fresh, replacing=True)
     os.replace(run_dir, old)
     os.replace(fresh, run_dir)
     shutil.rmtree(old)

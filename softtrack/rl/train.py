@@ -91,12 +91,16 @@ class TrainOutcome:
 
 
 def check_resumable(record: RunRecord) -> None:
-    """Raise :class:`RunStoreError` if ``record`` is completed or still running here."""
+    """Raise :class:`RunStoreError` if ``record`` is completed, still running here, or has
+    lost the checkpoints it would resume from."""
     info = record.info
     if info.status == "completed":
         raise RunStoreError(
             f"run {record.run_id} is already completed; start a new run with `softtrack train SPEC`"
         )
+    problem = record.checkpoint_problem()
+    if problem is not None:
+        raise RunStoreError(problem)
     if info.status == "running" and info.pid and info.pid != os.getpid():
         import socket
 

@@ -70,6 +70,25 @@ class SphereSpec(SpecModel):
     )
 
 
+#: The most integration steps one episode may take: 10 s at 1 µs. A smaller ``dt`` is far
+#: below any stability limit of the rods (about 2.3e-4 s at the defaults) and only makes the
+#: episode's step count meaningless (``dt = 1e-300``: 1e301 steps).
+MAX_EPISODE_INTEGRATION_STEPS = 10_000_000
+
+
+def check_step_count(duration: float, dt: float, steps_per_action: int, field: str = "dt") -> None:
+    """Refuse an episode of ``duration`` s that would take more than
+    :data:`MAX_EPISODE_INTEGRATION_STEPS` integration steps of ``dt``."""
+    if duration / dt > MAX_EPISODE_INTEGRATION_STEPS:
+        smallest = duration / MAX_EPISODE_INTEGRATION_STEPS
+        raise custom_error(
+            f"dt {dt:g} s makes a {duration:g}-s episode {duration / dt:.3g} integration steps "
+            f"(at most {MAX_EPISODE_INTEGRATION_STEPS:,}); the rods are stable up to about "
+            f"2.3e-4 s: use a dt of at least {smallest:g} s",
+            f"physics.{field}" if field == "dt" else field,
+        )
+
+
 class PhysicsSpec(SpecModel):
     """Physical and numerical parameters of the two Cosserat rods (docs/physics.md).
 
@@ -606,6 +625,7 @@ class EnvSpec(SpecModel):
                 f"({control_dt:g} s); use at least {control_dt:g}",
                 "episode_duration",
             )
+        check_step_count(self.episode_duration, self.physics.dt, self.physics.steps_per_action)
         ranges = self.realism.model_error_ranges()
         result = model_error_stability(self.sim_params(), ranges) if ranges else None
         if result is not None:

@@ -12,7 +12,7 @@ from pydantic import Field, field_validator, model_validator
 
 from softtrack.env.targets import EVAL_TRAJECTORIES, TrajectoryName
 from softtrack.spec.algo_models import AlgoSpec
-from softtrack.spec.env_models import EnvSpec
+from softtrack.spec.env_models import EnvSpec, check_step_count
 from softtrack.spec.fields import (
     Float,
     Int,
@@ -469,6 +469,12 @@ class ExperimentSpec(SpecModel):
                 f"({control_dt:g} s); use at least {control_dt:g}",
                 "training.eval_duration",
             )
+        check_step_count(
+            t.eval_duration,
+            self.env.physics.dt,
+            self.env.physics.steps_per_action,
+            "env.physics.dt",
+        )
         if self.tune is not None:
             check_tune(self)
         return self

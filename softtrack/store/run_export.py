@@ -13,6 +13,8 @@ in the runs directory unless given ``--in-place``.
 
 from __future__ import annotations
 
+import errno
+import json
 import os
 import shutil
 from collections.abc import Callable, Mapping, Sequence
@@ -20,7 +22,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from softtrack.store.atomic import atomic_dir, atomic_write_json, atomic_write_text, is_temp_file
+from softtrack.store.atomic import (
+    atomic_dir,
+    atomic_write_json,
+    atomic_write_text,
+    is_temp_file,
+    remove_stale_temp_files,
+)
 from softtrack.store.runs import RunInfo, RunRecord, RunStoreError
 
 __all__ = ["EXCLUDED_NAMES", "MODEL_FILES", "ModelCopy", "export_run", "mark_read_only"]
@@ -55,6 +63,8 @@ def export_run(
     manifests: Mapping[Path, Mapping[str, Any]],
     dest: str | os.PathLike[str],
     write_model: Callable[[Path, Path], object] = shutil.copy2,
+    *,
+    replacing: bool = False,
 ) -> Path:
     """Copy ``record``'s run directory to ``dest`` without checkpoints or replay buffers,
     writing its models as ``models`` lists them.
@@ -65,6 +75,8 @@ def export_run(
         dest: the new directory; it must not exist. It appears complete or not at all.
         write_model: writes one model file (source, destination), e.g. an inference-only
             copy (:func:`softtrack.rl.policy_export.save_inference_model`).
+        replacing: ``dest`` will take the run's own place (``softtrack upgrade``), so its
+            directory may hold the run.
 
     Returns:
         ``dest`` as a :class:`Path`.
@@ -80,32 +92,93 @@ def export_run(
             f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}` "
             "before exporting"
         )
-    if dest.exists():
-        raise RunStoreError(f"{dest} already exists; choose a new directory or remove it first")
     source = record.path.resolve()
-    if dest.resolve().is_relative_to(source):
-        raise RunStoreError(f"{dest} is inside the run directory {source}; choose another place")
+    _check_destination(record, source, dest, replacing)
+    remove_stale_temp_files(dest)  # a killed export's copy (its writer is gone)
     policy_dirs = {source / relative for relative in manifests}
-    with atomic_dir(dest) as tmp:
-        for root, dirs, files in os.walk(source):
-            skip = MODEL_FILES if Path(root) in policy_dirs else frozenset()
-            dirs[:] = [d for d in dirs if d not in EXCLUDED_NAMES | skip and not is_temp_file(d)]
-            target = tmp / Path(root).relative_to(source)
-            target.mkdir(parents=True, exist_ok=True)
-            for name in files:
-                if name not in EXCLUDED_NAMES | skip and not is_temp_file(name):
-                    shutil.copy2(Path(root) / name, target / name)
-        for model in models:
-            target = tmp / model.dest
-            target.parent.mkdir(parents=True, exist_ok=True)
-            write_model(model.source, target)
-            for name in _BESIDE_MODEL:
-                if (model.source.parent / name).is_file():
-                    shutil.copy2(model.source.parent / name, target.parent / name)
-        for relative, manifest in manifests.items():
-            atomic_write_json(tmp / relative / "policy.json", dict(manifest))
-        mark_read_only(tmp)
+    try:
+        with atomic_dir(dest) as tmp:
+            _copy_run(source, tmp, models, manifests, policy_dirs, write_model)
+    except FileExistsError:  # another export took the name first (its copy stays whole)
+        raise RunStoreError(
+            f"{dest} was created by another process while this export copied; choose a new "
+            "directory (nothing of this export was kept)"
+        ) from None
+    except OSError as exc:
+        if exc.errno in (errno.ENOTEMPTY, errno.EEXIST):
+            raise RunStoreError(
+                f"{dest} was created by another process while this export copied; choose a "
+                "new directory (nothing of this export was kept)"
+            ) from None
+        raise
     return dest
+
+
+def _check_destination(record: RunRecord, source: Path, dest: Path, replacing: bool) -> None:
+    """Refuse (one line) a destination that exists, lies inside the run, under a file, or in
+    a directory that already holds this run (the run id would appear twice there)."""
+    if dest.exists() or dest.is_symlink():
+        raise RunStoreError(f"{dest} already exists; choose a new directory or remove it first")
+    full = dest.resolve()
+    if full.is_relative_to(source):
+        raise RunStoreError(f"{dest} is inside the run directory {source}; choose another place")
+    for parent in full.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise RunStoreError(
+                    f"{dest}: {parent} is a file, not a directory; choose a destination under "
+                    "a directory"
+                )
+            break
+    parent = full.parent
+    if parent.is_dir() and not replacing:
+        for sibling in parent.iterdir():
+            if _same_run(sibling, record.info.run_id):
+                raise RunStoreError(
+                    f"{dest}: {parent} already holds run {record.info.run_id} (in "
+                    f"{sibling.name}), and one runs directory holds a run once; export it "
+                    "into another directory"
+                )
+
+
+def _same_run(directory: Path, run_id: str) -> bool:
+    """Whether ``directory`` holds a run whose run.json names ``run_id``."""
+    path = directory / "run.json"
+    try:
+        if not path.is_file():
+            return False
+        return bool(json.loads(path.read_bytes()).get("run_id") == run_id)
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _copy_run(
+    source: Path,
+    tmp: Path,
+    models: Sequence[ModelCopy],
+    manifests: Mapping[Path, Mapping[str, Any]],
+    policy_dirs: set[Path],
+    write_model: Callable[[Path, Path], object],
+) -> None:
+    """The export's files into ``tmp`` (see :func:`export_run`)."""
+    for root, dirs, files in os.walk(source):
+        skip = MODEL_FILES if Path(root) in policy_dirs else frozenset()
+        dirs[:] = [d for d in dirs if d not in EXCLUDED_NAMES | skip and not is_temp_file(d)]
+        target = tmp / Path(root).relative_to(source)
+        target.mkdir(parents=True, exist_ok=True)
+        for name in files:
+            if name not in EXCLUDED_NAMES | skip and not is_temp_file(name):
+                shutil.copy2(Path(root) / name, target / name)
+    for model in models:
+        target = tmp / model.dest
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write_model(model.source, target)
+        for name in _BESIDE_MODEL:
+            if (model.source.parent / name).is_file():
+                shutil.copy2(model.source.parent / name, target.parent / name)
+    for relative, manifest in manifests.items():
+        atomic_write_json(tmp / relative / "policy.json", dict(manifest))
+    mark_read_only(tmp)
 
 
 def mark_read_only(run_path: Path) -> None:

@@ -29,7 +29,14 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from softtrack.env.tasks import N_ARMS
-from softtrack.spec import ExperimentSpec, chain_comment, load_spec, spec_hash, spec_to_yaml
+from softtrack.spec import (
+    ExperimentSpec,
+    SpecError,
+    chain_comment,
+    load_spec,
+    spec_hash,
+    spec_to_yaml,
+)
 from softtrack.spec.fields import check_int64
 from softtrack.store.atomic import atomic_write_text, is_temp_file
 from softtrack.store.catalog import note_run, read_catalog
@@ -296,6 +303,35 @@ class RunRecord:
             f"{path}: the run's spec {problem}; restore it (a copy of the run, or the "
             f"experiment's YAML) and resume again; run {self.run_id} keeps its status"
         )
+
+    def checkpoint_problem(self) -> str | None:
+        """Why the run cannot resume: a policy that trained past its first checkpoint
+        (``training.checkpoint_interval`` env steps) has no checkpoints directory (missing,
+        or replaced by a file), so resuming would start it again from step 0 and rewrite its
+        tables. A line that says what to do, or ``None`` (also before the first checkpoint,
+        where a run rightly starts again from step 0, and when the spec is unreadable:
+        :meth:`spec_problem` says so)."""
+        try:
+            interval = int(self.load_spec().training.checkpoint_interval)
+        except (RunStoreError, SpecError, ValueError):
+            return None
+        info = self.info
+        independent = info.arm_steps is not None
+        steps = list(info.arm_steps) if info.arm_steps is not None else [int(info.global_step)]
+        for k, step in enumerate(steps):
+            where = self.policy_dir(k if independent else None).checkpoints_dir
+            if where.exists() and not where.is_dir():
+                problem = "is not a directory"
+            elif not where.exists() and step >= interval:
+                problem = "is missing"
+            else:
+                continue
+            return (
+                f"run {self.run_id}: its checkpoints {where} {problem}, so it cannot resume "
+                f"from step {step:,}; restore that directory, or train a new run with "
+                f"`softtrack train {self.spec_path}` (nothing was changed)"
+            )
+        return None
 
     def load_spec(self) -> ExperimentSpec:
         """The run's fully resolved spec.
