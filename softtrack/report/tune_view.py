@@ -174,7 +174,7 @@ def _payload(view: TuneView) -> dict[str, object]:
             "ticks": [(0.0, _value_text(high)), (1.0, _value_text(low))],
         }
     )
-    complete = [t.score for t in view.best()]
+    complete = [t.score for t in view.best() if t.score is not None]
     c_low, c_high = (min(complete), max(complete)) if complete else (low, high)
     trials = []
     for t in view.trials:
