@@ -45,10 +45,10 @@ from softtrack.spec import (
     spec_json_schema,
     spec_to_yaml,
 )
-from softtrack.store.atomic import atomic_dir, is_temp_file
+from softtrack.store import run_copies
 from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.model_zip import deflate_model_zip
-from softtrack.store.provenance import portable_command, portable_path
+from softtrack.store.provenance import portable_command
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.status import (
@@ -433,81 +433,22 @@ def upgrade(
     return done
 
 
+def _policy_files(record: RunRecord) -> list[Path]:
+    return model_paths(record, record.load_spec())
+
+
 def copy_run(
     source: str | os.PathLike[str],
     *,
     runs_dir: str | os.PathLike[str] | None = None,
     keep_evaluation: bool = False,
 ) -> Path:
-    """Copy a finished run directory (e.g. the shipped ``models/td3-sbx-1e7-seed0``) into the
-    runs directory under its own id, without its evaluation tables, so that evaluating the
-    copy (with ``write=True``) makes its tables, and every report of it, show this machine's
-    evaluation. The source is only read.
-
-    The copy holds everything but checkpoints, replay buffers, the run lock and
-    ``tables/eval_*.parquet`` (training episodes and validation stay: they cannot be measured
-    again). A copy already there with the same model files is reused, its evaluation tables
-    removed likewise (kept with ``keep_evaluation``: a copy that holds this machine's results
-    already). The copy is writable (no ``notes.read_only``) and names its source in
-    ``notes.copy_of``.
-
-    Returns:
-        The copy's directory, ``<runs_dir>/<run id>``.
-
-    Raises:
-        RunStoreError: the run has no model, or the runs directory already holds another run
-            under that id, or holds the source itself.
-    """
-    import filecmp
-    import shutil
-
+    """Copy a finished run directory into the runs directory without its evaluation tables
+    (:func:`softtrack.store.run_copies.copy_run`); returns the copy's directory."""
     record = select_one_run(str(source))
-    root = resolve_runs_dir(runs_dir)
-    dest = root / record.run_id
-    if dest.exists() and dest.resolve() == record.path.resolve():
-        raise RunStoreError(
-            f"{dest}: the runs directory holds the run to copy itself; give "
-            "another --runs-dir (the source is never written)"
-        )
-    models = [p.relative_to(record.path) for p in model_paths(record, record.load_spec())]
-    missing = [m for m in models if not (record.path / m).is_file()]
-    if missing:
-        raise RunStoreError(
-            f"{record.path / missing[0]}: run {record.run_id} has no trained model to copy"
-        )
-    if dest.exists():
-        same = (dest / "run.json").is_file() and all(
-            (dest / m).is_file() and filecmp.cmp(record.path / m, dest / m, shallow=False)
-            for m in models
-        )
-        if not same:
-            raise RunStoreError(
-                f"{dest} already holds another run named {record.run_id}; "
-                "remove it or give another --runs-dir"
-            )
-        if keep_evaluation:
-            return dest
-    else:
-
-        def skipped(directory: str, names: list[str]) -> set[str]:
-            in_tables = Path(directory).name == "tables"
-            return {
-                n
-                for n in names
-                if n in ("checkpoints", "run.lock", "replay_buffer.pkl")
-                or is_temp_file(n)
-                or (in_tables and n.startswith("eval_") and n.endswith(".parquet"))
-            }
-
-        with atomic_dir(dest, fsync=False) as tmp:
-            shutil.copytree(record.path, tmp, ignore=skipped, dirs_exist_ok=True)
-        notes = {k: v for k, v in record.info.notes.items() if k != "read_only"}
-        RunStore(root).update_run(
-            record.run_id, notes={**notes, "copy_of": portable_path(record.path)}
-        )
-    for table in (dest / "tables").glob("eval_*.parquet"):
-        table.unlink()
-    return dest
+    return run_copies.copy_run(
+        record, _policy_files(record), runs_dir=runs_dir, keep_evaluation=keep_evaluation
+    )
 
 
 def writable_run(
@@ -517,27 +458,11 @@ def writable_run(
     in_place: bool = False,
     on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
 ) -> RunRecord:
-    """The run a command that stores results writes into: ``record`` itself, or, for a
-    shipped run (``notes.read_only``, as ``softtrack export`` marks them) unless ``in_place``,
-    its copy in the runs directory (:func:`copy_run`, reused by later commands, so results
-    accumulate there). ``on_copied(shipped, copy)`` is called when a copy is used.
-
-    Raises:
-        RunStoreError: the runs directory is the shipped run's own directory.
-    """
-    if in_place or not record.read_only:
-        return record
-    root = resolve_runs_dir(runs_dir)
-    if root.resolve() == record.path.parent.resolve():
-        raise RunStoreError(
-            f"{record.path} is a shipped run (read-only) and --runs-dir is its own directory; "
-            "give a --runs-dir for this machine's results (default runs/), or --in-place to "
-            "write into the shipped run"
-        )
-    copy = RunStore(root).get_run(copy_run(record.path, runs_dir=root, keep_evaluation=True).name)
-    if on_copied is not None:
-        on_copied(record, copy)
-    return copy
+    """``record``, or its copy for results when it is shipped
+    (:func:`softtrack.store.run_copies.writable_run`)."""
+    return run_copies.writable_run(
+        record, _policy_files, runs_dir, in_place=in_place, on_copied=on_copied
+    )
 
 
 def compare(
@@ -591,6 +516,7 @@ def report(
     interactive: bool = False,
     studies: Sequence[str] = (),
     storage: str | None = None,
+    on_problem: Callable[[str], None] | None = None,
 ) -> Any:
     """Build the report of the selected runs (experiment names, run ids or spec files).
 
@@ -609,6 +535,7 @@ def report(
         studies: tuning studies (``softtrack tune --study``) whose trials' runs join the
             selection and whose trials, parameter importance and best trials the report shows.
         storage: the studies' Optuna storage URL (default ``sqlite:///<runs dir>/optuna.db``).
+        on_problem: told each table that could not be read (left out of the report).
     """
     from softtrack.report import build_report
     from softtrack.tune.view import load_view
@@ -628,7 +555,7 @@ def report(
     for record in records:
         spec = record.load_spec()
         trained = all(p.is_file() for p in model_paths(record, spec))
-        if trained and not has_evaluation(record):
+        if trained and not _evaluated_or_damaged(record):
             evaluate_run(record, on_episode=on_episode, load=load_policy)
     if command_line is None:
         command_line = ["softtrack", "report", *selection, "--out", str(out_dir)]
@@ -640,7 +567,17 @@ def report(
         figures_for=figures_for,
         load=load_policy if interactive else None,
         tune_views=views,
+        on_problem=on_problem,
     )
+
+
+def _evaluated_or_damaged(record: RunRecord) -> bool:
+    """Whether the report reads the run's evaluation as it is: evaluated, or with a damaged
+    metrics table, which the report names and leaves out rather than overwriting it."""
+    try:
+        return has_evaluation(record)
+    except TableError:
+        return True
 
 
 def _checkout_or_cwd(relative: str) -> list[Path]:

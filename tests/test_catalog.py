@@ -259,7 +259,7 @@ def test_runs_limit_shows_the_runs_created_last(store: RunStore) -> None:
     result = runner.invoke(app, ["runs", "--runs-dir", str(store.root), "--limit", "1"])
     assert result.exit_code == 0, result.output
     assert result.stdout.count("\n") == 2 and "exp-b" in result.stdout
-    assert "(the 1 runs created last of 4; --limit 0 lists all)" in result.stderr
+    assert "(the 1 run created last of 4; --limit 0 lists all)" in result.stderr
 
 
 # ---- concurrency ----------------------------------------------------------------------------

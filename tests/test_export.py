@@ -89,7 +89,7 @@ def test_policy_only_export_leaves_out_the_other_model(
     sbx_run: tuple[Path, str], tmp_path: Path
 ) -> None:
     runs, run_id = sbx_run
-    full, lean = tmp_path / "full", tmp_path / "lean"
+    full, lean = tmp_path / "a" / "full", tmp_path / "b" / "lean"  # one run per directory
     for dest, extra in ((full, []), (lean, ["--policy-only"])):
         result = runner.invoke(app, ["export", run_id, str(dest), "--runs-dir", str(runs), *extra])
         assert result.exit_code == 0, result.output

@@ -486,7 +486,7 @@ from pathlib import Path
 import pandas as pd
 import softtrack.cli as cli
 import softtrack.store.tables as tables
-signal.signal(signal.SIGTERM, cli._exit_on_sigterm)
+signal.signal(signal.SIGTERM, cli.exit_on_sigterm)
 write = tables._write_parquet
 def slow(table, path):
     write(table, path)
@@ -753,3 +753,43 @@ def test_a_killed_exports_copy_is_removed_and_a_racing_export_is_one_line(
     assert result.exit_code == 2 and "created by another process" in _one_line(result)
     assert sorted(p.name for p in race.iterdir()) == ["second"]  # no temporary left
     assert (race / "second" / "run.json").is_file()  # the other export's copy, whole
+
+
+def _damage_metrics(path: Path, damage: str) -> None:
+    import pandas as pd
+
+    rows = pd.read_parquet(path)
+    path.unlink()
+    if damage == "numbers as text":
+        rows.assign(rmse_3d=rows["rmse_3d"].astype(str)).to_parquet(path)
+    elif damage == "a column missing":
+        rows.drop(columns=["arm"]).to_parquet(path)
+    else:  # a directory where the table belongs
+        path.mkdir()
+        rows.to_parquet(path / "part-0.parquet")
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("damage", ["numbers as text", "a column missing", "a directory"])
+def test_a_table_of_another_shape_is_named_in_one_line(
+    runs: tuple[Path, str], tmp_path: Path, damage: str
+) -> None:
+    """A table with the wrong columns, numbers stored as text, or a directory in its place
+    gave tracebacks in ``evaluate``, ``report`` and ``compare``. Now ``compare`` refuses in one
+    line naming the file (a seed left out would change every interval), ``report`` leaves the
+    table out with a warning naming it, and ``evaluate`` refuses before writing anything."""
+    root, run_id = runs
+    second = root / "second"
+    shutil.copytree(root / run_id, second)
+    table = root / run_id / "tables" / "eval_metrics.parquet"
+    _damage_metrics(table, damage)
+    before = _snapshot(root / run_id)
+    result = _cli("compare", run_id, str(second), "--runs-dir", str(root))
+    assert result.exit_code == 2 and str(table) in _one_line(result), result.output
+    result = _cli("report", run_id, "--runs-dir", str(root), "--out", str(tmp_path / "rep"))
+    assert result.exit_code == 0, result.output
+    warnings = [ln for ln in result.stderr.splitlines() if ln.startswith("warning:")]
+    assert "Traceback" not in result.output and any(str(table) in w for w in warnings)
+    result = _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root))
+    assert result.exit_code == 2 and str(table) in _one_line(result), result.output
+    assert _snapshot(root / run_id) == before

@@ -23,7 +23,9 @@ LAYERS: list[set[str]] = [
     {"report", "rl"},
     {"tune"},
     {"cli_classes"},
-    {"api", "cli", "workers", "__init__", "__main__"},
+    {"api", "workers"},
+    {"commands"},
+    {"cli", "__init__", "__main__"},
 ]
 LAYER = {name: level for level, names in enumerate(LAYERS) for name in names}
 
@@ -32,7 +34,9 @@ def _imported_packages(path: Path) -> set[str]:
     found = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         names = []
-        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        if isinstance(node, ast.ImportFrom) and node.module == "softtrack" and node.level == 0:
+            names = [f"softtrack.{alias.name}" for alias in node.names]  # from softtrack import api
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names = [node.module]
         elif isinstance(node, ast.Import):
             names = [alias.name for alias in node.names]

@@ -228,7 +228,7 @@ def test_read_ignores_stray_temp_files(tmp_path: Path) -> None:
 
 @pytest.mark.faults("held")
 def test_sigkill_during_appends_leaves_readable_table(tmp_path: Path) -> None:
-    path = tmp_path / "train_episodes.parquet"
+    path = tmp_path / "appended.parquet"
     proc = _python(f"""
         from softtrack.store.tables import append_rows
         batch = 0

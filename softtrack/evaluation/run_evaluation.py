@@ -86,9 +86,9 @@ RANDOM_TABLE = "eval_random"
 def has_evaluation(record: RunRecord, trajectories: Sequence[str] = EVAL_TRAJECTORIES) -> bool:
     """True if the run's metrics table holds every listed trajectory."""
     path = record.table_path("eval_metrics")
-    if not path.is_file():
+    if not path.exists():
         return False
-    done = set(read_table(path, columns=["trajectory"])["trajectory"])
+    done = set(read_table(path, columns=["trajectory"])["trajectory"])  # TableError if damaged
     return set(trajectories) <= done
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import json
 import os
 import shlex
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -96,6 +96,7 @@ def build_report(
     figures_for: Sequence[str] = (),
     load: PolicyLoader | None = None,
     tune_views: Sequence[TuneView] = (),
+    on_problem: Callable[[str], None] | None = None,
 ) -> Path:
     """Write the report of ``records`` into ``out_dir``; return the path of ``index.md``.
 
@@ -116,6 +117,8 @@ def build_report(
         tune_views: tuning studies shown after the answers: their trials (parallel coordinates
             on the interactive page), parameter importance and best trials
             (:mod:`softtrack.report.tune_view`).
+        on_problem: told each table that could not be read (the report leaves it out and
+            lists it with the runs).
 
     Raises:
         EmptySelectionError: ``records`` is empty.
@@ -129,6 +132,9 @@ def build_report(
         raise RunStoreError(f"{out_dir}: exists and is not a directory; choose another --out")
     command = command_line if isinstance(command_line, str) else shlex.join(command_line)
     runs = load_runs(records)
+    if on_problem is not None:
+        for problem in (p for run in runs for p in run.problems):
+            on_problem(problem)
     groups = group_runs(runs)
     summary = metrics_summary(groups)
     featured = featured_groups(groups, summary, all_groups=all_figures, names=figures_for)

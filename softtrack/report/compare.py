@@ -288,6 +288,9 @@ def compare_selection(
     tables = []
     for item in selection:
         runs = load_runs(select_runs(store, [item], index), ["random" if random else "metrics"])
+        problems = [problem for run in runs for problem in run.problems]
+        if problems:  # a seed left out silently would change every interval
+            raise RunStoreError(f"{item}: {problems[0]}")
         tables.append([(run.seed, scored_rows(run, random)) for run in runs])
     if random:
         episodes = {

@@ -1,0 +1,1 @@
+"""The ``softtrack`` commands, one module per group; :mod:`softtrack.cli` assembles them."""
