@@ -793,3 +793,14 @@ def test_a_table_of_another_shape_is_named_in_one_line(
     result = _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root))
     assert result.exit_code == 2 and str(table) in _one_line(result), result.output
     assert _snapshot(root / run_id) == before
+
+
+@pytest.mark.faults("degraded")
+def test_a_truncated_model_is_not_exported(runs: tuple[Path, str], tmp_path: Path) -> None:
+    """A truncated ``model.zip`` was exported without a word (a shipped run that cannot load)."""
+    root, run_id = runs
+    model = root / run_id / "model.zip"
+    model.write_bytes(model.read_bytes()[: model.stat().st_size // 2])
+    result = _cli("export", run_id, str(tmp_path / "out" / "x"), "--runs-dir", str(root))
+    assert result.exit_code == 2 and "model.zip" in _one_line(result), result.output
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())

@@ -17,6 +17,7 @@ import errno
 import json
 import os
 import shutil
+import zipfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,6 +93,13 @@ def export_run(
             f"{record.info.status}); finish it with `softtrack train --resume {record.run_id}` "
             "before exporting"
         )
+    for model in models:
+        problem = _zip_problem(model.source)
+        if problem is not None:
+            raise RunStoreError(
+                f"{model.source}: {problem}, so run {record.run_id} cannot be exported; "
+                "restore the file from a copy of the run (nothing was written)"
+            )
     source = record.path.resolve()
     _check_destination(record, source, dest, replacing)
     remove_stale_temp_files(dest)  # a killed export's copy (its writer is gone)
@@ -139,6 +147,19 @@ def _check_destination(record: RunRecord, source: Path, dest: Path, replacing: b
                     f"{sibling.name}), and one runs directory holds a run once; export it "
                     "into another directory"
                 )
+
+
+def _zip_problem(path: Path) -> str | None:
+    """Why the model file ``path`` is not a whole zip archive (truncated, damaged), or None."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            # a truncated archive can open as the torch zip nested inside it: no "data"
+            if "data" not in archive.namelist():
+                return "not a whole model archive (no 'data' member: truncated?)"
+            bad = archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        return f"not a readable model archive ({str(exc) or type(exc).__name__})"
+    return None if bad is None else f"its member {bad!r} is damaged (CRC mismatch)"
 
 
 def _same_run(directory: Path, run_id: str) -> bool:
