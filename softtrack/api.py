@@ -325,25 +325,25 @@ def evaluate(
     mpc_specs = _mpc_specs(references)
     selected = [ref for ref in references if ref not in mpc_specs]
     records = select_runs(RunStore(resolve_runs_dir(runs_dir)), selected) if selected else []
-    for record in records:
-        record.load_spec()  # every run checked before anything is copied or written
-    if write and model == "policy":
-        records = [
-            writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) for r in records
-        ]
+    # every run checked before anything is copied or written; results are stored for the
+    # runs whose evaluated model is their policy, a shipped run's in its copy
+    stores = [
+        write and require_model(r, spec, model) == model_paths(r, spec)
+        for r, spec in ((r, r.load_spec()) for r in records)
+    ]
+    records = [
+        writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) if store else r
+        for r, store in zip(records, stores, strict=True)
+    ]
     store_for_new = RunStore(resolve_runs_dir(runs_dir))
     for ref, spec in mpc_specs.items():
         for seed in spec.seeds:
             record = store_for_new.create_run(spec, seed, spec_files=spec_chain(ref))
             record = store_for_new.mark_finished(record.run_id, "completed")
             records.append(record)
+            stores.append(write)
             if on_created is not None:
                 on_created(record)
-    stores = []
-    for record in records:
-        spec = record.load_spec()
-        paths = require_model(record, spec, model)
-        stores.append(write and paths == model_paths(record, spec))
     frames = []
     for record, store in zip(records, stores, strict=True):
         if chosen:

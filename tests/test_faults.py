@@ -804,3 +804,24 @@ def test_a_truncated_model_is_not_exported(runs: tuple[Path, str], tmp_path: Pat
     result = _cli("export", run_id, str(tmp_path / "out" / "x"), "--runs-dir", str(root))
     assert result.exit_code == 2 and "model.zip" in _one_line(result), result.output
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+@pytest.mark.faults("lost")
+def test_evaluating_a_shipped_runs_last_model_writes_into_its_copy(
+    runs: tuple[Path, str], tmp_path: Path
+) -> None:
+    """``evaluate --model last`` of a shipped run whose last model is its policy stored its
+    results into the shipped run itself (the read-only copy rule applied to ``policy`` only)."""
+    from softtrack.store.run_export import mark_read_only
+
+    root, run_id = runs
+    shipped = root / run_id
+    mark_read_only(shipped)
+    before = _snapshot(shipped)
+    mine = tmp_path / "mine"
+    result = _cli(
+        "evaluate", str(shipped), "-t", "circle", "--model", "last", "--runs-dir", str(mine)
+    )
+    assert result.exit_code == 0, result.output
+    assert _snapshot(shipped) == before
+    assert (mine / run_id / "tables" / "eval_metrics.parquet").is_file()
