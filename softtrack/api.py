@@ -8,6 +8,7 @@ and are re-exported here.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from collections.abc import Callable, Sequence
@@ -260,6 +261,7 @@ def evaluate(
     write: bool = True,
     random_episodes: int = 0,
     on_random: Callable[..., None] | None = None,
+    on_random_progress: Callable[[RunRecord, int, int], None] | None = None,
     model: ModelChoice = "policy",
     full_moments: bool = False,
     on_created: Callable[[RunRecord], None] | None = None,
@@ -286,6 +288,8 @@ def evaluate(
         random_episodes: random-target episodes per run after the trajectories (0: none;
             :func:`softtrack.evaluation.run_evaluation.evaluate_random_targets`, table ``eval_random``).
         on_random: called with (record, rows of its random-target episodes) per run.
+        on_random_progress: called with (record, episodes done, episodes asked) after each
+            random-target episode (Ctrl-C keeps the finished ones: ``eval_random`` holds them).
         model: which model of each run (:data:`softtrack.rl.policy.ModelChoice`): ``policy``
             (default), ``last`` or ``best``. The tables hold the evaluation of the run's policy,
             so another model's results are only returned, never stored.
@@ -359,8 +363,16 @@ def evaluate(
                 )
             )
         if random_episodes:
+            progress = None
+            if on_random_progress is not None:
+                progress = functools.partial(on_random_progress, record)
             rows = evaluate_random_targets(
-                record, random_episodes, load=load_policy, write=store, model=model
+                record,
+                random_episodes,
+                load=load_policy,
+                write=store,
+                model=model,
+                on_progress=progress,
             )
             if on_random is not None:
                 on_random(record, rows)

@@ -276,7 +276,7 @@ spec = ExperimentSpec.model_validate(
 )
 record = store.create_run(spec, seed, ["softtrack", "train"])
 for i in range(20):  # a training process in miniature: episodes, heartbeats, the end
-    append_rows(record.table_path("train_episodes"), [{"episode": i, "global_step": 100 * i,
+    append_rows(record.table_path("train_episodes"), [{"run_id": record.run_id, "episode": i, "global_step": 100 * i,
                 "return": rng.random(), "length": 100, "wall_time": 1.0 + i}])
     store.heartbeat(record.run_id, 100 * i)
 store.mark_finished(record.run_id, "completed")

@@ -273,3 +273,19 @@ def test_the_transport_figure_skips_controllers_without_per_step_positions(
     drawn = [group.label for group, _ in figure_runs(groups, 4)]
     assert len(drawn) == 2 and not any("a-lean" in label for label in drawn)
     assert figure_runs(groups, 1)[0][0].label == drawn[0]
+
+
+@pytest.mark.faults("degraded")
+def test_a_non_finite_score_is_named_and_left_out(tmp_path: Path) -> None:
+    """``inf`` in a metric showed as "no data" and entered no line: now compare names each
+    non-finite score (seed and cell) and leaves it out of every statistic."""
+    store = RunStore(tmp_path / "runs")
+    _controller(store, "good", [0.040, 0.042, float("inf")])
+    _controller(store, "worse", [0.050, 0.052, 0.051])
+    result = compare_selection(["good", "worse"], runs_dir=store.root, reps=200)
+    good = result.controllers[0]
+    assert np.isnan(good.scores[2]).all() and len(good.non_finite) == 6
+    text = "\n".join(result.lines())
+    assert "note: good: 6 stored scores are not a finite number" in text
+    assert "seed 2, circle arm 1: inf" in text
+    assert result.overall["good"].value == pytest.approx(0.0415, abs=1e-3)

@@ -825,3 +825,50 @@ def test_evaluating_a_shipped_runs_last_model_writes_into_its_copy(
     assert result.exit_code == 0, result.output
     assert _snapshot(shipped) == before
     assert (mine / run_id / "tables" / "eval_metrics.parquet").is_file()
+
+
+@pytest.mark.faults("degraded")
+def test_a_run_name_edited_into_a_newline_and_markup_is_an_unreadable_run(
+    runs: tuple[Path, str], tmp_path: Path
+) -> None:
+    """A run.json ``name`` edited to hold a newline and HTML broke the runs table and the
+    report's headings; such a run is now listed unreadable, with the field named."""
+    root, run_id = runs
+    path = root / run_id / "run.json"
+    data = json.loads(path.read_text())
+    data["name"] = "evil\n<b>x</b>|y"
+    path.write_text(json.dumps(data))
+    result = _cli("runs", "--runs-dir", str(root))
+    assert result.exit_code == 0 and "evil\n<b>" not in result.stdout  # no raw newline
+    assert "unreadable" in result.stdout and "'evil\\n<b>x</b>|y'" in result.stdout
+    result = _cli("report", run_id, "--runs-dir", str(root), "--out", str(tmp_path / "rep"))
+    assert result.exit_code == 2 and "name: String should match pattern" in _one_line(result)
+    assert not (tmp_path / "rep").exists()
+
+
+@pytest.mark.faults("lost")
+def test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones(
+    runs: tuple[Path, str],
+) -> None:
+    """``evaluate --random 100000`` printed nothing for minutes and Ctrl-C discarded every
+    finished episode. Now a line every 5 % (and at least every 30 s) says how far it is, and
+    Ctrl-C stores the episodes done so far (0 … k−1) before it stops (exit 130)."""
+    root, run_id = runs
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "softtrack.cli", "evaluate", run_id, "-t", "none", "--random", "400"]
+        + ["--runs-dir", str(root)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "CI": "1"},
+    )
+    assert proc.stderr is not None
+    for line in proc.stderr:  # the first progress line: some episodes are done
+        if "random targets:" in line:
+            break
+    proc.send_signal(signal.SIGINT)
+    _out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    rows = read_table(root / run_id / "tables" / "eval_random.parquet")
+    episodes = sorted(set(rows["episode"]))
+    assert 1 <= len(episodes) < 400 and episodes == list(range(len(episodes)))

@@ -175,7 +175,7 @@ def test_sigkill_during_write_keeps_old_file(tmp_path: Path) -> None:
 
 # ---- tables -------------------------------------------------------------------------------
 def test_append_read_round_trip(tmp_path: Path) -> None:
-    path = tmp_path / "tables" / "train_episodes.parquet"
+    path = tmp_path / "tables" / "episodes.parquet"
     assert append_rows(path, [{"episode": 0, "global_step": 5000, "return": -10.5}]) == 1
     assert append_rows(path, []) == 1
     assert (
@@ -196,7 +196,7 @@ def test_append_read_round_trip(tmp_path: Path) -> None:
     assert pd.isna(df["note"][0]) and df["note"][2] == "x"
     assert read_table(path, ["return"]).shape == (3, 1)
     assert pd.read_parquet(path).shape == (3, 4)  # an ordinary Parquet file
-    assert list_tables(path.parent) == {"train_episodes": path}
+    assert list_tables(path.parent) == {"episodes": path}
 
 
 def test_write_table_and_missing_table(tmp_path: Path) -> None:
@@ -212,13 +212,13 @@ def test_write_table_and_missing_table(tmp_path: Path) -> None:
 
 
 def test_read_ignores_stray_temp_files(tmp_path: Path) -> None:
-    path = tmp_path / "train_episodes.parquet"
+    path = tmp_path / "episodes.parquet"
     append_rows(path, [{"episode": 0, "return": 1.0}])
-    stray = tmp_path / ".train_episodes.tmp-deadbeef.parquet"
+    stray = tmp_path / ".episodes.tmp-deadbeef.parquet"
     stray.write_bytes(b"PAR1 half-written garbage")
     assert read_table(path)["return"].tolist() == [1.0]
-    assert list_tables(tmp_path) == {"train_episodes": path}
-    live = tmp_path / f".train_episodes.tmp-{os.getppid()}-0badf00d.parquet"
+    assert list_tables(tmp_path) == {"episodes": path}
+    live = tmp_path / f".episodes.tmp-{os.getppid()}-0badf00d.parquet"
     live.write_bytes(b"PAR1 a live writer's file")
     append_rows(path, [{"episode": 1, "return": 2.0}])
     assert read_table(path)["return"].tolist() == [1.0, 2.0]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import enum
 import math
+import time
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
@@ -128,11 +129,39 @@ def evaluate(
             on_episode=print_episode,
             random_episodes=random,
             on_random=_print_random,
+            on_random_progress=_RandomProgress(),
             model=model.value,
             full_moments=full_moments,
             on_created=_print_created,
             in_place=in_place,
             on_copied=_print_copied,
+        )
+
+
+class _RandomProgress:
+    """A stderr line per 5 % of a run's random-target episodes (and at least every 30 s):
+    done, asked, episodes/s and the time left; with Ctrl-C the finished ones are kept."""
+
+    def __init__(self) -> None:
+        self.started = time.monotonic()
+        self.shown = (0.0, -1)  # (time, percent step) of the last line
+
+    def __call__(self, record: RunRecord, done: int, total: int) -> None:
+        if done == 1:
+            self.started, self.shown = time.monotonic(), (time.monotonic(), 0)
+        now = time.monotonic()
+        step = 20 * done // total
+        if done < total and step == self.shown[1] and now - self.shown[0] < 30.0:
+            return
+        self.shown = (now, step)
+        rate = done / max(now - self.started, 1e-9)
+        left = (total - done) / rate if rate > 0 else float("inf")
+        typer.echo(
+            f"{record.run_id[-8:]} random targets: {done:,}/{total:,} episodes "
+            f"({100 * done / total:.0f}%), {rate:.2g} episodes/s"
+            + (f", {left / 60:.1f} min left" if done < total and math.isfinite(left) else "")
+            + ("; Ctrl-C keeps the finished episodes" if done < total else ""),
+            err=True,
         )
 
 

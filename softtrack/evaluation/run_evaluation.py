@@ -192,6 +192,7 @@ def evaluate_random_targets(
     load: PolicyLoader,
     write: bool = True,
     model: ModelChoice = "policy",
+    on_progress: Callable[[int, int], None] | None = None,
 ) -> pd.DataFrame:
     """Evaluate one run on ``episodes`` random-target episodes (module docstring).
 
@@ -204,10 +205,15 @@ def evaluate_random_targets(
         on_episode: called after each episode with the run, the episode and its metrics.
         write: store ``eval_random.parquet`` in the run (``False``: only return the rows).
         model: the run's model to evaluate (default its policy).
+        on_progress: called with (episodes done, episodes asked) after each episode.
 
     Returns:
         One row per episode and arm: ``episode``, ``seed`` and the columns of
         :func:`softtrack.evaluation.episode_tables.metrics_table` (``trajectory`` is ``random``).
+
+    Interrupted (Ctrl-C, SIGTERM), it keeps what it finished: with ``write`` the episodes done
+    so far (0 … k−1, the same as a run of k episodes) are stored before the interruption goes
+    on.
     """
     if episodes < 1:
         raise ValueError(f"episodes={episodes} must be at least 1")
@@ -215,15 +221,21 @@ def evaluate_random_targets(
     cpu = cpu_kind()
     parts = []
     seeds = [RANDOM_TARGET_SEED + k for k in range(episodes)]
-    for k, episode in enumerate(iter_episodes(policy, config, "random", duration, seeds)):
-        seed = seeds[k]
-        metrics = metrics_table(record.info.run_id, episode)
-        metrics.insert(2, "episode", k)
-        metrics.insert(3, "seed", seed)
-        metrics["cpu"] = cpu
-        parts.append(metrics)
-        if on_episode is not None:
-            on_episode(record, episode, metrics)
+    try:
+        for k, episode in enumerate(iter_episodes(policy, config, "random", duration, seeds)):
+            metrics = metrics_table(record.info.run_id, episode)
+            metrics.insert(2, "episode", k)
+            metrics.insert(3, "seed", seeds[k])
+            metrics["cpu"] = cpu
+            parts.append(metrics)
+            if on_episode is not None:
+                on_episode(record, episode, metrics)
+            if on_progress is not None:
+                on_progress(k + 1, episodes)
+    except (KeyboardInterrupt, SystemExit):
+        if write and parts:  # the finished episodes are kept
+            write_table(record.table_path(RANDOM_TABLE), pd.concat(parts, ignore_index=True))
+        raise
     table = pd.concat(parts, ignore_index=True)
     if write:
         write_table(record.table_path(RANDOM_TABLE), table)

@@ -79,6 +79,8 @@ class ControllerScores:
         seeds: each run's seed, in row order.
         cpus: CPU kind → number of scores it computed (``eval_metrics.cpu``; "unrecorded" for
             tables written before the column existed).
+        non_finite: "seed S, cell: value" for each stored score that is not a finite number
+            (a diverged episode's ±inf, a NaN): left out of every statistic, and said so.
     """
 
     label: str
@@ -86,6 +88,7 @@ class ControllerScores:
     scores: np.ndarray
     seeds: tuple[int, ...]
     cpus: dict[str, int]
+    non_finite: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,14 @@ class Comparison:
                 f"{c.label:{width}}  {len(c.seeds):>4}  {_seeds(c.seeds):>5}  "
                 f"{self.overall[c.label].text():>24}  {cpus}"
             )
+        for c in self.controllers:
+            if c.non_finite:
+                out.append(
+                    f"note: {c.label}: {len(c.non_finite)} stored score"
+                    f"{'s are' if len(c.non_finite) > 1 else ' is'} not a finite number, left "
+                    f"out of every statistic: {'; '.join(c.non_finite[:4])}"
+                    + (f"; and {len(c.non_finite) - 4} more" if len(c.non_finite) > 4 else "")
+                )
         per_cell = len(first.cells) <= MAX_PRINTED_CELLS
         scene = not any(arm for _, arm in first.cells)
         columns = {c.label: max(24, len(c.label)) for c in self.controllers}
@@ -187,6 +198,7 @@ def controller_scores(
     rows: list[list[float]] = []
     seeds: list[int] = []
     cpus: dict[str, int] = {}
+    non_finite: list[str] = []
     for seed, table in metrics:
         if table is None or metric not in table:
             continue
@@ -194,6 +206,12 @@ def controller_scores(
             (str(r.trajectory), int(r.arm)): float(getattr(r, metric))
             for r in table.itertuples(index=False)
         }
+        scene = not any(arm for _, arm in cells)
+        non_finite += [
+            f"seed {seed}, {_cell_name(t, a, scene, ' ')}: {value}"
+            for (t, a), value in by_cell.items()
+            if (t, a) in cells and not np.isfinite(value)
+        ]
         rows.append([by_cell.get(cell, np.nan) for cell in cells])
         seeds.append(seed)
         counted = table[table["arm"].isin(arms)] if "arm" in table else table
@@ -209,7 +227,9 @@ def controller_scores(
             f"{label}: no run has {metric} in {table_name}; evaluate it first "
             f"(`softtrack evaluate RUN{' --random 20' if table_name == 'eval_random' else ''}`)"
         )
-    return ControllerScores(label, cells, np.asarray(rows, dtype=float), tuple(seeds), cpus)
+    scores = np.asarray(rows, dtype=float)
+    scores[~np.isfinite(scores)] = np.nan  # named in non_finite; no statistic sees them
+    return ControllerScores(label, cells, scores, tuple(seeds), cpus, tuple(non_finite))
 
 
 def compare_controllers(

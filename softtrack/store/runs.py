@@ -104,7 +104,12 @@ class RunInfo(BaseModel):
 
     format_version: int = Field(1, description="version of this file's layout")
     run_id: str = Field(description="ULID of the run (= its directory name)")
-    name: str = Field(description="experiment name (spec.name)")
+    name: str = Field(
+        description="experiment name (spec.name: letters, digits, '_', '-', '.'; a name "
+        "edited into another shape makes the run unreadable rather than break tables and "
+        "reports)",
+        pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$",
+    )
     algo: str = Field(description="algorithm (spec.algo.name)")
     controller: str = Field(description="centralized or independent")
     seed: int = Field(description="random seed of this run")
@@ -479,7 +484,14 @@ class RunStore:
     def _read(self, path: Path) -> RunInfo:
         try:
             return RunInfo.model_validate_json((path / "run.json").read_bytes())
-        except (OSError, ValidationError, ValueError) as exc:
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            where = ".".join(str(part) for part in error["loc"]) or "run.json"
+            value = repr(error.get("input"))[:40]
+            raise RunStoreError(
+                f"{path / 'run.json'}: unreadable run record ({where}: {error['msg']}, got {value})"
+            ) from None
+        except (OSError, ValueError) as exc:
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise RunStoreError(f"{path / 'run.json'}: unreadable run record ({first})") from None
 

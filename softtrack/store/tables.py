@@ -73,16 +73,16 @@ TEXT_COLUMNS = frozenset(
 #: Per table (its file name), the columns its readers rely on: a file without them is not a
 #: softtrack table of that name.
 KEY_COLUMNS: dict[str, tuple[str, ...]] = {
-    "train_episodes": ("run_id", "global_step", "return"),
-    "validation": ("run_id", "global_step", "trajectory", "arm", "rmse_3d"),
-    "confirmation": ("run_id", "arm", "rmse_3d"),
-    "eval_metrics": ("run_id", "trajectory", "arm", "rmse_3d"),
-    "eval_random": ("run_id", "episode", "arm", "rmse_3d"),
-    "eval_trajectories": ("run_id", "trajectory", "step", "arm"),
-    "eval_moments": ("run_id", "trajectory", "step", "arm"),
-    "eval_moment_peaks": ("run_id", "trajectory", "arm"),
-    "eval_snapshots": ("run_id", "trajectory", "arm"),
-    "eval_robustness": ("run_id", "trajectory", "arm", "rmse_3d"),
+    "train_episodes": ("global_step", "return"),
+    "validation": ("global_step", "arm", "rmse_3d"),
+    "confirmation": ("arm", "rmse_3d"),
+    "eval_metrics": ("trajectory", "arm", "rmse_3d"),
+    "eval_random": ("episode", "arm", "rmse_3d"),
+    "eval_trajectories": ("trajectory", "step", "arm"),
+    "eval_moments": ("trajectory", "step", "arm"),
+    "eval_moment_peaks": ("trajectory", "arm"),
+    "eval_snapshots": ("trajectory", "arm"),
+    "eval_robustness": ("trajectory", "arm", "rmse_3d"),
 }
 
 
@@ -258,6 +258,7 @@ def check_schema(path: Path, schema: pa.Schema, columns: Sequence[str] | None = 
     requested column missing, or a column holding text where softtrack writes numbers (or
     numbers where it writes text)."""
     names = set(schema.names)
+    known = path.stem in KEY_COLUMNS  # the types are checked in softtrack's own tables only
     wanted = set(columns) if columns else set(KEY_COLUMNS.get(path.stem, ()))
     missing = sorted(wanted - names)
     if missing:
@@ -266,7 +267,7 @@ def check_schema(path: Path, schema: pa.Schema, columns: Sequence[str] | None = 
             f"{path.stem} table, or written by another program); {_fix(path)}"
         )
     for field in schema:
-        if columns and field.name not in wanted:
+        if not known or (columns and field.name not in wanted):
             continue
         textual = pa.types.is_string(field.type) or pa.types.is_large_string(field.type)
         if pa.types.is_dictionary(field.type):
