@@ -855,8 +855,10 @@ def test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones(
     Ctrl-C stores the episodes done so far (0 … k−1) before it stops (exit 130)."""
     root, run_id = runs
     proc = subprocess.Popen(
-        [sys.executable, "-m", "softtrack.cli", "evaluate", run_id, "-t", "none", "--random", "400"]
-        + ["--runs-dir", str(root)],
+        [
+            *(sys.executable, "-m", "softtrack.cli", "evaluate", run_id),
+            *("-t", "none", "--random", "400", "--runs-dir", str(root)),
+        ],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
