@@ -874,3 +874,33 @@ def test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones(
     rows = read_table(root / run_id / "tables" / "eval_random.parquet")
     episodes = sorted(set(rows["episode"]))
     assert 1 <= len(episodes) < 400 and episodes == list(range(len(episodes)))
+
+
+@pytest.mark.faults("traceback")
+def test_an_address_space_limit_too_small_for_jax_is_one_line(runs: tuple[Path, str]) -> None:
+    """Under ``ulimit -v`` evaluate died with a traceback, blamed the model, or hung in XLA's
+    allocator ignoring SIGTERM; now it stops at once with one line naming the limit, exit 1
+    (a machine limit, not the user's input)."""
+    import resource
+
+    root, run_id = runs
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2_000_000 * 1024, resource.RLIM_INFINITY))
+
+    started = time.monotonic()
+    proc = subprocess.run(
+        [
+            *(sys.executable, "-m", "softtrack.cli", "evaluate", run_id),
+            *("-t", "circle", "--runs-dir", str(root)),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=limit,
+        env={**os.environ, "CI": "1"},
+    )
+    assert proc.returncode == 1, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("error:")]
+    assert len(lines) == 1 and "ulimit -v" in lines[0] and "Traceback" not in proc.stderr
+    assert time.monotonic() - started < 60

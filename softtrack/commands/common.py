@@ -17,7 +17,7 @@ import typer
 from softtrack.cli_classes import App, Group
 from softtrack.lazy import lazy_module
 from softtrack.store import provenance
-from softtrack.store.disk import storage_problem
+from softtrack.store.disk import MachineLimitError, machine_limit, storage_problem
 from softtrack.store.location import resolve_runs_dir
 from softtrack.trajectories import EVAL_TRAJECTORIES
 
@@ -93,9 +93,21 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
     error does not say which file it was writing)."""
     try:
         yield
+    except (MemoryError, MachineLimitError) as exc:  # the machine's limit: exit code 1
+        limit = machine_limit(exc)
+        typer.echo(f"error: {limit}", err=True)
+        raise typer.Exit(1) from None
     except api.USER_ERRORS as exc:
+        limit = machine_limit(exc)  # a healthy table that could not be opened is not damaged
+        if limit is not None:
+            typer.echo(f"error: {limit}", err=True)
+            raise typer.Exit(1) from None
         fail(exc)
     except Exception as exc:
+        limit = machine_limit(exc)
+        if limit is not None:
+            typer.echo(f"error: {limit}", err=True)
+            raise typer.Exit(1) from None
         problem = storage_problem(exc, "then run the command again", resolve_runs_dir(runs_dir))
         if problem is None:
             raise

@@ -20,6 +20,7 @@ import numpy as np
 from softtrack.evaluation import Policy, independent_policy
 from softtrack.rl.factory import model_class
 from softtrack.spec import ExperimentSpec
+from softtrack.store.disk import check_address_space
 from softtrack.store.layout import MODEL_CHOICES, ModelChoice, PolicyDir
 from softtrack.store.runs import RunRecord, RunStoreError
 
@@ -145,6 +146,7 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
             f"{path}: no trained model in this run (status may be unfinished); "
             "finish it with `softtrack train --resume RUN_ID`"
         )
+    check_address_space("load a policy")
     try:
         device = "cpu" if spec.algo.backend == "sb3" else "auto"
         model: Any = model_class(spec).load(str(path), device=device)

@@ -55,7 +55,7 @@ from softtrack.rl.policy_training import (
 from softtrack.signals import StopFlag, stop_on_signals
 from softtrack.spec import ExperimentSpec
 from softtrack.store.atomic import remove_temp_files
-from softtrack.store.disk import storage_problem
+from softtrack.store.disk import check_address_space, storage_problem
 from softtrack.store.runs import (
     RunRecord,
     RunStore,
@@ -178,6 +178,7 @@ def train_run(
     """
     spec = record.load_spec()
     check_supported(spec, str(record.spec_path))
+    check_address_space("train")
     if resume:
         check_resumable(record)
     with run_lock(record):  # no other process can train this run while we hold it

@@ -89,6 +89,67 @@ def _existing_dir(path: Path) -> Path:
     return directory
 
 
+#: The address space (bytes) a process needs once JAX and numba are loaded and a policy runs:
+#: measured with ``ulimit -v`` on `softtrack evaluate` (2.86 GiB worked; 2.4 GiB hung in XLA's
+#: allocator, 1.9 GiB aborted it), so a smaller limit is refused before anything starts.
+MIN_ADDRESS_SPACE = 3_000_000 * 1024
+
+
+class MachineLimitError(Exception):
+    """The machine's limits (memory, open files) stop the command; one line with the fix,
+    exit code 1 (not the user's input: 2)."""
+
+
+def check_address_space(what: str) -> None:
+    """Raise :class:`MachineLimitError` when the process's address-space limit
+    (``ulimit -v``) is below :data:`MIN_ADDRESS_SPACE`: JAX would hang or abort in native code
+    (no Python error to catch), so the command stops before it starts ``what``."""
+    import resource
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE:
+        raise MachineLimitError(
+            f"the address-space limit (ulimit -v) is {_mb(soft)}, below the "
+            f"{_mb(MIN_ADDRESS_SPACE)} that JAX and numba reserve to {what}; raise it "
+            f"(e.g. ulimit -v {MIN_ADDRESS_SPACE // 1024 + 1_000_000}) and run the command again"
+        )
+
+
+def machine_limit(exc: BaseException) -> str | None:
+    """A one-line message when ``exc`` (or an error it was raised from) is the machine's
+    limit rather than softtrack's input: memory (``MemoryError``, ``ENOMEM``, a limit such as
+    ``ulimit -v``) or open files (``EMFILE``/``ENFILE``, ``ulimit -n``); ``None`` otherwise."""
+    import resource
+
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if isinstance(current, MachineLimitError):
+            return str(current)
+        code = getattr(current, "errno", None)
+        mapping = isinstance(current, ImportError) and "failed to map segment" in str(current)
+        if isinstance(current, MemoryError) or code == errno.ENOMEM or mapping:
+            soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+            limit = (
+                "no address-space limit"
+                if soft == resource.RLIM_INFINITY
+                else (f"the process may use {_mb(soft)} (ulimit -v)")
+            )
+            return (
+                f"out of memory ({limit}); raise the limit or free memory, or ask for less "
+                "(fewer episodes or runs at once, a narrower query)"
+            )
+        if code in (errno.EMFILE, errno.ENFILE):
+            soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+            return (
+                f"too many open files (the process may open {soft}: ulimit -n); raise the "
+                "limit (e.g. ulimit -n 4096) and run the command again; no file is damaged"
+            )
+        current = current.__cause__ or current.__context__
+    return None
+
+
 def storage_problem(
     exc: BaseException, then: str = "", where: str | os.PathLike[str] | None = None
 ) -> str | None:
