@@ -1,0 +1,47 @@
+"""``experiments/fresh_seeds.py``: claims from seeds no choice saw — its refusals, its Wilson
+interval, and its summary of finished runs (no training here)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "experiments"))
+import fresh_seeds as fs  # noqa: E402
+
+TTA = ROOT / "experiments" / "variants" / "td3-sbx-128-3e6-mirror-tta.yaml"
+
+
+def test_wilson_interval_matches_the_closed_form() -> None:
+    low, high = fs.wilson_interval(9, 10)
+    assert low == pytest.approx(0.5958, abs=1e-4) and high == pytest.approx(0.9821, abs=1e-4)
+    assert fs.wilson_interval(0, 6)[0] == 0.0 and fs.wilson_interval(6, 6)[1] == 1.0
+
+
+def test_seeds_that_recipes_were_chosen_on_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    assert fs.main([str(TTA), "--seeds", "8-12", "--no-train"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "8, 9" in err[0] and "--seeds 100-109" in err[0]
+
+
+def test_a_recipe_without_trajectory_validation_is_refused(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    spec = ROOT / "experiments" / "study" / "td3-64-1e7.yaml"
+    assert fs.main([str(spec), "--seeds", "100", "--no-train"]) == 2
+    assert "validation_trajectories: true" in capsys.readouterr().err
+
+
+def test_a_summary_of_no_finished_seed_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert fs.main([str(TTA), "--seeds", "100-101", "--no-train", "--runs-dir", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.strip() == "no fresh seed has a completed run yet"
+    results = [fs.SeedResult(100, "A", fs.study_cells(), 4.0, 9.0, False)]
+    text = fs.summary(results, 5.0)
+    assert (
+        "1 of 1" in text and "kept model at the study and a checkpoint at it within 5 min" in text
+    )
