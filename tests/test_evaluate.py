@@ -248,7 +248,7 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     assert result.exit_code == 0, result.output
     assert "circle" not in result.output  # -t none: only the random-target episodes
     assert not (fresh / run_id / "tables" / "eval_metrics.parquet").exists()
-    line = next(x for x in result.output.splitlines() if " random " in x)
+    line = next(x for x in result.output.splitlines() if " random " in x and "/s" not in x)
     assert "(mean ± std over 2 episodes)" in line
     table = read_table(fresh / run_id / "tables" / "eval_random.parquet")
     assert len(table) == 4 and set(table["trajectory"]) == {"random"}

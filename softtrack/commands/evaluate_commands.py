@@ -147,14 +147,15 @@ class _RandomProgress:
         self.shown = (0.0, -1)  # (time, percent step) of the last line
 
     def __call__(self, record: RunRecord, done: int, total: int) -> None:
-        if done == 1:
+        if done == 1:  # the clock starts with the first episode (compilation before it)
             self.started, self.shown = time.monotonic(), (time.monotonic(), 0)
+            return
         now = time.monotonic()
         step = 20 * done // total
         if done < total and step == self.shown[1] and now - self.shown[0] < 30.0:
             return
         self.shown = (now, step)
-        rate = done / max(now - self.started, 1e-9)
+        rate = (done - 1) / max(now - self.started, 1e-9)
         left = (total - done) / rate if rate > 0 else float("inf")
         typer.echo(
             f"{record.run_id[-8:]} random targets: {done:,}/{total:,} episodes "
