@@ -853,7 +853,8 @@ def test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones(
     """``evaluate --random 100000`` printed nothing for minutes and Ctrl-C discarded every
     finished episode. Now a line every 5 % (and at least every 30 s) says how far it is, and
     an interruption stores the episodes done so far (0 … k−1) before it stops: SIGTERM here
-    (exit 143; Ctrl-C takes the same path, but a pytest-xdist worker's children ignore SIGINT)."""
+    (exit 143; Ctrl-C takes the same path, but a test runner started in the background hands
+    SIGINT down ignored)."""
     root, run_id = runs
     proc = subprocess.Popen(
         [
