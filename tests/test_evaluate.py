@@ -528,7 +528,7 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
     # written where asked (the circle's rows may come out byte-identical on this CPU: the
     # element moments are a table the shipped run does not have)
     assert (mine / shipped.name / "tables" / "eval_element_moments.parquet").is_file()
-    # rows name the run by its run.json id, not by the directory it was renamed to
+    # the rows written now name the run by its run.json id, not by its directory's name
     run_id = json.loads((shipped / "run.json").read_text())["run_id"]
     rows = read_table(mine / shipped.name / "tables" / "eval_metrics.parquet")
-    assert set(rows["run_id"]) == {run_id}
+    assert set(rows.loc[rows["trajectory"] == "circle", "run_id"]) == {run_id}
