@@ -73,6 +73,23 @@ def test_a_batch_of_episodes_equals_each_episode_alone(settings: dict) -> None:
     _check(_linear_policy(81, 24), config, "random")
 
 
+@pytest.mark.parametrize("task", ["shared", "transport"])
+def test_episodes_of_different_targets_in_one_batch_equal_each_alone(task: str) -> None:
+    """Validation's batch: random-target episodes beside the three trajectories, each episode
+    the numbers it has alone (the mixed targets move each environment as its own mode)."""
+    settings = {"task": "transport", "sphere": {}, "contact_k": 1e6, "contact_nu": 600.0}
+    config = make_config(**(settings if task == "transport" else {}))
+    policy = _linear_policy(TrackingCore(1, config).obs_dim, 24, scale=0.1)
+    names = ["random", "circle", "random", "rectangle", "figure8"]
+    seeds = [21, 0, 22, 0, 0]
+    together = run_episodes(policy, config, names, 0.3, seeds)
+    assert [e.trajectory for e in together] == names
+    for name, seed, episode in zip(names, seeds, together, strict=True):
+        _same(run_episode(policy, config, name, 0.3, seed), episode)
+    with pytest.raises(ValueError, match="2 trajectories for 3 seeds"):
+        run_episodes(policy, config, ["circle", "random"], 0.3, [1, 2, 3])
+
+
 def test_episodes_that_end_early_stop_recording_in_the_batch() -> None:
     """The transport task's zero action lets the sphere go: every episode ends at its drop,
     the batch's as the lone ones'."""

@@ -18,7 +18,7 @@ from softtrack.env.observation import build_observation, observation_size
 from softtrack.env.realism import RealismModel
 from softtrack.env.reward import action_penalty, collision_penalty, tracking_reward
 from softtrack.env.settings import TrackingConfig
-from softtrack.env.targets import BatchedTargets
+from softtrack.env.targets import BatchedTargets, MixedTargets
 from softtrack.env.transport_env import TransportModel
 from softtrack.sim.actuation import N_CONTROL_POINTS
 from softtrack.sim.engine import RodBatch
@@ -63,15 +63,25 @@ class TrackingCore:
     Args:
         n_envs: number of environments.
         config: the validated settings shared by all of them.
+        target_names: (n_envs,) each environment's target mode when they differ
+            (:class:`~softtrack.env.targets.MixedTargets`); default ``config.target.name``.
     """
 
-    def __init__(self, n_envs: int, config: TrackingConfig) -> None:
+    def __init__(
+        self, n_envs: int, config: TrackingConfig, target_names: Sequence[str] | None = None
+    ) -> None:
         config.validate()
         self.config = config
         self.n_envs = int(n_envs)
         self.n_arms = config.n_arms
         self.engine = RodBatch(self.n_envs, config.sim)
-        self.targets = BatchedTargets(config.target, self.n_envs)
+        if target_names is not None and len(target_names) != self.n_envs:
+            raise ValueError(f"{len(target_names)} target names for {self.n_envs} environments")
+        self.targets: BatchedTargets | MixedTargets = (
+            BatchedTargets(config.target, self.n_envs)
+            if target_names is None
+            else MixedTargets(config.target, target_names)
+        )
         self.goal_offsets = config.goal_offsets()  # (A, 3) m, each arm's point − target centre
         self.rngs: list[np.random.Generator | None] = [None] * self.n_envs
         self.step_count = np.zeros(self.n_envs, dtype=np.int64)

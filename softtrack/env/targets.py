@@ -18,6 +18,7 @@ environments together gives bit-for-bit the numbers of N single-environment inst
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ __all__ = [
     "EVAL_TRAJECTORIES",
     "TARGET_MODES",
     "BatchedTargets",
+    "MixedTargets",
     "TargetConfig",
     "TargetMode",
     "TrajectoryName",
@@ -179,20 +181,23 @@ def _rectangle_state(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, n
 
 def _planar(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(x, z) offsets from the centre and their time derivatives, each (..., 2)."""
+    if config.name == "rectangle":
+        return _rectangle_state(config, t)
     omega = config.angular_frequency
+    pos = np.empty((*t.shape, 2))
+    vel = np.empty((*t.shape, 2))
     if config.name == "circle":
         r = config.circle_radius
         c, s = np.cos(omega * t), np.sin(omega * t)
-        return np.stack([r * c, r * s], axis=-1), np.stack([-r * omega * s, r * omega * c], axis=-1)
+        pos[..., 0], pos[..., 1] = r * c, r * s
+        vel[..., 0], vel[..., 1] = -r * omega * s, r * omega * c
+        return pos, vel
     if config.name == "figure8":
         ax, az = (float(v) for v in config.figure8_amplitude)
-        pos = np.stack([ax * np.sin(omega * t), az * np.sin(2.0 * omega * t)], axis=-1)
-        vel = np.stack(
-            [ax * omega * np.cos(omega * t), 2.0 * az * omega * np.cos(2.0 * omega * t)], axis=-1
-        )
+        pos[..., 0], pos[..., 1] = ax * np.sin(omega * t), az * np.sin(2.0 * omega * t)
+        vel[..., 0] = ax * omega * np.cos(omega * t)
+        vel[..., 1] = 2.0 * az * omega * np.cos(2.0 * omega * t)
         return pos, vel
-    if config.name == "rectangle":
-        return _rectangle_state(config, t)
     raise AssertionError(config.name)  # pragma: no cover
 
 
@@ -211,10 +216,10 @@ def _closed_form(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.nd
     planar_pos, planar_vel = _planar(config, t)
     pos = np.empty((*t.shape, 3))
     vel = np.zeros((*t.shape, 3))
-    cx, cy, cz = (float(v) for v in config.center)
-    pos[..., 0] = cx + planar_pos[..., 0]
-    pos[..., 1] = cy
-    pos[..., 2] = cz + planar_pos[..., 1]
+    cx, cy, cz = config.center
+    pos[..., 0] = float(cx) + planar_pos[..., 0]
+    pos[..., 1] = float(cy)
+    pos[..., 2] = float(cz) + planar_pos[..., 1]
     vel[..., 0] = planar_vel[..., 0]
     vel[..., 2] = planar_vel[..., 1]
     return pos, vel
@@ -406,3 +411,68 @@ class BatchedTargets:
         self.position[resting] = position[resting]
         self.velocity[resting] = velocity[resting]
         self._since_redirect[resting] = since_redirect[resting]
+
+
+class MixedTargets:
+    """The targets of environments that follow different modes, advanced together: one
+    :class:`BatchedTargets` per mode over its environments, so each environment moves
+    exactly as in a batch of its own mode (validation runs its random-target episodes and the
+    three trajectories as one batch).
+
+    Attributes:
+        config: the shared settings (its ``name`` is the first environment's mode).
+        names: (n_envs,) each environment's mode.
+        n_envs, position, velocity, time: as :class:`BatchedTargets`'s.
+    """
+
+    def __init__(self, config: TargetConfig, names: Sequence[str]) -> None:
+        self.names = tuple(str(name) for name in names)
+        if not self.names:
+            raise ValueError("MixedTargets needs at least one environment")
+        self.config = dataclasses.replace(config, name=self.names[0])
+        self.n_envs = len(self.names)
+        self._groups = [
+            (
+                np.array([i for i, n in enumerate(self.names) if n == name], dtype=np.intp),
+                BatchedTargets(dataclasses.replace(config, name=name), self.names.count(name)),
+            )
+            for name in dict.fromkeys(self.names)
+        ]
+        self._local = np.empty(self.n_envs, dtype=np.intp)  # each env's index in its group
+        for members, _ in self._groups:
+            self._local[members] = np.arange(len(members))
+        self.time = np.zeros(self.n_envs)
+        self.position = np.zeros((self.n_envs, 3))
+        self.velocity = np.zeros((self.n_envs, 3))
+        self._gather()
+
+    @property
+    def shrunk_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) bounds of a random target's centre, each (3,), m."""
+        return self._groups[0][1].shrunk_box
+
+    def _gather(self) -> None:
+        for members, targets in self._groups:
+            self.time[members] = targets.time
+            self.position[members] = targets.position
+            self.velocity[members] = targets.velocity
+
+    def reset(
+        self,
+        env_indices: np.ndarray | Sequence[int],
+        rngs: Sequence[np.random.Generator] | None = None,
+    ) -> None:
+        """:meth:`BatchedTargets.reset` of the listed environments, each in its mode's group."""
+        idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
+        for members, targets in self._groups:
+            chosen = np.flatnonzero(np.isin(idx, members))
+            if chosen.size:
+                group_rngs = None if rngs is None else [rngs[j] for j in chosen.tolist()]
+                targets.reset(self._local[idx[chosen]], group_rngs)
+        self._gather()
+
+    def step(self, dt: float, active: np.ndarray | None = None) -> None:
+        """:meth:`BatchedTargets.step` of every group (``active``: (n,) bool, or all)."""
+        for members, targets in self._groups:
+            targets.step(dt, None if active is None else np.asarray(active, dtype=bool)[members])
+        self._gather()

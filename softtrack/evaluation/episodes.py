@@ -180,13 +180,15 @@ def accepts_batches(policy: Policy) -> bool:
 def run_episodes(
     policy: Policy,
     config: TrackingConfig,
-    trajectory: str,
+    trajectory: str | Sequence[str],
     duration: float = 10.0,
     seeds: Sequence[int] = (0,),
     snapshot_steps: Sequence[int] | None = None,
 ) -> list[Episode]:
     """Run one episode per seed of ``seeds`` together, in one batch of environments: the
-    episodes of :func:`run_episode` with those seeds, number for number.
+    episodes of :func:`run_episode` with those seeds, number for number. ``trajectory`` is
+    every episode's target, or one per seed (validation's random episodes and trajectories in
+    one batch).
 
     Each environment draws from its own generator and the engine integrates each environment
     alone, so batching changes nothing in an episode. The policy is called with one
@@ -210,12 +212,15 @@ def run_episodes(
             "episode at a time"
         )
     batched = n > 1 and accepts_batches(policy)
+    names = [trajectory] * n if isinstance(trajectory, str) else [str(t) for t in trajectory]
+    if len(names) != n:
+        raise ValueError(f"{len(names)} trajectories for {n} seeds")
     eval_config = dataclasses.replace(
         config,
-        target=dataclasses.replace(config.target, name=trajectory),
+        target=dataclasses.replace(config.target, name=names[0]),
         episode_duration=float(duration),
     )
-    core = TrackingCore(n, eval_config)
+    core = TrackingCore(n, eval_config, None if len(set(names)) == 1 else names)
     obs = core.reset(list(range(n)), [np.random.default_rng(seed) for seed in seeds])
     n_steps = eval_config.max_episode_steps
     n_arms, n_elem = core.n_arms, eval_config.sim.n_elem
@@ -226,7 +231,9 @@ def run_episodes(
     clearance = np.full((n, n_steps), np.nan)  # stays NaN with one arm: no other arm to clear
     two_arms = n_arms >= 2
     # each episode's rod radius: the nominal one, times its model-error factor if any
-    radius = [float(eval_config.sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
+    radius = np.array(
+        [float(eval_config.sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
+    )
     penetration = np.full((n, n_steps), np.nan)
     contact_force = np.zeros((n, n_steps))
     if snapshot_steps is None:
@@ -277,8 +284,7 @@ def run_episodes(
             if result.dropped is not None:
                 dropped[live] = result.dropped[live]
         if two_arms:
-            for i in live.tolist():
-                clearance[i, k] = arm_clearance(core.engine.position[i], radius[i])
+            clearance[live, k] = arm_clearance(core.engine.position[live], radius[live])
             if contact_on:
                 depth, total_force = core.engine.contact_state()
                 penetration[live, k], contact_force[live, k] = depth[live], total_force[live]
@@ -300,7 +306,7 @@ def run_episodes(
         kept = snapshot_at < done
         episodes.append(
             Episode(
-                trajectory,
+                names[i],
                 np.arange(1, done + 1) * eval_config.sim.control_dt,
                 tips[i, :done],
                 target[i, :done],

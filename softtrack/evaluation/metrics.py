@@ -167,13 +167,13 @@ def torque_statistics(element_torques: np.ndarray, t: np.ndarray) -> dict[str, f
     return {"torque_rate_rms": rate_rms, "peak_moment": float(np.max(moment_peak(torques)))}
 
 
-def arm_clearance(nodes: np.ndarray, radius: float) -> np.ndarray | float:
+def arm_clearance(nodes: np.ndarray, radius: float | np.ndarray) -> np.ndarray | float:
     """Surface clearance between the arms of a scene, m.
 
     Args:
         nodes: (..., A, 3, n_nodes) centreline node positions of the A arms, m (e.g. the
             engine's ``position`` of one environment, (A, 3, n_nodes)).
-        radius: each arm's radius r, m.
+        radius: each arm's radius r, m: one for every scene, or (...) one per scene.
 
     Returns:
         (...) (a float for one scene) the smallest distance between a node of one arm and a
@@ -191,7 +191,8 @@ def arm_clearance(nodes: np.ndarray, radius: float) -> np.ndarray | float:
     if x.ndim == 3:  # one scene (run_episode's call at every step): no batch to reshape
         return np.float64(math.sqrt(_scene_min_distance2(x)) - 2.0 * float(radius))
     flat = np.ascontiguousarray(x.reshape((-1, *x.shape[-3:])))
-    return (np.sqrt(_min_node_distance2(flat)).reshape(batch) - 2.0 * float(radius))[()]
+    radii = np.asarray(radius, dtype=np.float64)
+    return (np.sqrt(_min_node_distance2(flat)).reshape(batch) - 2.0 * radii)[()]
 
 
 @njit(cache=True)

@@ -118,12 +118,16 @@ def candidate_path(policy: PolicyDir, model: Literal["best", "last"]) -> Path:
     return policy.best_model_path if model == "best" else policy.model_path
 
 
-def deterministic_policy(model: Any, normalizer: Any = None) -> Policy:
+def deterministic_policy(model: Any, normalizer: Any = None, batches: bool = False) -> Policy:
     """``model``'s deterministic action for one observation: (obs_dim,) → (act_dim,).
 
     Args:
         model: an SB3 or sbx model.
         normalizer: a ``VecNormalize`` whose (frozen) statistics scale the observation first.
+        batches: mark the policy as taking (n, obs_dim) → (n, act_dim) in one call
+            (:func:`~softtrack.evaluation.accepts_batches`). A batch's matrix products may
+            round a row differently from the row alone, so evaluation leaves this off (its
+            numbers reproduce bit for bit); validation turns it on (one call per control step).
     """
 
     def act(observation: np.ndarray) -> np.ndarray:
@@ -131,6 +135,7 @@ def deterministic_policy(model: Any, normalizer: Any = None) -> Policy:
         action, _ = model.predict(obs, deterministic=True)
         return np.asarray(action, dtype=np.float64)
 
+    act.accepts_batches = batches  # type: ignore[attr-defined]
     return act
 
 

@@ -46,6 +46,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from softtrack.env.settings import TrackingConfig
@@ -54,7 +55,6 @@ from softtrack.evaluation import (
     Episode,
     Policy,
     metrics_table,
-    run_episode,
     run_episodes,
     validation_score,
 )
@@ -74,8 +74,8 @@ __all__ = [
     "BestModel",
     "Validator",
     "best_model",
+    "checkpoint_rows",
     "held_out_rows",
-    "trajectory_rows",
     "truncate_validation",
     "validated_steps",
     "validation_score",
@@ -183,24 +183,61 @@ def _episode_rows(
     return metrics
 
 
-def trajectory_rows(
+#: Validation episodes run as one batch (random-target episodes and trajectories together):
+#: up to this many at a time, the policy always called with this many rows.
+VALIDATION_BATCH = 16
+
+
+def _fixed_batch(act: Policy, rows: int) -> Policy:
+    """``act`` (which takes batches) called with ``rows`` observations every time, zeros below
+    the real ones: a batch's matrix products round by its shape, so a fixed shape makes an
+    episode's actions independent of how many episodes share its batch (a checkpoint's
+    random-target episodes score the same with or without the trajectories beside them)."""
+
+    def padded(observation: np.ndarray) -> np.ndarray:
+        batch = np.atleast_2d(observation)
+        full = np.zeros((max(rows, len(batch)), batch.shape[1]), dtype=batch.dtype)
+        full[: len(batch)] = batch
+        actions = np.asarray(act(full), dtype=np.float64)[: len(batch)]
+        return actions[0] if observation.ndim == 1 else actions
+
+    padded.accepts_batches = True  # type: ignore[attr-defined]
+    return padded
+
+
+def checkpoint_rows(
     run_id: str,
     act: Policy,
     config: TrackingConfig,
     duration: float,
+    episodes: int,
     trajectories: Sequence[str],
     arm: int | None,
     stop_requested: Callable[[], bool] = lambda: False,
 ) -> pd.DataFrame | None:
-    """Run one deterministic episode of ``act`` per evaluation trajectory (``duration`` s)
-    and return their metrics as :func:`held_out_rows` does, with ``episode`` and ``seed`` 0.
-    ``None`` if ``stop_requested`` turned true between two episodes."""
-    parts = []
-    for trajectory in trajectories:
+    """One checkpoint's validation episodes, all in one batch of environments (up to
+    :data:`VALIDATION_BATCH` at a time) with one call of ``act`` per control step when it
+    accepts batches: ``episodes`` random-target episodes (episode k from seed
+    :data:`VALIDATION_SEED` + k) and one episode per trajectory of ``trajectories``.
+
+    Returns their metrics as :func:`held_out_rows` does, the random episodes' rows first, the
+    trajectories' rows with ``episode`` and ``seed`` 0; ``None`` if ``stop_requested`` turned
+    true between two batches. ``act`` must take batches: it is always called with
+    :data:`VALIDATION_BATCH` rows (:func:`_fixed_batch`)."""
+    act = _fixed_batch(act, VALIDATION_BATCH)
+    names = ["random"] * episodes + list(trajectories)
+    seeds = [VALIDATION_SEED + k for k in range(episodes)] + [0] * len(trajectories)
+    indices = list(range(episodes)) + [0] * len(trajectories)
+    parts: list[pd.DataFrame] = []
+    for first in range(0, len(names), VALIDATION_BATCH):
         if stop_requested():
             return None
-        episode = run_episode(act, config, trajectory, duration)
-        parts.append(_episode_rows(run_id, episode, 0, 0, arm))
+        chunk = slice(first, first + VALIDATION_BATCH)
+        batch = run_episodes(act, config, names[chunk], duration, seeds[chunk])
+        parts.extend(
+            _episode_rows(run_id, episode, index, seed, arm)
+            for episode, index, seed in zip(batch, indices[chunk], seeds[chunk], strict=True)
+        )
     return pd.concat(parts, ignore_index=True)
 
 
@@ -256,35 +293,21 @@ class Validator:
         started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
         wall_time = None if self.clock is None else self.clock.elapsed()
-        act = deterministic_policy(model, normalizer)
+        act = deterministic_policy(model, normalizer, batches=True)
         with self.clock.paused() if self.clock is not None else contextlib.nullcontext():
-            rows = held_out_rows(
+            rows = checkpoint_rows(
                 self.record.run_id,
                 act,
                 self.config,
                 self.duration,
-                VALIDATION_SEED,
                 self.episodes,
+                self.trajectories,
                 self.policy.arm,
                 self.stop_requested,
             )
-            tracked = (
-                trajectory_rows(
-                    self.record.run_id,
-                    act,
-                    self.config,
-                    self.duration,
-                    self.trajectories,
-                    self.policy.arm,
-                    self.stop_requested,
-                )
-                if self.trajectories and rows is not None
-                else None
-            )
-        if rows is None or (self.trajectories and tracked is None):
+        if rows is None:
             return None
-        if tracked is not None:
-            rows = pd.concat([rows, tracked], ignore_index=True)
+        tracked = rows[rows["trajectory"] != "random"] if self.trajectories else None
         rows.insert(1, "global_step", step)
         if wall_time is not None:
             rows.insert(2, "wall_time", wall_time)

@@ -10,14 +10,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from softtrack.numbers import is_finite_number
-
-if TYPE_CHECKING:
-    from softtrack.sim.params import SimParams
+from softtrack.sim.rod_properties import RodProperties
 
 __all__ = ["SphereParams"]
 
@@ -105,7 +102,7 @@ class SphereParams:
             fields["center"] = tuple(float(c) for c in fields["center"])
         return cls(**fields)
 
-    def problems(self, params: SimParams) -> str | None:
+    def problems(self, params: RodProperties) -> str | None:
         """The first thing wrong with this sphere in the scene ``params``, as one sentence
         naming the field and the fix; None if it is valid."""
         for name in (
@@ -151,7 +148,7 @@ class SphereParams:
             )
         return self._stability_problem(params)
 
-    def rest_overlap(self, params: SimParams) -> float:
+    def rest_overlap(self, params: RodProperties) -> float:
         """The deepest overlap of the sphere with the straight arms at rest, m (≤ 0: apart)."""
         center = np.asarray(self.center, dtype=float)
         direction = np.asarray(params.direction, dtype=float)
@@ -163,7 +160,7 @@ class SphereParams:
             deepest = max(deepest, params.radius + self.radius - distance)
         return deepest
 
-    def _stability_problem(self, params: SimParams) -> str | None:
+    def _stability_problem(self, params: RodProperties) -> str | None:
         from softtrack.sim.stability import mode_is_stable
 
         share = self._mode_share(params)
@@ -184,14 +181,14 @@ class SphereParams:
             )
         return None
 
-    def _mode_share(self, params: SimParams) -> float:
+    def _mode_share(self, params: RodProperties) -> float:
         """Inverse effective mass of the contact mode, 1/kg: a node between two touching
         elements takes ½ + ½ of k·γ (1/m_node), and the sphere takes the full k·γ of up to two
         elements of each arm (4/m)."""
         node_mass = params.density * params.area * params.length / params.n_elem
         return 1.0 / node_mass + 4.0 / self.mass
 
-    def stiffness_limit(self, params: SimParams) -> float:
+    def stiffness_limit(self, params: RodProperties) -> float:
         """The largest contact_k (N/m) stable at ``params.dt`` with this contact_nu, to 1e-4
         relative; 0 when the damping alone is unstable."""
         from softtrack.sim.stability import mode_is_stable

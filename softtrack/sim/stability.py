@@ -27,12 +27,9 @@ diverges within 0.3 % of this limit at damping 0–60 (tests/test_engine_validat
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from softtrack.sim.params import SimParams
+from softtrack.sim.rod_properties import RodProperties
 
 __all__ = [
     "contact_mode",
@@ -73,7 +70,7 @@ def _critical_dt(stiffness: np.ndarray, damping: np.ndarray) -> float:
     return lo
 
 
-def rod_modes(params: SimParams) -> list[tuple[np.ndarray, np.ndarray]]:
+def rod_modes(params: RodProperties) -> list[tuple[np.ndarray, np.ndarray]]:
     """(A, D) pairs of the axial, coupled bending and twist zig-zag modes (module docstring)."""
     dl = params.length / params.n_elem
     rho, e_mod, g_mod = params.density, params.youngs_modulus, params.shear_modulus
@@ -96,7 +93,7 @@ _CONTACT_NODE_SHARE = 7.0 / 3.0  # 2 arms × (4/3 + 1) × ½, module docstring
 
 
 def contact_mode(
-    params: SimParams, stiffness: float | None = None
+    params: RodProperties, stiffness: float | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """(A, D) of the contact mode (module docstring), 1/s² and 1/s.
 
@@ -110,7 +107,7 @@ def contact_mode(
     return np.array([[share * k]]), np.array([[share * params.contact_nu]])
 
 
-def stable_time_step_limit(params: SimParams) -> float:
+def stable_time_step_limit(params: RodProperties) -> float:
     """The largest stable time step (s) for ``params``' material, discretisation, damping and
     (when ``contact_k`` > 0) contact."""
     modes = rod_modes(params)
@@ -119,7 +116,7 @@ def stable_time_step_limit(params: SimParams) -> float:
     return min(_critical_dt(a, d) for a, d in modes)
 
 
-def contact_stiffness_limit(params: SimParams) -> float:
+def contact_stiffness_limit(params: RodProperties) -> float:
     """The largest contact stiffness (N/m) stable at ``params.dt`` with ``params.contact_nu``,
     to 1e-4 relative; 0 when the contact damping alone is unstable there."""
     if not mode_is_stable(*contact_mode(params, 0.0), params.dt):

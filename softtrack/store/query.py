@@ -51,6 +51,7 @@ from softtrack.store.errors import RunStoreError
 from softtrack.store.location import resolve_runs_dir
 from softtrack.store.query_output import (
     OUTPUT_FORMATS,
+    ViewInfo,
     format_result,
     format_views,
     write_cursor,
@@ -206,20 +207,6 @@ ORDER BY name
 
 class QueryError(RunStoreError):
     """A query cannot run; the message is one line saying what is wrong and what to do."""
-
-
-@dataclass(frozen=True)
-class ViewInfo:
-    """A view of the results database (or a table view that is unavailable)."""
-
-    name: str
-    description: str
-    #: (column name, DuckDB type), in order; empty when unavailable.
-    columns: tuple[tuple[str, str], ...]
-    #: runs that contribute rows (for ``runs``/``experiments``: all runs).
-    runs: int
-    #: why the view is unavailable (an unreadable file), else ``None``.
-    error: str | None = None
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import json
 import math
 import textwrap
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from datetime import date, datetime, timedelta
 from decimal import ROUND_HALF_EVEN, Decimal
 from typing import TYPE_CHECKING, Any, Literal
@@ -22,11 +23,10 @@ if TYPE_CHECKING:
     import duckdb
     import pandas as pd
 
-    from softtrack.store.query import ViewInfo
-
 __all__ = [
     "OUTPUT_FORMATS",
     "OutputFormat",
+    "ViewInfo",
     "format_result",
     "format_rows",
     "format_views",
@@ -38,6 +38,21 @@ OUTPUT_FORMATS: tuple[OutputFormat, ...] = ("table", "csv", "json")
 #: How a column is printed: ``float`` (6 significant digits, points aligned, right-justified),
 #: ``number`` (right-justified) or ``other`` (left-justified).
 ColumnKind = Literal["float", "number", "other"]
+
+
+@dataclass(frozen=True)
+class ViewInfo:
+    """A view of the results database (or a table view that is unavailable)."""
+
+    name: str
+    description: str
+    #: (column name, DuckDB type), in order; empty when unavailable.
+    columns: tuple[tuple[str, str], ...]
+    #: runs that contribute rows (for ``runs``/``experiments``: all runs).
+    runs: int
+    #: why the view is unavailable (an unreadable file), else ``None``.
+    error: str | None = None
+
 
 _BATCH_ROWS = 10_000
 _FLOAT_TYPES = ("DOUBLE", "FLOAT", "REAL", "DECIMAL")
