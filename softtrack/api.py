@@ -8,6 +8,7 @@ and are re-exported here.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
@@ -50,7 +51,7 @@ from softtrack.store import run_copies
 from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.model_zip import deflate_model_zip
 from softtrack.store.provenance import portable_command
-from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
+from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir, run_lock
 from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.status import (
     RUN_TABLE_COLUMNS,
@@ -350,33 +351,63 @@ def evaluate(
                 on_created(record)
     frames = []
     for record, store in zip(records, stores, strict=True):
-        if chosen:
-            frames.append(
-                evaluate_run(
+        with run_lock(record, "evaluated") if store else contextlib.nullcontext():
+            frames.extend(
+                _evaluate_one(
                     record,
+                    store,
                     chosen,
+                    random_episodes,
+                    model,
+                    full_moments,
                     on_episode,
-                    load=load_policy,
-                    write=store,
-                    model=model,
-                    full_moments=full_moments,
+                    on_random,
+                    on_random_progress,
                 )
             )
-        if random_episodes:
-            progress = None
-            if on_random_progress is not None:
-                progress = functools.partial(on_random_progress, record)
-            rows = evaluate_random_targets(
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _evaluate_one(
+    record: RunRecord,
+    store: bool,
+    chosen: Sequence[str],
+    random_episodes: int,
+    model: ModelChoice,
+    full_moments: bool,
+    on_episode: Callable[..., None] | None,
+    on_random: Callable[..., None] | None,
+    on_random_progress: Callable[[RunRecord, int, int], None] | None,
+) -> list[pd.DataFrame]:
+    """:func:`evaluate` of one resolved run: its trajectories' metrics (one frame, or none)."""
+    frames = []
+    if chosen:
+        frames.append(
+            evaluate_run(
                 record,
-                random_episodes,
+                chosen,
+                on_episode,
                 load=load_policy,
                 write=store,
                 model=model,
-                on_progress=progress,
+                full_moments=full_moments,
             )
-            if on_random is not None:
-                on_random(record, rows)
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+        )
+    if random_episodes:
+        progress = None
+        if on_random_progress is not None:
+            progress = functools.partial(on_random_progress, record)
+        rows = evaluate_random_targets(
+            record,
+            random_episodes,
+            load=load_policy,
+            write=store,
+            model=model,
+            on_progress=progress,
+        )
+        if on_random is not None:
+            on_random(record, rows)
+    return frames
 
 
 def _is_spec_file(reference: str) -> bool:
@@ -406,7 +437,10 @@ def export(
     ``policy.json`` (other models under ``other_models/`` unless ``policy_only``),
     inference-only (see :mod:`softtrack.rl.policy_export`). Returns ``dest``."""
 
-    return export_policy_run(select_one_run(reference, runs_dir), dest, policy_only)
+    record = select_one_run(reference, runs_dir)
+    # a shipped run is never trained in place: no lock file is written into it
+    with contextlib.nullcontext() if record.read_only else run_lock(record, "exported"):
+        return export_policy_run(record, dest, policy_only)
 
 
 def upgrade(

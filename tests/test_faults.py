@@ -906,3 +906,48 @@ def test_an_address_space_limit_too_small_for_jax_is_one_line(runs: tuple[Path, 
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("error:")]
     assert len(lines) == 1 and "ulimit -v" in lines[0] and "Traceback" not in proc.stderr
     assert time.monotonic() - started < 60
+
+
+def test_evaluate_and_export_take_the_run_lock_the_trainers_take(
+    runs: tuple[Path, str], tmp_path: Path
+) -> None:
+    """While another process holds a run (training it), evaluating into it and exporting it
+    are one line naming the holder, exit 2, nothing changed; listing it needs no lock."""
+    root, run_id = runs
+    run_dir = next(p for p in root.iterdir() if (p / "run.json").is_file())
+    before = _snapshot(run_dir)
+    holder = subprocess.Popen(  # noqa: S603 - this interpreter, a fixed script
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from softtrack.store.runs import RunStore, run_lock\n"
+            "record = RunStore(sys.argv[1]).get_run(sys.argv[2])\n"
+            "with run_lock(record, sys.argv[3]):\n"
+            "    print('held', flush=True)\n"
+            "    time.sleep(60)\n",
+            str(root),
+            run_id,
+            "trained",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+        result = _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root))
+        line = _one_line(result)
+        assert result.exit_code == 2 and "is being trained by another process" in line, line
+        assert f"pid {holder.pid}" in line
+        result = _cli("export", run_id, str(tmp_path / "out"), "--runs-dir", str(root))
+        assert result.exit_code == 2 and "being trained" in _one_line(result)
+        assert not (tmp_path / "out").exists()
+        result = _cli("runs", "--runs-dir", str(root))  # reading the store needs no lock
+        assert result.exit_code == 0 and run_id in result.output, result.output
+    finally:
+        holder.kill()
+        holder.wait()
+    assert _snapshot(run_dir) == before
+    # the lock is free again: evaluation and export go through
+    assert _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root)).exit_code == 0
+    assert _cli("export", run_id, str(tmp_path / "out"), "--runs-dir", str(root)).exit_code == 0

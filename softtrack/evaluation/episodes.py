@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softtrack.env.core import TrackingCore
+from softtrack.env.core import StepResult, TrackingCore
 from softtrack.env.observation import arm_view_columns
 from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import EVAL_TRAJECTORIES
@@ -223,40 +223,15 @@ def run_episodes(
     core = TrackingCore(n, eval_config, None if len(set(names)) == 1 else names)
     obs = core.reset(list(range(n)), [np.random.default_rng(seed) for seed in seeds])
     n_steps = eval_config.max_episode_steps
-    n_arms, n_elem = core.n_arms, eval_config.sim.n_elem
-    tips = np.full((n, n_steps, n_arms, 3), np.nan)
-    target = np.full((n, n_steps, 3), np.nan)
-    torques = np.full((n, n_steps, n_arms, 2, n_elem), np.nan)
-    actions = np.full((n, n_steps, core.action_dim), np.nan)
-    clearance = np.full((n, n_steps), np.nan)  # stays NaN with one arm: no other arm to clear
-    two_arms = n_arms >= 2
-    # each episode's rod radius: the nominal one, times its model-error factor if any
-    radius = np.array(
-        [float(eval_config.sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
-    )
-    penetration = np.full((n, n_steps), np.nan)
-    contact_force = np.zeros((n, n_steps))
     if snapshot_steps is None:
         snapshot_at = _snapshot_steps(n_steps)
     else:
         snapshot_at = np.unique(np.clip(np.asarray(snapshot_steps, dtype=int), 0, n_steps - 1))
-    snapshots = np.full((n, len(snapshot_at), n_arms, 3, eval_config.sim.n_nodes), np.nan)
-    contact_on = core.engine.contact_on
+    recording = _Recording(core, n_steps, snapshot_at)
     planning = None
     if start_episode is not None:
         start_episode(core)
         planning = np.full(n_steps, np.nan)
-    transport = core.transport
-    carried = None
-    if transport is not None:
-        carried = (
-            np.full((n, n_steps, 3), np.nan),
-            np.zeros((n, n_steps, n_arms)),
-            np.zeros((n, n_steps, n_arms), dtype=bool),
-        )
-    dropped = np.zeros(n, dtype=bool)
-    terminated = np.zeros(n, dtype=bool)
-    done_steps = np.full(n, n_steps)
     active = np.ones(n, dtype=bool)
     for k in range(n_steps):
         started = time.thread_time()
@@ -271,63 +246,105 @@ def run_episodes(
             planning[k] = time.thread_time() - started
         result = core.step(action)
         live = np.flatnonzero(active)
-        actions[live, k] = action[live]
-        tips[live, k] = core.engine.tip_position[live]
-        target[live, k] = core.targets.position[live]
-        torques[live, k] = core.engine.torques[live]
-        if transport is not None and carried is not None:
-            target[live, k] = transport.goal_position[live]
-            force, _, steps = core.engine.sphere_contact_state()
-            carried[0][live, k] = core.engine.sphere_position[live]
-            carried[1][live, k] = force[live]
-            carried[2][live, k] = steps[live] > 0
-            if result.dropped is not None:
-                dropped[live] = result.dropped[live]
-        if two_arms:
-            clearance[live, k] = arm_clearance(core.engine.position[live], radius[live])
-            if contact_on:
-                depth, total_force = core.engine.contact_state()
-                penetration[live, k], contact_force[live, k] = depth[live], total_force[live]
-            else:
-                penetration[live, k] = np.fmax(0.0, -clearance[live, k])  # NaN clearance: 0
-        at_snapshot = snapshot_at == k
-        if at_snapshot.any():
-            snapshots[live[:, None], at_snapshot] = core.engine.position[live][:, None]
+        recording.record(k, live, action, result)
         obs = result.observation
         ended = live[result.terminated[live]]
-        terminated[ended] = True
-        done_steps[ended] = k + 1
+        recording.end(ended, k + 1)
         active[ended] = False
         if not active.any():
             break
-    episodes = []
-    for i in range(n):
-        done = int(done_steps[i])
-        kept = snapshot_at < done
-        episodes.append(
-            Episode(
-                names[i],
-                np.arange(1, done + 1) * eval_config.sim.control_dt,
-                tips[i, :done],
-                target[i, :done],
-                torques[i, :done],
-                actions[i, :done],
-                bool(terminated[i]),
-                clearance[i, :done],
-                float(eval_config.reward.collision_margin),
-                None if planning is None else planning[:done],
-                penetration[i, :done],
-                contact_force[i, :done],
-                snapshots[i, kept],
-                snapshot_at[kept],
-                core.goal_offsets.copy(),
-                None if carried is None else carried[0][i, :done],
-                None if carried is None else carried[1][i, :done],
-                None if carried is None else carried[2][i, :done],
-                bool(dropped[i]),
-            )
+    return [recording.episode(i, names[i], planning) for i in range(n)]
+
+
+class _Recording:
+    """What :func:`run_episodes` keeps of each of ``core``'s episodes at every control step,
+    (n, n_steps, ...) arrays, NaN after an episode's end."""
+
+    def __init__(self, core: TrackingCore, n_steps: int, snapshot_at: np.ndarray) -> None:
+        n, n_arms, sim = core.n_envs, core.n_arms, core.config.sim
+        self.core = core
+        self.snapshot_at = snapshot_at
+        self.tips = np.full((n, n_steps, n_arms, 3), np.nan)
+        self.target = np.full((n, n_steps, 3), np.nan)
+        self.torques = np.full((n, n_steps, n_arms, 2, sim.n_elem), np.nan)
+        self.actions = np.full((n, n_steps, core.action_dim), np.nan)
+        self.clearance = np.full((n, n_steps), np.nan)  # NaN with one arm: nothing to clear
+        self.penetration = np.full((n, n_steps), np.nan)
+        self.contact_force = np.zeros((n, n_steps))
+        self.snapshots = np.full((n, len(snapshot_at), n_arms, 3, sim.n_nodes), np.nan)
+        # each episode's rod radius: the nominal one, times its model-error factor if any
+        self.radius = np.array(
+            [float(sim.radius) * core.parameters(i)["radius_scale"] for i in range(n)]
         )
-    return episodes
+        self.carried = None
+        if core.transport is not None:  # the sphere's centre, each arm's force and touch
+            self.carried = (
+                np.full((n, n_steps, 3), np.nan),
+                np.zeros((n, n_steps, n_arms)),
+                np.zeros((n, n_steps, n_arms), dtype=bool),
+            )
+        self.dropped = np.zeros(n, dtype=bool)
+        self.terminated = np.zeros(n, dtype=bool)
+        self.done_steps = np.full(n, n_steps)
+
+    def record(self, k: int, live: np.ndarray, action: np.ndarray, result: StepResult) -> None:
+        """Keep control step ``k`` of the ``live`` episodes (after ``core.step``)."""
+        engine, transport = self.core.engine, self.core.transport
+        self.actions[live, k] = action[live]
+        self.tips[live, k] = engine.tip_position[live]
+        self.target[live, k] = self.core.targets.position[live]
+        self.torques[live, k] = engine.torques[live]
+        if transport is not None and self.carried is not None:
+            self.target[live, k] = transport.goal_position[live]
+            force, _, steps = engine.sphere_contact_state()
+            self.carried[0][live, k] = engine.sphere_position[live]
+            self.carried[1][live, k] = force[live]
+            self.carried[2][live, k] = steps[live] > 0
+            if result.dropped is not None:
+                self.dropped[live] = result.dropped[live]
+        if self.core.n_arms >= 2:
+            self.clearance[live, k] = arm_clearance(engine.position[live], self.radius[live])
+            if engine.contact_on:
+                depth, total_force = engine.contact_state()
+                self.penetration[live, k] = depth[live]
+                self.contact_force[live, k] = total_force[live]
+            else:  # NaN clearance: 0
+                self.penetration[live, k] = np.fmax(0.0, -self.clearance[live, k])
+        at_snapshot = self.snapshot_at == k
+        if at_snapshot.any():
+            self.snapshots[live[:, None], at_snapshot] = engine.position[live][:, None]
+
+    def end(self, ended: np.ndarray, steps: int) -> None:
+        """The ``ended`` episodes terminated after ``steps`` control steps."""
+        self.terminated[ended] = True
+        self.done_steps[ended] = steps
+
+    def episode(self, i: int, trajectory: str, planning: np.ndarray | None) -> Episode:
+        """Episode ``i`` as recorded, cut at its end."""
+        done = int(self.done_steps[i])
+        kept = self.snapshot_at < done
+        carried = self.carried
+        return Episode(
+            trajectory,
+            np.arange(1, done + 1) * self.core.config.sim.control_dt,
+            self.tips[i, :done],
+            self.target[i, :done],
+            self.torques[i, :done],
+            self.actions[i, :done],
+            bool(self.terminated[i]),
+            self.clearance[i, :done],
+            float(self.core.config.reward.collision_margin),
+            None if planning is None else planning[:done],
+            self.penetration[i, :done],
+            self.contact_force[i, :done],
+            self.snapshots[i, kept],
+            self.snapshot_at[kept],
+            self.core.goal_offsets.copy(),
+            None if carried is None else carried[0][i, :done],
+            None if carried is None else carried[1][i, :done],
+            None if carried is None else carried[2][i, :done],
+            bool(self.dropped[i]),
+        )
 
 
 #: Episodes run together by :func:`iter_episodes`: the environments' step is shared, the

@@ -679,30 +679,58 @@ class RunLockedError(RunStoreError):
     """Another process holds the run's lock: it is training the run right now."""
 
 
+#: Lock files this process holds (resolved paths): a command that holds a run's lock may call
+#: another that takes it (an flock is per open file, so the second open would refuse itself).
+_HELD_LOCKS: set[Path] = set()
+
+
 @contextmanager
-def run_lock(record: RunRecord) -> Iterator[None]:
+def run_lock(record: RunRecord, activity: str = "trained") -> Iterator[None]:
     """Hold ``run.lock`` (an exclusive, non-blocking ``flock``) while the body runs.
 
-    The kernel releases the lock when the process dies, even by SIGKILL, so a held lock means
-    a live process is training the run; two sweeps or resumes can never train one run at once.
+    Training, evaluation that writes into the run and export each hold it, so none of them
+    reads or writes a run while another process changes it. The kernel releases the lock when
+    the process dies, even by SIGKILL, so a held lock means a live process is using the run;
+    its holder writes one line into the file (pid, host, ``activity``) for the error of the
+    next one. Re-entrant within one process.
 
     Raises:
         RunLockedError: another process holds the lock.
     """
     import fcntl
 
+    path = record.lock_path.resolve()
+    if path in _HELD_LOCKS:
+        yield
+        return
     fd = os.open(record.lock_path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             raise RunLockedError(
-                f"run {record.run_id} is being trained by another process (pid "
-                f"{record.info.pid} on {record.info.host}); wait for it or stop it first"
+                f"run {record.run_id} is {_lock_holder(fd, record)}; wait for it or stop it first"
             ) from None
-        yield
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()} {socket.gethostname()} {activity}\n".encode())
+        _HELD_LOCKS.add(path)
+        try:
+            yield
+        finally:
+            _HELD_LOCKS.discard(path)
     finally:
         os.close(fd)  # releases the lock
+
+
+def _lock_holder(fd: int, record: RunRecord) -> str:
+    """What the lock's holder wrote (``being <activity> by another process (pid …)``), or
+    the training process of run.json for a lock file written before holders wrote one."""
+    try:
+        pid, host, activity = os.pread(fd, 200, 0).decode("utf-8").split(maxsplit=2)
+        int(pid)
+    except (OSError, UnicodeDecodeError, ValueError):
+        pid, host, activity = str(record.info.pid), str(record.info.host), "trained"
+    return f"being {activity.strip()} by another process (pid {pid} on {host})"
 
 
 def lock_held(record: RunRecord) -> bool | None:
