@@ -916,7 +916,7 @@ def test_evaluate_and_export_take_the_run_lock_the_trainers_take(
     root, run_id = runs
     run_dir = next(p for p in root.iterdir() if (p / "run.json").is_file())
     before = _snapshot(run_dir)
-    holder = subprocess.Popen(  # noqa: S603 - this interpreter, a fixed script
+    holder = subprocess.Popen(
         [
             sys.executable,
             "-c",
