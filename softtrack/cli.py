@@ -26,6 +26,9 @@ from softtrack.commands import evaluate_commands  # noqa: F401
 from softtrack.commands import report_commands  # noqa: F401
 
 # isort: split
+from softtrack.commands import workspace_commands  # noqa: F401
+
+# isort: split
 from softtrack.commands.common import TrajectoryChoice, app, exit_on_sigterm
 
 __all__ = ["TrajectoryChoice", "app", "exit_on_sigterm"]
