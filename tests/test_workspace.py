@@ -129,8 +129,7 @@ def test_the_command_prints_floors_and_writes_its_files(tmp_path: Path) -> None:
         (["--per-path", "0"], "--per-path 0"),
         (["--torque-scale", "-1"], "--torque-scale -1"),
         (
-            ["--set", "env.task.grip=-0.3", "--per-path", "1", "--population", "2"]
-            + ["--iterations", "1"],
+            "--set env.task.grip=-0.3 --per-path 1 --population 2 --iterations 1".split(),
             "no sample held the sphere at rest (grip -0.3",
         ),
     ],
