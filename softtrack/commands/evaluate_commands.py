@@ -221,65 +221,80 @@ RobustnessWorkersOption = Annotated[
 ]
 
 
+RobustnessRunsArgument = Annotated[
+    list[str],
+    typer.Argument(
+        metavar="RUN",
+        help="Runs: run ids (or unique prefixes), run directories, experiment names or spec files.",
+        show_default=False,
+    ),
+]
+
+GridOption = Annotated[
+    list[str] | None,
+    typer.Option(
+        "--grid",
+        "-g",
+        metavar="FACTOR=L1,L2",
+        show_default=False,
+        help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
+        "action_delay=0,2 (a field of env.realism, obs_noise, gravity, contact (on/off or N/m), or a spec "
+        "path env.*). Repeatable.",
+    ),
+]
+
+FullGridOption = Annotated[
+    bool,
+    typer.Option(
+        "--full-grid",
+        metavar="",
+        help="Every combination of the axes' levels "
+        "[default: one factor at a time, the others nominal].",
+    ),
+]
+
+RobustnessTrajectoryOption = Annotated[
+    TrajectoryChoice,
+    typer.Option(
+        "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
+    ),
+]
+
+RobustnessEpisodesOption = Annotated[
+    int,
+    typer.Option(
+        "--episodes",
+        metavar="K",
+        min=1,
+        help="Episodes per setting and trajectory (noise seeds 4,000,000 + k).",
+    ),
+]
+
+KeepRealismOption = Annotated[
+    bool,
+    typer.Option(
+        "--keep-realism",
+        metavar="",
+        help="Perturb each run's own env.realism "
+        "[default: the idealised environment, realism off].",
+    ),
+]
+
+RedoOption = Annotated[
+    bool,
+    typer.Option("--redo", metavar="", help="Evaluate again settings the tables already hold."),
+]
+
+
 @app.command(cls=Command)
 def robustness(
-    references: Annotated[
-        list[str],
-        typer.Argument(
-            metavar="RUN",
-            help="Runs: run ids (or unique prefixes), run directories, experiment names or spec files.",
-            show_default=False,
-        ),
-    ],
-    grid: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--grid",
-            "-g",
-            metavar="FACTOR=L1,L2",
-            show_default=False,
-            help="Levels of one perturbation, e.g. --grid obs_noise=0,0.005 --grid "
-            "action_delay=0,2 (a field of env.realism, obs_noise, gravity, contact (on/off or N/m), or a spec "
-            "path env.*). Repeatable.",
-        ),
-    ] = None,
-    full_grid: Annotated[
-        bool,
-        typer.Option(
-            "--full-grid",
-            metavar="",
-            help="Every combination of the axes' levels "
-            "[default: one factor at a time, the others nominal].",
-        ),
-    ] = False,
-    trajectory: Annotated[
-        TrajectoryChoice,
-        typer.Option(
-            "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
-        ),
-    ] = ALL_TRAJECTORIES,
-    episodes: Annotated[
-        int,
-        typer.Option(
-            "--episodes",
-            metavar="K",
-            min=1,
-            help="Episodes per setting and trajectory (noise seeds 4,000,000 + k).",
-        ),
-    ] = 1,
-    keep_realism: Annotated[
-        bool,
-        typer.Option(
-            "--keep-realism",
-            metavar="",
-            help="Perturb each run's own env.realism "
-            "[default: the idealised environment, realism off].",
-        ),
-    ] = False,
-    redo: Annotated[
-        bool,
-        typer.Option("--redo", metavar="", help="Evaluate again settings the tables already hold."),
-    ] = False,
+    references: RobustnessRunsArgument,
+    grid: GridOption = None,
+    full_grid: FullGridOption = False,
+    trajectory: RobustnessTrajectoryOption = ALL_TRAJECTORIES,
+    episodes: RobustnessEpisodesOption = 1,
+    keep_realism: KeepRealismOption = False,
+    redo: RedoOption = False,
     in_place: InPlaceOption = False,
     *,
     executor: ExecutorOption = ExecutorChoice.local,

@@ -227,75 +227,90 @@ def resume_command(
     finish(outcome, "resume")
 
 
+TuneSpecArgument = Annotated[
+    str | None,
+    typer.Argument(
+        metavar="SPEC",
+        show_default=False,
+        help="Experiment spec (YAML) with a tune: section (the search space).",
+    ),
+]
+
+TrialsOption = Annotated[
+    int | None,
+    typer.Option(
+        "--trials",
+        "-n",
+        metavar="N",
+        min=1,
+        show_default=False,
+        help="Finished trials (complete or pruned) the study should have.",
+    ),
+]
+
+StudyOption = Annotated[
+    str | None,
+    typer.Option(
+        "--study",
+        metavar="NAME",
+        show_default=False,
+        help="The study: started, or continued if it exists [default: the spec's name].",
+    ),
+]
+
+StorageOption = Annotated[
+    str | None,
+    typer.Option(
+        "--storage",
+        metavar="URL",
+        show_default=False,
+        help="Optuna RDB storage URL, e.g. postgresql://user@host/db [default: "
+        "sqlite:///RUNS_DIR/optuna.db].",
+    ),
+]
+
+BestOption = Annotated[
+    str | None,
+    typer.Option(
+        "--best",
+        metavar="STUDY",
+        show_default=False,
+        help="Write the study's best trial as a spec file (see --out) instead.",
+    ),
+]
+
+BestOutOption = Annotated[
+    str | None,
+    typer.Option(
+        "--out",
+        "-o",
+        metavar="FILE",
+        show_default=False,
+        help="With --best: the spec file to write [default: STUDY-best.yaml].",
+    ),
+]
+
+StatusOption = Annotated[
+    str | None,
+    typer.Option(
+        "--status",
+        metavar="STUDY",
+        show_default=False,
+        help="Print the study's trials (state, score, params, run id) instead.",
+    ),
+]
+
+
 @app.command("tune", cls=Command)
 def tune_command(
-    spec: Annotated[
-        str | None,
-        typer.Argument(
-            metavar="SPEC",
-            show_default=False,
-            help="Experiment spec (YAML) with a tune: section (the search space).",
-        ),
-    ] = None,
+    spec: TuneSpecArgument = None,
     overrides: SetOption = None,
-    trials: Annotated[
-        int | None,
-        typer.Option(
-            "--trials",
-            "-n",
-            metavar="N",
-            min=1,
-            show_default=False,
-            help="Finished trials (complete or pruned) the study should have.",
-        ),
-    ] = None,
-    study: Annotated[
-        str | None,
-        typer.Option(
-            "--study",
-            metavar="NAME",
-            show_default=False,
-            help="The study: started, or continued if it exists [default: the spec's name].",
-        ),
-    ] = None,
-    storage: Annotated[
-        str | None,
-        typer.Option(
-            "--storage",
-            metavar="URL",
-            show_default=False,
-            help="Optuna RDB storage URL, e.g. postgresql://user@host/db [default: "
-            "sqlite:///RUNS_DIR/optuna.db].",
-        ),
-    ] = None,
-    best: Annotated[
-        str | None,
-        typer.Option(
-            "--best",
-            metavar="STUDY",
-            show_default=False,
-            help="Write the study's best trial as a spec file (see --out) instead.",
-        ),
-    ] = None,
-    out: Annotated[
-        str | None,
-        typer.Option(
-            "--out",
-            "-o",
-            metavar="FILE",
-            show_default=False,
-            help="With --best: the spec file to write [default: STUDY-best.yaml].",
-        ),
-    ] = None,
-    status: Annotated[
-        str | None,
-        typer.Option(
-            "--status",
-            metavar="STUDY",
-            show_default=False,
-            help="Print the study's trials (state, score, params, run id) instead.",
-        ),
-    ] = None,
+    trials: TrialsOption = None,
+    study: StudyOption = None,
+    storage: StorageOption = None,
+    best: BestOption = None,
+    out: BestOutOption = None,
+    status: StatusOption = None,
     *,
     executor: ExecutorOption = ExecutorChoice.local,
     workers: TuneWorkersOption = None,
