@@ -366,3 +366,27 @@ def test_corrupt_parquet_file(runs_dir: Path) -> None:
     with ResultsDatabase(runs_dir) as db:
         assert db.query("SELECT count(*) AS n FROM eval_metrics")["n"].item() == 16
         assert [v.error is not None for v in db.views() if v.name == "train_episodes"] == [True]
+
+
+def test_a_huge_table_result_shows_its_first_rows_and_counts_the_rest() -> None:
+    """Bounded memory: ``--format table`` prints the first rows and counts the others in
+    batches; CSV streams every row."""
+    import duckdb
+
+    from softtrack.store.query_output import write_cursor
+
+    connection = duckdb.connect()
+    chunks: list[str] = []
+    cursor = connection.execute("SELECT range AS i, range * 2 AS j FROM range(25000)")
+    assert write_cursor(cursor, "table", chunks.append, batch_rows=1000, table_rows=100) == 25000
+    text = "".join(chunks)
+    assert len(text.splitlines()) == 1 + 100 + 1  # header, 100 rows, the count
+    assert text.splitlines()[-1].startswith("… 24,900 more rows not shown")
+    chunks.clear()
+    cursor = connection.execute("SELECT range AS i FROM range(25000)")
+    assert write_cursor(cursor, "csv", chunks.append, batch_rows=1000) == 25000
+    assert len("".join(chunks).splitlines()) == 25001
+    chunks.clear()
+    cursor = connection.execute("SELECT range AS i FROM range(5)")
+    write_cursor(cursor, "table", chunks.append, table_rows=100)
+    assert "more rows" not in "".join(chunks)

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "OUTPUT_FORMATS",
+    "TABLE_ROWS",
     "OutputFormat",
     "ViewInfo",
     "format_result",
@@ -55,6 +56,8 @@ class ViewInfo:
 
 
 _BATCH_ROWS = 10_000
+#: Rows a ``--format table`` result shows; the rest are counted (``write_cursor``).
+TABLE_ROWS = 10_000
 _FLOAT_TYPES = ("DOUBLE", "FLOAT", "REAL", "DECIMAL")
 _INTEGER_TYPES = frozenset(
     {"TINYINT", "SMALLINT", "INTEGER", "BIGINT", "HUGEINT", "UTINYINT", "USMALLINT"}
@@ -257,10 +260,12 @@ def write_cursor(
     write: Callable[[str], None],
     *,
     batch_rows: int = _BATCH_ROWS,
+    table_rows: int = TABLE_ROWS,
 ) -> int:
     """Print a DuckDB result with ``write`` (text without the final newline per call is
-    joined as it comes): CSV and JSON in batches of ``batch_rows`` (bounded memory), a table
-    whole (its columns are aligned over every row). Returns the number of rows.
+    joined as it comes): CSV and JSON in batches of ``batch_rows``, a table's first
+    ``table_rows`` rows aligned over each other and then a line counting the rest (fetched in
+    batches and dropped), so any result needs bounded memory. Returns the number of rows.
 
     Raises:
         duckdb.Error: the result cannot be computed (raised while fetching).
@@ -268,9 +273,18 @@ def write_cursor(
     description = cursor.description or []
     columns = [str(d[0]) for d in description]
     if output_format == "table":
-        rows = cursor.fetchall()
-        write(_text_table(columns, [_duckdb_kind(str(d[1])) for d in description], rows) + "\n")
-        return len(rows)
+        rows = cursor.fetchmany(table_rows)
+        more = 0
+        while batch := cursor.fetchmany(batch_rows):
+            more += len(batch)
+        text = _text_table(columns, [_duckdb_kind(str(d[1])) for d in description], rows)
+        if more:
+            text += (
+                f"\n… {more:,} more rows not shown (a table shows the first {table_rows:,}); "
+                "--format csv or json prints every row, or add LIMIT to the query"
+            )
+        write(text + "\n")
+        return len(rows) + more
     count = 0
     first = True
     while batch := cursor.fetchmany(batch_rows):
