@@ -184,3 +184,20 @@ def test_contributing_names_files_that_exist() -> None:
     text = (PACKAGE.parent / "CONTRIBUTING.md").read_text(encoding="utf-8")
     named = set(re.findall(r"`((?:softtrack|tests)/[\w/]+\.py)`", text))
     assert named and sorted(p for p in named if not (PACKAGE.parent / p).is_file()) == []
+
+
+def test_the_command_line_starts_without_the_heavy_packages() -> None:
+    """`softtrack --help` (issue 59: at once) imports no spec models, engine or array library:
+    each command loads them when it runs."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, softtrack.cli\n"
+        "heavy = ['softtrack.spec', 'softtrack.sim', 'numba', 'numpy', 'pandas', 'jax', 'torch']\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    loaded = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert loaded == [], f"softtrack.cli imports {loaded} at start"

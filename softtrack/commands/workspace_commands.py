@@ -16,14 +16,10 @@ from softtrack.lazy import lazy_module
 if TYPE_CHECKING:
     from softtrack import api
     from softtrack.env.settings import TrackingConfig
-    from softtrack.evaluation import workspace
     from softtrack.evaluation.workspace import WorkspaceResult
-    from softtrack.spec import env_config
 else:
-    # loaded at their first use, so `softtrack --help` starts at once
+    # loaded at its first use, so `softtrack --help` starts at once
     api = lazy_module("softtrack.api")
-    workspace = lazy_module("softtrack.evaluation.workspace")
-    env_config = lazy_module("softtrack.spec.env_config")
 
 
 @app.command("workspace", cls=Command)
@@ -71,9 +67,13 @@ def workspace_command(
     path's floor is the RMSE of each path point's distance to the nearest held point: no
     controller that holds the sphere tracks the path better. Minutes on one core.
     """
+    # here, not at the top: they load the engine, which `softtrack --help` must not
+    from softtrack.evaluation import workspace
+    from softtrack.spec.env_config import env_config
+
     with user_errors():
         resolved = api.validate_spec(spec, overrides or [])
-        config = env_config.env_config(resolved)
+        config = env_config(resolved)
         if not config.task.carries_object:
             fail(
                 f"{spec}: env.task.name is {config.task.name}; the workspace is the transport "
