@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import re
 import subprocess
@@ -41,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from softtrack.evaluation.seed_statistics import stratified_bootstrap
+from softtrack.evaluation.statistics import wilson_interval
 from softtrack.executors.sweep import parse_seeds
 from softtrack.report.reference import STUDY_RMSE_3D
 from softtrack.spec import ExperimentSpec, SpecError, load_spec, spec_hash
@@ -78,17 +78,6 @@ class SeedResult:
 def study_cells() -> tuple[float, ...]:
     """The study's centralized TD3 3-D RMSE per cell (m), in :data:`CELLS` order."""
     return tuple(STUDY_RMSE_3D["centralized"][t][arm] for t, arm in CELLS)
-
-
-def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
-    """The Wilson score interval of a binomial proportion (95 % by default)."""
-    if trials <= 0:
-        raise ValueError("no trials")
-    p = successes / trials
-    denominator = 1.0 + z * z / trials
-    centre = (p + z * z / (2 * trials)) / denominator
-    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
-    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def check_request(spec: ExperimentSpec, seeds: Sequence[int]) -> None:

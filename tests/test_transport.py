@@ -447,3 +447,27 @@ def test_a_transport_validation_counts_the_steps_after_a_drop() -> None:
     assert validation_score(diverged, 10.0) == math.inf
     trajectory_rows = _carry_rows([5.0], [1.0]).assign(trajectory="circle", episode=7)
     assert validation_score(pd.concat([held, trajectory_rows]), 10.0) == pytest.approx(0.05)
+
+
+def test_evaluate_random_prints_the_carried_rate_with_its_interval() -> None:
+    """Issue 62's metrics people compare: episodes carried through, hold time, squeeze."""
+    import pandas as pd
+
+    from softtrack.commands.evaluate_commands import _carried_summary
+
+    rows = pd.DataFrame(
+        {
+            "episode": [0, 0, 1, 1, 2, 2, 3, 3],
+            "arm": [0, 1] * 4,
+            "object_rmse_3d": [0.02, 0.02, 0.04, 0.04, 0.5, 0.5, 0.03, 0.03],
+            "dropped": [False, False, False, False, True, True, False, False],
+            "duration": [12.0, 12.0, 12.0, 12.0, 3.0, 3.0, 12.0, 12.0],
+            "two_arm_contact": [1.0, 1.0, 0.9, 0.9, 0.2, 0.2, 1.0, 1.0],
+            "object_force_mean": [10.0, 12.0, 10.0, 12.0, 10.0, 12.0, 10.0, 12.0],
+        }
+    )
+    line = _carried_summary(rows)
+    assert "sphere 3-D RMSE 0.1475 m (mean over 4 episodes)" in line
+    assert "carried 3 of 4 (75%, 95 % [30%, 95%])" in line
+    assert "held 9.8 s on average (episodes of 12.0 s)" in line
+    assert "by both arms 78% of the steps" in line and "squeeze 10.0 / 12.0 N" in line

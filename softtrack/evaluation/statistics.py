@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
-__all__ = ["Difference", "mean_difference"]
+__all__ = ["Difference", "mean_difference", "wilson_interval"]
 
 
 @dataclass(frozen=True)
@@ -79,3 +79,15 @@ def mean_difference(a: ArrayLike, b: ArrayLike, confidence: float = 0.95) -> Dif
     return Difference(
         difference, difference - half, difference + half, p_value, x.size, y.size, confidence
     )
+
+
+def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
+    """The Wilson score interval of a binomial proportion (95 % by default): e.g. the share
+    of fresh seeds that reach a target, or of episodes that carry the sphere through."""
+    if trials <= 0:
+        raise ValueError("no trials")
+    p = successes / trials
+    denominator = 1.0 + z * z / trials
+    centre = (p + z * z / (2 * trials)) / denominator
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
+    return max(0.0, centre - half), min(1.0, centre + half)
