@@ -18,65 +18,15 @@ import math
 import numpy as np
 from numba import njit
 
+from softtrack.env.observation_layout import (
+    TARGET_SIZE,
+    arm_view_columns,
+    observation_labels,
+    observation_size,
+    sampled_node_count,
+)
+
 __all__ = ["arm_view_columns", "build_observation", "observation_labels", "observation_size"]
-
-_TARGET_SIZE = 7
-
-
-def _n_sampled_nodes(n_nodes: int) -> int:
-    if n_nodes < 1 or n_nodes % 2 == 0:
-        raise ValueError(
-            f"n_nodes={n_nodes} must be odd so that the sampled nodes 0, 2, …, n_nodes−1 "
-            "end at the tip (use an even number of elements)"
-        )
-    return (n_nodes + 1) // 2
-
-
-def observation_size(n_arms: int, n_nodes: int = 21) -> int:
-    """Length of the observation: n_arms·(3·⌈n_nodes/2⌉ + 4) + 7 (81 for the default 2 arms)."""
-    return n_arms * (3 * _n_sampled_nodes(n_nodes) + 4) + _TARGET_SIZE
-
-
-def arm_view_columns(arm: int, n_arms: int, observation_dim: int) -> np.ndarray:
-    """Indices of what one arm sees on its own: its 37-value block, then the points' blocks
-    (the target's 7; in the transport task the sphere's and the goal's, 14).
-
-    That is the single-arm observation (44 values for 21 nodes) inside the A-arm one.
-
-    Args:
-        arm: the arm, 0 … n_arms − 1.
-        n_arms: A, arms in the observation.
-        observation_dim: length of the A-arm observation (81 for two arms, 88 in transport).
-
-    Returns:
-        (observation_dim − (A − 1)·block,) int64 column indices, block = the per-arm length.
-    """
-    for points in (1, 2):  # an arm block is 3·m + 4 ≡ 1 (mod 3): one count fits (A ≤ 2)
-        tail = points * _TARGET_SIZE
-        block, rest = divmod(observation_dim - tail, n_arms)
-        if not rest and block > 4 and block % 3 == 1 and 0 <= arm < n_arms:
-            points_columns = np.arange(observation_dim - tail, observation_dim)
-            return np.concatenate([np.arange(block * arm, block * (arm + 1)), points_columns])
-    raise ValueError(f"no arm {arm} in a {observation_dim}-value observation of {n_arms} arms")
-
-
-def observation_labels(n_arms: int, n_nodes: int = 21) -> list[str]:
-    """A name for every observation index, e.g. ``arm1.node4.y``, ``arm2.tip_dir.z``,
-    ``target.speed`` (arms are numbered from 1, nodes by their index along the rod)."""
-    if n_arms < 1:
-        raise ValueError(f"n_arms={n_arms} must be ≥ 1")
-    nodes = range(0, n_nodes, 2)
-    _n_sampled_nodes(n_nodes)
-    labels: list[str] = []
-    for arm in range(1, n_arms + 1):
-        for axis in "xyz":
-            labels += [f"arm{arm}.node{k}.{axis}" for k in nodes]
-        labels.append(f"arm{arm}.tip_speed")
-        labels += [f"arm{arm}.tip_dir.{axis}" for axis in "xyz"]
-    labels += [f"target.pos.{axis}" for axis in "xyz"]
-    labels.append("target.speed")
-    labels += [f"target.dir.{axis}" for axis in "xyz"]
-    return labels
 
 
 def build_observation(
@@ -106,7 +56,7 @@ def build_observation(
     if nodes.ndim != 4 or nodes.shape[2] != 3:
         raise ValueError(f"nodes must have shape (n, A, 3, n_nodes), got {nodes.shape}")
     n, n_arms, _, n_nodes = nodes.shape
-    m = _n_sampled_nodes(n_nodes)
+    m = sampled_node_count(n_nodes)
     if tip_velocity.shape != (n, n_arms, 3):
         raise ValueError(f"tip_velocity must have shape {(n, n_arms, 3)}, got {tip_velocity.shape}")
     if target_position.shape != (n, 3) or target_velocity.shape != (n, 3):
@@ -115,7 +65,7 @@ def build_observation(
             f"{target_position.shape} and {target_velocity.shape}"
         )
     per_arm = 3 * m + 4
-    size = n_arms * per_arm + _TARGET_SIZE
+    size = n_arms * per_arm + TARGET_SIZE
     if out is None:
         out = np.empty((n, size), dtype=np.float32)
     elif out.shape != (n, size) or out.dtype != np.float32:

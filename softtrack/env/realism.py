@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from softtrack.env.observation import observation_labels
+from softtrack.env.observation_layout import observation_labels
 from softtrack.sim.params import MODEL_PARAMETERS, SimParams, model_error_stability
 
 __all__ = [

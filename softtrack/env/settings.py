@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from softtrack.env.realism import RealismConfig
-from softtrack.env.reward import RewardConfig
+from softtrack.env.reward_config import RewardConfig
 from softtrack.env.targets import TargetConfig
 from softtrack.env.tasks import TaskConfig
 from softtrack.sim.params import InvalidParameterError, SimParams
@@ -131,7 +131,9 @@ def make_config(n_arms: int = 2, arm: int | None = None, **kwargs: Any) -> Track
     if task_kw:
         task_config = dataclasses.replace(task_config, **_tuples(task_kw))
     if duration is None:
-        duration = 10.0 + (task_config.approach if task_config.carries_object else 0.0)
+        duration = TrackingConfig.episode_duration + (
+            task_config.approach if task_config.carries_object else 0.0
+        )
     episode_duration = float(duration)
     try:
         realism = RealismConfig.from_value(kwargs.pop("realism", None))

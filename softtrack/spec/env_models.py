@@ -8,7 +8,10 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from softtrack.env.targets import TargetMode
+from softtrack.env.realism import RealismConfig
+from softtrack.env.reward_config import RewardConfig
+from softtrack.env.settings import TrackingConfig
+from softtrack.env.targets import TargetConfig, TargetMode
 from softtrack.env.tasks import TaskConfig
 from softtrack.sim.params import (
     CONTACT_ON,
@@ -31,7 +34,13 @@ from softtrack.spec.fields import (
     unit_field,
 )
 
+# The defaults of every setting are the engine's and the environment's own (one definition:
+# tests/test_settings_once.py); the models here add the unit, the range and the description.
+_SIM = SimParams()
 _SPHERE = SphereParams()
+_TARGET = TargetConfig()
+_REWARD = RewardConfig()
+_REALISM = RealismConfig()
 _TASK = TaskConfig()
 
 
@@ -96,25 +105,34 @@ class PhysicsSpec(SpecModel):
     checked by ``SimParams.validate()``, which enforces the explicit stability limit on ``dt``.
     """
 
-    n_elem: Int = unit_field(20, "elements per arm (nodes = n_elem + 1)", "-", ge=2)
-    length: Float = unit_field(1.0, "rest length of each arm", "m", gt=0)
-    radius: Float = unit_field(0.05, "cross-section radius, uniform along the arm", "m", gt=0)
-    density: Float = unit_field(1000.0, "mass density rho", "kg/m³", gt=0)
-    youngs_modulus: Float = unit_field(1.0e7, "Young's modulus E", "Pa", gt=0)
+    n_elem: Int = unit_field(_SIM.n_elem, "elements per arm (nodes = n_elem + 1)", "-", ge=2)
+    length: Float = unit_field(_SIM.length, "rest length of each arm", "m", gt=0)
+    radius: Float = unit_field(
+        _SIM.radius, "cross-section radius, uniform along the arm", "m", gt=0
+    )
+    density: Float = unit_field(_SIM.density, "mass density rho", "kg/m³", gt=0)
+    youngs_modulus: Float = unit_field(_SIM.youngs_modulus, "Young's modulus E", "Pa", gt=0)
     poisson_ratio: Float = unit_field(
-        0.5, "Poisson ratio nu; shear modulus G = E / (2 (1 + nu))", "-", gt=-1, le=0.5
+        _SIM.poisson_ratio,
+        "Poisson ratio nu; shear modulus G = E / (2 (1 + nu))",
+        "-",
+        gt=-1,
+        le=0.5,
     )
     shear_correction: Float = unit_field(
-        27.0 / 28.0, "shear correction factor alpha_c in the shear stiffness alpha_c·G·A", "-", gt=0
+        _SIM.shear_correction,
+        "shear correction factor alpha_c in the shear stiffness alpha_c·G·A",
+        "-",
+        gt=0,
     )
     damping: Float = unit_field(
-        30.0,
+        _SIM.damping,
         "PyElastica-0.1 dissipation coefficient nu_d (explicit internal damping)",
         "N·s/m²",
         ge=0,
     )
     dt: Float = unit_field(
-        2.0e-4,
+        _SIM.dt,
         "integration time step (Position Verlet); must not exceed the explicit stability "
         "limit computed from n_elem, the material and the damping (about 2.32e-4 s at the "
         "defaults)",
@@ -122,28 +140,31 @@ class PhysicsSpec(SpecModel):
         gt=0,
     )
     steps_per_action: Int = unit_field(
-        10, "integration steps per control step (one action is held this long)", "-", ge=1
+        _SIM.steps_per_action,
+        "integration steps per control step (one action is held this long)",
+        "-",
+        ge=1,
     )
     gravity: Float = unit_field(
-        0.0,
+        _SIM.gravity,
         f"gravitational acceleration along -y; 0 = off, true = {STANDARD_GRAVITY}",
         "m/s²",
     )
     torque_scale: Float = unit_field(
-        75.0, "element torque at a control value of 1 (no clipping)", "N·m"
+        _SIM.torque_scale, "element torque at a control value of 1 (no clipping)", "N·m"
     )
     base_positions: tuple[Vec3, Vec3] = unit_field(
-        ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0)), "clamp position (x, y, z) of arm 1 and arm 2", "m"
+        _SIM.base_positions, "clamp position (x, y, z) of arm 1 and arm 2", "m"
     )
     contact_k: Float = unit_field(
-        0.0,
+        _SIM.contact_k,
         "stiffness of the contact between the two arms (PyElastica RodRodContact k); 0 = off, "
         f"the arms pass through each other (the study); 'contact on': {CONTACT_ON['contact_k']:g}",
         "N/m",
         ge=0,
     )
     contact_nu: Float = unit_field(
-        0.0,
+        _SIM.contact_nu,
         "damping of the contact between the arms (RodRodContact nu); needs contact_k > 0; "
         f"'contact on': {CONTACT_ON['contact_nu']:g}",
         "N·s/m",
@@ -206,14 +227,16 @@ class TargetSpec(SpecModel):
     geometry parameters."""
 
     name: TargetMode = unit_field(
-        "random", "target motion: random (training), circle, rectangle, figure8 or fixed", "-"
+        _TARGET.name, "target motion: random (training), circle, rectangle, figure8 or fixed", "-"
     )
-    sphere_radius: Float = unit_field(0.05, "radius of the target sphere", "m", gt=0)
+    sphere_radius: Float = unit_field(
+        _TARGET.sphere_radius, "radius of the target sphere", "m", gt=0
+    )
     speed: Float = unit_field(
-        0.3, "speed of the random target (its maximum when speed_min is set)", "m/s", ge=0
+        _TARGET.speed, "speed of the random target (its maximum when speed_min is set)", "m/s", ge=0
     )
     speed_min: Float | None = unit_field(
-        None,
+        _TARGET.speed_min,
         "null (the study): the random target always moves at speed. A number: every new "
         "direction comes with a speed drawn uniformly in [speed_min, speed], so that the policy "
         "also sees the slower speeds of the evaluation trajectories (0.13-0.27 m/s)",
@@ -221,27 +244,34 @@ class TargetSpec(SpecModel):
         ge=0,
     )
     redirect_interval: Float = unit_field(
-        1.0, "time between new random directions (uniform on the unit sphere)", "s", gt=0
+        _TARGET.redirect_interval,
+        "time between new random directions (uniform on the unit sphere)",
+        "s",
+        gt=0,
     )
     box_low: Vec3 = unit_field(
-        (-0.6, 0.3, -0.6), "lower corner (x, y, z) of the box the random target stays in", "m"
+        _TARGET.box_low, "lower corner (x, y, z) of the box the random target stays in", "m"
     )
     box_high: Vec3 = unit_field(
-        (0.6, 0.9, 0.6), "upper corner (x, y, z) of the box the random target stays in", "m"
+        _TARGET.box_high, "upper corner (x, y, z) of the box the random target stays in", "m"
     )
     center: Vec3 = unit_field(
-        (0.0, 0.6, 0.0), "centre (x, y, z) of the circle, rectangle and figure-eight", "m"
+        _TARGET.center, "centre (x, y, z) of the circle, rectangle and figure-eight", "m"
     )
-    circle_radius: Float = unit_field(0.3, "radius of the circle in the x-z plane", "m", gt=0)
-    rectangle_size: Pair = unit_field((0.6, 0.4), "rectangle side lengths along x and along z", "m")
+    circle_radius: Float = unit_field(
+        _TARGET.circle_radius, "radius of the circle in the x-z plane", "m", gt=0
+    )
+    rectangle_size: Pair = unit_field(
+        _TARGET.rectangle_size, "rectangle side lengths along x and along z", "m"
+    )
     figure8_amplitude: Pair = unit_field(
-        (0.3, 0.15), "figure-eight amplitudes: x = a_x sin(wt), z = a_z sin(2wt)", "m"
+        _TARGET.figure8_amplitude, "figure-eight amplitudes: x = a_x sin(wt), z = a_z sin(2wt)", "m"
     )
     period: Float = unit_field(
-        10.0, "duration of one lap of the circle, rectangle and figure-eight", "s", gt=0
+        _TARGET.period, "duration of one lap of the circle, rectangle and figure-eight", "s", gt=0
     )
     fixed_position: Vec3 = unit_field(
-        (0.3, 0.6, 0.0), "position (x, y, z) of the fixed target", "m"
+        _TARGET.fixed_position, "position (x, y, z) of the fixed target", "m"
     )
 
     @field_validator("rectangle_size")
@@ -275,44 +305,52 @@ class RewardSpec(SpecModel):
     + cooperative bonus; optional inter-arm collision penalty."""
 
     arm_weights: Pair = unit_field(
-        (1.0, 1.0), "weights w1, w2 of the squared tip distances", "1/m²"
+        _REWARD.arm_weights, "weights w1, w2 of the squared tip distances", "1/m²"
     )
     bonus_thresholds: tuple[Float, ...] = unit_field(
-        (0.10, 0.075),
+        _REWARD.bonus_thresholds,
         "per-arm bonus distance thresholds; bonus_values[k] is paid when d_i ≤ bonus_thresholds[k]",
         "m",
         min_length=1,
     )
     bonus_values: tuple[Float, ...] = unit_field(
-        (0.5, 1.0), "per-arm bonuses, one per threshold", "reward units", min_length=1
+        _REWARD.bonus_values, "per-arm bonuses, one per threshold", "reward units", min_length=1
     )
     cooperative_threshold: Float = unit_field(
-        0.05, "both tips within this distance earns the cooperative bonus", "m", gt=0
+        _REWARD.cooperative_threshold,
+        "both tips within this distance earns the cooperative bonus",
+        "m",
+        gt=0,
     )
-    cooperative_bonus: Float = unit_field(1.5, "cooperative bonus", "reward units")
+    cooperative_bonus: Float = unit_field(
+        _REWARD.cooperative_bonus, "cooperative bonus", "reward units"
+    )
     nonfinite_reward: Float = unit_field(
-        -1000.0,
+        _REWARD.nonfinite_reward,
         "reward of the step on which the state becomes NaN/inf (episode terminates)",
         "reward units",
     )
     collision_penalty: Float = unit_field(
-        0.0,
+        _REWARD.collision_penalty,
         "penalty c_col when the arms come closer than r1 + r2 + margin; 0 = off",
         "reward units",
         ge=0,
     )
     collision_margin: Float = unit_field(
-        0.0, "extra clearance added to the sum of the radii in the collision test", "m", ge=0
+        _REWARD.collision_margin,
+        "extra clearance added to the sum of the radii in the collision test",
+        "m",
+        ge=0,
     )
     action_rate_penalty: Float = unit_field(
-        0.0,
+        _REWARD.action_rate_penalty,
         "c_rate: subtract c_rate times the mean squared change of the clipped action values "
         "since the previous control step (smooth actuation); 0 = off",
         "reward units",
         ge=0,
     )
     action_penalty: Float = unit_field(
-        0.0,
+        _REWARD.action_penalty,
         "c_act: subtract c_act times the mean squared clipped action value (away from "
         "saturation); 0 = off",
         "reward units",
@@ -339,30 +377,39 @@ class RealismSpec(SpecModel):
     :class:`softtrack.env.realism.RealismConfig`."""
 
     obs_noise_node_position: Float = unit_field(
-        0.0, "std of Gaussian noise on every observed node coordinate; 0 = off", "m", ge=0
+        _REALISM.obs_noise_node_position,
+        "std of Gaussian noise on every observed node coordinate; 0 = off",
+        "m",
+        ge=0,
     )
     obs_noise_target_position: Float = unit_field(
-        0.0, "std of Gaussian noise on each coordinate of the target centre; 0 = off", "m", ge=0
+        _REALISM.obs_noise_target_position,
+        "std of Gaussian noise on each coordinate of the target centre; 0 = off",
+        "m",
+        ge=0,
     )
     obs_noise_speed: Float = unit_field(
-        0.0, "std of Gaussian noise on the tip speeds and the target speed; 0 = off", "m/s", ge=0
+        _REALISM.obs_noise_speed,
+        "std of Gaussian noise on the tip speeds and the target speed; 0 = off",
+        "m/s",
+        ge=0,
     )
     obs_noise_direction: Float = unit_field(
-        0.0,
+        _REALISM.obs_noise_direction,
         "std of Gaussian noise on each component of the tip and target velocity directions "
         "(unit vectors; not renormalised); 0 = off",
         "-",
         ge=0,
     )
     obs_drop_probability: Float = unit_field(
-        0.0,
+        _REALISM.obs_drop_probability,
         "per observed value and control step, probability that it reads 0 (dropped); 0 = off",
         "-",
         ge=0,
         lt=1,
     )
     obs_stuck_probability: Float = unit_field(
-        0.0,
+        _REALISM.obs_stuck_probability,
         "per observed value and control step, probability that it gets stuck and repeats its "
         "last reading for obs_stuck_steps steps; 0 = off",
         "-",
@@ -370,77 +417,77 @@ class RealismSpec(SpecModel):
         lt=1,
     )
     obs_stuck_steps: Int = unit_field(
-        1,
+        _REALISM.obs_stuck_steps,
         "how long a stuck value repeats its last reading (the step it sticks included)",
         "control steps",
         ge=1,
     )
     obs_delay: Int = unit_field(
-        0,
+        _REALISM.obs_delay,
         "the policy sees the observation of this many control steps ago (the initial one "
         "until then); 0 = off",
         "control steps",
         ge=0,
     )
     action_delay: Int = unit_field(
-        0,
+        _REALISM.action_delay,
         "the arms apply the action of this many control steps ago (zeros until then); 0 = off",
         "control steps",
         ge=0,
     )
     action_delay_max: Int | None = unit_field(
-        None,
+        _REALISM.action_delay_max,
         "null, or the largest action delay: each episode's delay is then drawn uniformly from "
         "the whole numbers action_delay ... action_delay_max (domain randomisation)",
         "control steps",
         ge=0,
     )
     actuator_time_constant: Float | None = unit_field(
-        None,
+        _REALISM.actuator_time_constant,
         "time constant tau of a first-order lag on every control value (0 at reset, exact "
         "discretisation alpha = 1 - exp(-control_dt / tau)); null = off",
         "s",
         gt=0,
     )
     action_rate_limit: Float | None = unit_field(
-        None,
+        _REALISM.action_rate_limit,
         "largest change of an applied control value per second (from 0 at reset); null = off",
         "control units/s",
         gt=0,
     )
     torque_limit: Float | None = unit_field(
-        None,
+        _REALISM.torque_limit,
         "each element torque is clipped to +-this after the spline; null = off",
         "N·m",
         gt=0,
     )
     # model error: a fixed factor, or a [low, high] range drawn uniformly per episode and env
     youngs_modulus_scale: Factor = unit_field(
-        1.0,
+        _REALISM.youngs_modulus_scale,
         "model error: factor on env.physics.youngs_modulus (stiffness), or a [low, high] range "
         "drawn uniformly per episode and environment; 1 = off",
         "-",
     )
     density_scale: Factor = unit_field(
-        1.0,
+        _REALISM.density_scale,
         "model error: factor on env.physics.density (masses, inertias), or a [low, high] range "
         "drawn per episode; 1 = off",
         "-",
     )
     radius_scale: Factor = unit_field(
-        1.0,
+        _REALISM.radius_scale,
         "model error: factor on env.physics.radius (area, second moments, masses and "
         "stiffnesses follow), or a [low, high] range drawn per episode; 1 = off",
         "-",
     )
     damping_scale: Factor = unit_field(
-        1.0,
+        _REALISM.damping_scale,
         "model error: factor on env.physics.damping, or a [low, high] range drawn per "
         "episode; 1 = off",
         "-",
     )
     torque_scale_factor: Factor = unit_field(
-        1.0,
+        _REALISM.torque_scale_factor,
         "model error: factor on env.physics.torque_scale (actuator gain), or a [low, high] "
         "range drawn per episode; 1 = off",
         "-",
@@ -495,14 +542,14 @@ class TaskSpec(SpecModel):
     target, track two viewpoints beside it, or carry a sphere along its path."""
 
     name: Literal["shared", "viewpoints", "transport"] = unit_field(
-        "shared",
+        _TASK.name,
         "shared: both tips track the target centre (the study); viewpoints: each tip tracks "
         "its own point at the standoff from the centre along x (arm 1 at -x, arm 2 at +x); "
         "transport: the arms carry env.physics.sphere and its centre tracks the target",
         "-",
     )
     standoff: Float = unit_field(
-        0.1,
+        _TASK.standoff,
         "viewpoints: distance of each arm's point from the target centre along x",
         "m",
         ge=0,
@@ -584,7 +631,10 @@ class EnvSpec(SpecModel):
     target: TargetSpec = section_field(TargetSpec, "the moving target (docs/environment.md)")
     reward: RewardSpec = section_field(RewardSpec, "reward terms (docs/environment.md)")
     episode_duration: Float = unit_field(
-        10.0, "simulated length of a training episode (then truncated)", "s", gt=0
+        TrackingConfig.episode_duration,
+        "simulated length of a training episode (then truncated)",
+        "s",
+        gt=0,
     )
     task: TaskSpec = section_field(
         TaskSpec,
