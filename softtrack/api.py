@@ -220,7 +220,7 @@ def train(
     check_supported(spec, str(path))
     seeds = list(spec.seeds) if seed is None else [int(seed)]
     if seed is not None and not 0 <= seed < 2**32:
-        raise SpecError("--seed", f"seed {seed} is out of range", "use 0 ≤ seed < 2**32")
+        raise SpecError("seed", f"seed {seed} is out of range", "use 0 ≤ seed < 2**32")
     store = RunStore(resolve_runs_dir(runs_dir))
     outcomes = []
     for s in seeds:
@@ -307,23 +307,25 @@ def evaluate(
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
     if unknown:
         raise SpecError(
-            "--trajectory",
+            "trajectories",
             f"unknown trajectory {unknown[0]!r}",
             f"choose from {', '.join(EVAL_TRAJECTORIES)} or all",
         )
     if random_episodes < 0:
         raise SpecError(
-            "--random", f"{random_episodes} random-target episodes", "give 0 (none) or more"
+            "random_episodes",
+            f"{random_episodes} random-target episodes",
+            "give 0 (none) or more",
         )
     if model not in MODEL_CHOICES:
         raise SpecError(
-            "--model", f"unknown model {model!r}", f"choose from {', '.join(MODEL_CHOICES)}"
+            "model", f"unknown model {model!r}", f"choose from {', '.join(MODEL_CHOICES)}"
         )
     if not chosen and not random_episodes:
         raise SpecError(
-            "--trajectory",
+            "trajectories",
             "nothing to evaluate",
-            "name a trajectory, or add --random N to --trajectory none",
+            "name a trajectory, or ask for random-target episodes without trajectories",
         )
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
@@ -771,9 +773,7 @@ def sweep(
 
     options = options or dispatch.ExecOptions()
     if options.executor not in dispatch.EXECUTORS:
-        raise SpecError(
-            "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
-        )
+        raise SpecError("executor", f"unknown executor {options.executor!r}", "use local or slurm")
 
     points = expand_grid(
         paths,
@@ -881,26 +881,24 @@ def robustness(
 
     options = options or dispatch.ExecOptions(workers=1)
     if options.executor not in dispatch.EXECUTORS:
-        raise SpecError(
-            "--executor", f"unknown executor {options.executor!r}", "use local or slurm"
-        )
+        raise SpecError("executor", f"unknown executor {options.executor!r}", "use local or slurm")
     if options.detach and options.executor == "local":
         raise SpecError(
-            "--detach",
+            "detach",
             "local robustness workers cannot be detached",
-            "run without --detach (an interrupted evaluation continues where it "
-            "stopped), or use --executor slurm",
+            "run attached (an interrupted evaluation continues where it stopped), or on the "
+            "slurm executor",
         )
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
     unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
     if unknown or not chosen:
         raise SpecError(
-            "--trajectory",
+            "trajectories",
             f"unknown trajectory {unknown[0]!r}" if unknown else "no trajectory",
             f"choose from {', '.join(EVAL_TRAJECTORIES)}",
         )
     if episodes < 1:
-        raise SpecError("--episodes", f"{episodes} episodes", "give 1 or more")
+        raise SpecError("episodes", f"{episodes} episodes", "give 1 or more")
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     settings = expand_settings(parse_grid(grid), full_grid)

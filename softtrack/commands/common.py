@@ -86,6 +86,18 @@ def fail(exc: BaseException | str) -> NoReturn:
     raise typer.Exit(2)
 
 
+#: The library's errors name the argument of a call; the command line names its flag.
+ARGUMENT_FLAGS = {
+    "trajectories": "--trajectory",
+    "random_episodes": "--random",
+    "model": "--model",
+    "seed": "--seed",
+    "episodes": "--episodes",
+    "executor": "--executor",
+    "detach": "--detach",
+}
+
+
 @contextmanager
 def user_errors(runs_dir: str | None = None) -> Iterator[None]:
     """Turn the user errors of softtrack, and a full or read-only disk, into one stderr line
@@ -98,6 +110,8 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
         typer.echo(f"error: {limit}", err=True)
         raise typer.Exit(1) from None
     except api.USER_ERRORS as exc:
+        if isinstance(exc, api.SpecError) and exc.file in ARGUMENT_FLAGS:
+            exc.file = ARGUMENT_FLAGS[exc.file]  # the library names its argument
         limit = machine_limit(exc)  # a healthy table that could not be opened is not damaged
         if limit is not None:
             typer.echo(f"error: {limit}", err=True)

@@ -120,6 +120,8 @@ def evaluate(
         chosen: list[str] | None = None
     else:
         chosen = [] if trajectory.value == "none" else [trajectory.value]
+    if chosen == [] and not random:
+        fail("--trajectory none: nothing to evaluate; name a trajectory, or add --random N")
 
     with user_errors(runs_dir):
         api.evaluate(
