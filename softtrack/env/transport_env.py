@@ -57,7 +57,7 @@ from softtrack.env.observation import build_observation, observation_size
 
 if TYPE_CHECKING:
     from softtrack.env.settings import TrackingConfig
-    from softtrack.env.targets import BatchedTargets
+    from softtrack.env.targets import BatchedTargets, MixedTargets
     from softtrack.sim.engine import RodBatch
 
 __all__ = ["GOAL_SIZE", "TransportModel"]
@@ -103,7 +103,7 @@ class TransportModel:
         self.observation_size = study_size + GOAL_SIZE
         self._study = np.zeros((n_envs, study_size), dtype=np.float32)
 
-    def reset(self, idx: np.ndarray, targets: BatchedTargets) -> None:
+    def reset(self, idx: np.ndarray, targets: BatchedTargets | MixedTargets) -> None:
         """Environments ``idx`` restart: the goal at the sphere's start."""
         self.untouched[idx] = 0.0
         self.update_goal(np.zeros(len(self.untouched), dtype=np.int64), targets, idx)
@@ -116,7 +116,7 @@ class TransportModel:
     def update_goal(
         self,
         step_count: np.ndarray,
-        targets: BatchedTargets,
+        targets: BatchedTargets | MixedTargets,
         idx: np.ndarray | slice = slice(None),
     ) -> None:
         """Set the goal of environments ``idx`` after ``step_count`` (n,) control steps."""
@@ -136,7 +136,7 @@ class TransportModel:
         self.goal_velocity[idx] = velocity if m == 1.0 else m * velocity
 
     def goal_ahead(
-        self, step_count: int, targets: BatchedTargets, env: int, steps: np.ndarray
+        self, step_count: int, targets: BatchedTargets | MixedTargets, env: int, steps: np.ndarray
     ) -> np.ndarray:
         """(H, 3) environment ``env``'s goal after each of the next ``steps`` (H,) control
         steps (1, 2, …) from ``step_count``, m: the approach, then the path (closed forms
