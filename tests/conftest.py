@@ -60,6 +60,15 @@ LONG_TESTS = frozenset(
         "tests/test_faults.py::test_resume_with_a_broken_spec_keeps_the_status[latin-1]",
         "tests/test_learner_options.py::test_n_step_returns_build_sb3s_n_step_buffer",
         "tests/test_bounded_actor.py::test_train_evaluate_and_export_a_run",
+        # session 22: `make test` took 622 s in a fresh-clone CI (limit 600 with set-up)
+        "tests/test_engine_physics.py::test_gravity_cantilever_converges_to_timoshenko",
+        "tests/test_per_arm_td3.py::test_train_checkpoint_and_evaluate_a_per_arm_run[True-full]",
+        "tests/test_per_arm_td3.py::test_train_checkpoint_and_evaluate_a_per_arm_run[True-own_arm]",
+        "tests/test_animate.py::test_missing_output_directories_are_created",
+        "tests/test_tune.py::test_trials_are_runs_and_the_best_spec_trains",
+        "tests/test_learner_options.py::test_mirror_images_are_n_step_columns_of_their_own",
+        "tests/test_bounded_actor.py::test_the_actor_loss_adds_lambda_times_the_mean_square_preactivation",
+        "tests/test_report.py::test_moment_peaks_read_the_old_and_the_new_table_format",
     }
 )
 
