@@ -80,7 +80,10 @@ def workspace_command(
                 "task's: give a spec with env.task.name: transport"
             )
         settings = workspace.SearchSettings(
-            population=population, iterations=iterations, elite=max(2, population // 5), seed=seed
+            population=population,
+            iterations=iterations,
+            elite=min(population, max(2, population // 5)),
+            seed=seed,
         )
         try:
             settings.validate()
@@ -151,6 +154,7 @@ def _write(
 
     from softtrack.report.workspace_figure import workspace_figure
     from softtrack.store.atomic import atomic_write_text
+    from softtrack.store.tables import write_table
 
     out.mkdir(parents=True, exist_ok=True)
     held = pd.concat(
@@ -160,7 +164,7 @@ def _write(
         ],
         ignore_index=True,
     )
-    held.to_parquet(out / "held.parquet", index=False)
+    write_table(out / "held.parquet", held)
     floors = pd.concat([r.floors.assign(torque_scale=r.torque_scale) for r in results])
     atomic_write_text(out / "floors.csv", floors.to_csv(index=False))
     boundary = pd.concat([r.boundary.assign(torque_scale=r.torque_scale) for r in results])
