@@ -27,6 +27,7 @@ from softtrack.evaluation.run_evaluation import (
 )
 from softtrack.executors import dispatch
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
+from softtrack.executors.sweep_creation import SweepStopped, create_sweep_runs
 from softtrack.report.video import VideoError
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy import (
@@ -81,6 +82,7 @@ __all__ = [
     "QUICKSTART_PRETRAINED",
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
+    "SweepStopped",
     "compare",
     "compare_figure",
     "copy_run",
@@ -767,7 +769,11 @@ def sweep(
         seeds: ``"0,1,2"`` or ``"0-4"``: replaces each spec's seeds.
         options: :class:`~softtrack.executors.dispatch.ExecOptions` (default: local pool).
         on_created: called with the sweep id and the new runs before they start.
-        on_progress: called with a progress line whenever it changes.
+        on_progress: called with a progress line whenever it changes (while the runs are
+            made too).
+
+    Raises:
+        SweepStopped: a stop signal while the runs were made (those made stay queued).
     """
     import sys
 
@@ -785,15 +791,7 @@ def sweep(
     store = RunStore(resolve_runs_dir(runs_dir))
     sweep_id = dispatch.new_sweep_id()
     chains = {point.path: spec_chain(point.path) for point in points}
-    records = []
-    for point in points:
-        for s in point.spec.seeds:
-            notes = {"sweep": sweep_id, "grid": point.grid}
-            records.append(
-                store.create_run(
-                    point.spec, s, list(sys.argv), notes=notes, spec_files=chains[point.path]
-                )
-            )
+    records = create_sweep_runs(store, points, sweep_id, chains, sys.argv, on_progress)
     if on_created is not None:
         on_created(sweep_id, records)
     ids = [r.run_id for r in records]

@@ -209,3 +209,46 @@ def test_copy_run_takes_a_shipped_run_without_its_evaluation(
     with pytest.raises(RunStoreError, match="holds the run to copy itself"):
         api.copy_run(record.path, runs_dir=tmp_path / "models")
     assert {p: p.read_bytes() for p in record.path.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.faults("degraded")
+def test_an_infinite_return_is_named_not_dropped(runs_dir: Path) -> None:
+    """A diverged episode's ``-inf`` return in the final stage makes the final-stage return
+    ``-inf`` (it vanished from the mean before); JSON writes it as a string, not null."""
+    record = RunStore(runs_dir).list_runs()[0]
+    append_rows(
+        record.table_path("train_episodes"),
+        [
+            {
+                "run_id": record.run_id,
+                "episode": 10,
+                "global_step": 1000,
+                "return": float("-inf"),
+                "length": 100,
+                "wall_time": 1.0,
+            }
+        ],
+    )
+    assert final_stage_return(record) == (float("-inf"), 2, 1000)
+    table = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir)])
+    assert table.exit_code == 0 and " -inf " in table.stdout
+    result = runner.invoke(app, ["runs", "--runs-dir", str(runs_dir), "--format", "json"])
+    assert result.exit_code == 0 and json.loads(result.stdout)[0]["final_return"] == "-inf"
+
+
+def test_training_names_each_of_the_first_non_finite_returns(
+    runs_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from softtrack.rl.callbacks import NON_FINITE_WARNINGS, EpisodeLogger, TrainingClock
+
+    record = RunStore(runs_dir).list_runs()[0]
+    logger = EpisodeLogger(record, TrainingClock(), next_episode=10, flush_interval=1e9)
+    logger.num_timesteps = 1100
+    returns = [1.0, float("inf"), float("nan"), float("-inf"), float("inf"), 2.0]
+    logger.locals = {"infos": [{"episode": {"r": r, "l": 100}} for r in returns]}
+    logger._on_step()
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == NON_FINITE_WARNINGS == 3 and logger.non_finite == 4
+    assert "episode 11 " in lines[0] and "a return of inf" in lines[0]
+    assert "later ones are stored without a line" in lines[-1]
+    assert [row["return"] for row in logger.pending][1] == float("inf")

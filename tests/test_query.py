@@ -390,3 +390,52 @@ def test_a_huge_table_result_shows_its_first_rows_and_counts_the_rest() -> None:
     cursor = connection.execute("SELECT range AS i FROM range(5)")
     write_cursor(cursor, "table", chunks.append, table_rows=100)
     assert "more rows" not in "".join(chunks)
+
+
+@pytest.mark.faults("degraded")
+@pytest.mark.parametrize("table", ["train_episodes", "eval_metrics"])
+def test_one_query_reads_one_version_of_a_table_replaced_meanwhile(
+    runs_dir: Path, table: str
+) -> None:
+    """A writer renames a new version over a table between two reads of one query (a view
+    read twice): both reads see the version current when the view was made; the links that
+    pin it are gone once the query closes."""
+    run_dir = runs_dir / "a-seed1"
+    snapshots = runs_dir / ".softtrack-catalog" / "snapshots"
+    sql = f"SELECT count(*) AS n FROM {table}"
+    with ResultsDatabase(runs_dir) as db:
+        before = db.query(sql)["n"].item()
+        rows = pq.read_table(run_dir / "tables" / f"{table}.parquet").to_pylist()
+        write_table(run_dir / "tables" / f"{table}.parquet", rows + rows)  # temp + rename
+        assert db.query(sql)["n"].item() == before
+        assert any(snapshots.iterdir())
+    assert not any(snapshots.iterdir())
+    with ResultsDatabase(runs_dir) as db:  # a new query sees the new version
+        assert db.query(sql)["n"].item() == before + len(rows)
+
+
+def test_links_left_by_a_killed_query_are_removed_by_the_next(runs_dir: Path) -> None:
+    snapshots = runs_dir / ".softtrack-catalog" / "snapshots"
+    left = snapshots / "999999999-deadbeef"  # no such process
+    left.mkdir(parents=True)
+    (left / "0.eval_metrics.parquet").write_bytes(b"x")
+    query("SELECT count(*) FROM eval_metrics", runs_dir)
+    assert not left.exists()
+
+
+def test_a_read_only_runs_directory_is_read_in_place(runs_dir: Path) -> None:
+    import os
+    import stat
+
+    modes = {p: p.stat().st_mode for p in [runs_dir, *runs_dir.rglob("*")] if p.is_dir()}
+    query("SELECT count(*) FROM eval_metrics", runs_dir)  # the catalog and its copies first
+    for path in modes:
+        path.chmod(stat.S_IREAD | stat.S_IEXEC)
+    try:
+        if os.access(runs_dir / "a-seed0", os.W_OK):
+            pytest.skip("running as a user who can write anywhere")
+        n = query("SELECT count(*) AS n FROM eval_metrics", runs_dir)["n"].item()
+        assert n == 16
+    finally:
+        for path, mode in modes.items():
+            path.chmod(mode)

@@ -320,3 +320,40 @@ def test_slurm_preemption_requeues_and_resumes(tmp_path: Path) -> None:
     assert record.info.global_step >= 6000
     _check_contiguous(record)
     assert json.loads(record.run_json_path.read_text())["status"] == "completed"
+
+
+@pytest.mark.faults("degraded")
+def test_ctrl_c_while_a_large_sweep_makes_its_runs_keeps_them_queued(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C while the runs of a large sweep are made (before, nothing was printed for
+    minutes and the user never saw the sweep id): progress lines, then one line with the
+    sweep id and the counts, exit 130; the runs made are queued with the sweep's id and
+    `resume SWEEP_ID` selects every one of them."""
+    from softtrack.executors import sweep_creation
+
+    monkeypatch.setattr(sweep_creation, "PROGRESS_INTERVAL_S", 0.0)
+    made = 0
+    create = RunStore.create_run
+
+    def create_then_interrupt(self: RunStore, *args: Any, **kwargs: Any) -> Any:
+        nonlocal made
+        made += 1
+        if made == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+        return create(self, *args, **kwargs)
+
+    monkeypatch.setattr(RunStore, "create_run", create_then_interrupt)
+    runs = tmp_path / "runs"
+    result = runner.invoke(
+        app, ["sweep", str(_spec(tmp_path)), "--seeds", "0-49", "--runs-dir", str(runs)]
+    )
+    assert result.exit_code == 130, result.output
+    assert "making runs: 1/50" in result.stderr
+    last = result.stderr.strip().splitlines()[-1]
+    assert "3 of 50 made and queued" in last and "the other 47 were not made" in last
+    sweep_id = last.split()[1].rstrip(":")
+    store = RunStore(runs)
+    records = store.list_runs()
+    assert len(records) == 3 and {r.info.status for r in records} == {"queued"}
+    assert len(select_resumable_runs(store, [sweep_id])) == 3

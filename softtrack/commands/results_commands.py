@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import enum
 import json
+import math
 import sys
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -74,7 +75,7 @@ def runs(
     shown = listing.summaries
     print_notes(listing.notices)
     if output_format is OutputFormat.json:
-        typer.echo(json.dumps(shown, indent=2, ensure_ascii=False))
+        typer.echo(json.dumps(_json_numbers(shown), indent=2, ensure_ascii=False))
         return
     if not shown:
         root = resolve_runs_dir(runs_dir)
@@ -165,3 +166,15 @@ def query_command(
                 except duckdb.Error as exc:
                     fail(db.explain(exc))
         print_notes(db.notices)
+
+
+def _json_numbers(value: Any) -> Any:
+    """``value`` with every infinite or NaN float as the string ``"inf"``, ``"-inf"`` or
+    ``"nan"``: JSON has no such numbers, and null would read as "no data"."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _json_numbers(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_numbers(v) for v in value]
+    return value

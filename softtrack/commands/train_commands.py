@@ -164,16 +164,20 @@ def sweep(
             typer.echo(record.run_id)
 
     with user_errors(runs_dir):
-        outcome = api.sweep(
-            specs,
-            grid or [],
-            overrides or [],
-            seeds=seeds,
-            runs_dir=runs_dir,
-            options=options,
-            on_created=created,
-            on_progress=print_progress,
-        )
+        try:
+            outcome = api.sweep(
+                specs,
+                grid or [],
+                overrides or [],
+                seeds=seeds,
+                runs_dir=runs_dir,
+                options=options,
+                on_created=created,
+                on_progress=print_progress,
+            )
+        except api.SweepStopped as stopped:
+            typer.echo(str(stopped), err=True)
+            raise typer.Exit(130) from None
     finish(outcome, "sweep")
 
 

@@ -70,6 +70,8 @@ PROGRESS_LINE_PERCENT = 5.0
 """A progress line at every this many percent of the budget when stderr is not a terminal."""
 RECENT_EPISODES = 20
 """The progress shows the mean return of this many last training episodes."""
+#: Non-finite training returns that each get a warning line.
+NON_FINITE_WARNINGS = 3
 
 
 class TrainingClock:
@@ -121,6 +123,8 @@ class EpisodeLogger(BaseCallback):
         self.flush_interval = flush_interval
         self.pending: list[dict[str, Any]] = []
         self.recent: deque[float] = deque(maxlen=RECENT_EPISODES)
+        #: training episodes with an infinite or NaN return so far (this session)
+        self.non_finite = 0
         self._last_flush = time.monotonic()
 
     @property
@@ -141,6 +145,8 @@ class EpisodeLogger(BaseCallback):
             if episode is None:
                 continue
             ret = float(episode["r"])
+            if not math.isfinite(ret):
+                self._warn_non_finite(ret)
             self.pending.append(
                 {
                     "run_id": self.record.run_id,
@@ -157,6 +163,24 @@ class EpisodeLogger(BaseCallback):
         if self.pending and time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()
         return True
+
+    def _warn_non_finite(self, ret: float) -> None:
+        """One line for each of the first :data:`NON_FINITE_WARNINGS` non-finite returns."""
+        self.non_finite += 1
+        if self.non_finite <= NON_FINITE_WARNINGS:
+            more = (
+                "; later ones are stored without a line"
+                if self.non_finite == NON_FINITE_WARNINGS
+                else ""
+            )
+            print(
+                f"warning: training episode {self.next_episode} (ending at env step "
+                f"{int(self.num_timesteps):,}) has a return of {ret}: the simulation diverged "
+                f"or the reward overflowed; the return is stored and makes the final-stage "
+                f"return {ret} if it falls in that stage{more}",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def add_truncated(self, episodes: list[dict[str, Any]], step: int, wall_time: float) -> None:
         """Queue rows for episodes cut short at a checkpoint that training resumes from

@@ -35,6 +35,7 @@ file) raise :class:`QueryError` with a one-line message that says what to do.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import re
@@ -56,6 +57,7 @@ from softtrack.store.query_output import (
     format_views,
     write_cursor,
 )
+from softtrack.store.query_snapshot import QuerySnapshot
 from softtrack.store.table_cache import (
     FILE_COLUMN,
     MAP_FILE,
@@ -347,6 +349,7 @@ class ResultsDatabase:
         runs_dir: str | os.PathLike[str] | None = None,
         *,
         progress: Callable[[int, int], None] | None = None,
+        pin_files: bool = True,
     ) -> None:
         root = resolve_runs_dir(runs_dir)
         self.root = root
@@ -375,7 +378,12 @@ class ResultsDatabase:
         self._catalog = snapshot
         self._views: dict[str, ViewInfo] = {}
         self._locked = False
-        self.connection = self._open()
+        self._snapshot = QuerySnapshot(root) if pin_files else None
+        try:
+            self.connection = self._open()
+        except BaseException:
+            self._close_snapshot()
+            raise
 
     # ---- setup -------------------------------------------------------------------------
     def _open(self) -> duckdb.DuckDBPyConnection:
@@ -411,7 +419,7 @@ class ResultsDatabase:
     def _create_runs_views(self, catalog: CatalogSnapshot) -> None:
         con = self.connection
         if catalog.file is not None:  # the rows are still in the catalog file: DuckDB reads it
-            path = str(catalog.file.resolve())
+            path = self._pin(str(catalog.file.resolve()))
             con.execute(f"CREATE VIEW __softtrack_catalog AS FROM read_parquet({_lit(path)})")
             self._allowed.add(path)
         else:
@@ -442,13 +450,16 @@ class ResultsDatabase:
         files_table = f"__softtrack_files_{len(self._views)}"
         files = [TableFile(f.path, f.stamp, f.schema, f.run_id) for f in table.files]
         cache = CachedTable(self._root_resolved, table.name, files)
+        cache.read_path = Path(self._pin(str(cache.path)))
         fresh, stale = cache.split(self.connection)
         if stale and cache.refresh(fresh, stale):
+            cache.read_path = Path(self._pin(str(cache.path), again=True))
             fresh, stale = cache.split(self.connection)
-        create_file_map(self.connection, _ident(files_table), files)
+        stale = [dataclasses.replace(f, path=self._pin(f.path)) for f in stale]
+        create_file_map(self.connection, _ident(files_table), [*fresh, *stale])
         self._allowed.update(f.path for f in stale)
         if fresh:
-            self._allowed.add(str(cache.path))
+            self._allowed.add(str(cache.read_path))
         source = cache.source_sql(fresh, stale, _ident(files_table))
         try:
             self.connection.execute(
@@ -461,7 +472,7 @@ class ResultsDatabase:
                 (),
                 table.runs,
                 f"tables/{table.name}.parquet of {table.runs} runs cannot be read as one table "
-                f"({_first_line(exc)})",
+                f"({self._original(_first_line(exc))})",
             )
             return
         self._add_view(table.view, description, table.runs)
@@ -558,7 +569,7 @@ class ResultsDatabase:
 
     def _explain(self, exc: duckdb.Error) -> str:
         """A one-line message for a DuckDB error, with what to do."""
-        lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+        lines = [line.strip() for line in self._original(str(exc)).splitlines() if line.strip()]
         first = lines[0] if lines else type(exc).__name__
         listing = "`softtrack query --views` lists the views and their columns"
         missing = re.search(r"Table with name (.+?) does not exist", first)
@@ -595,8 +606,20 @@ class ResultsDatabase:
             )
         return f"query: {detail}"
 
+    def _pin(self, path: str, *, again: bool = False) -> str:
+        """The path to read ``path`` from in this query (:mod:`~softtrack.store.query_snapshot`)."""
+        return path if self._snapshot is None else self._snapshot.pin(path, again=again)
+
+    def _original(self, message: str) -> str:
+        return message if self._snapshot is None else self._snapshot.original(message)
+
+    def _close_snapshot(self) -> None:
+        if self._snapshot is not None:
+            self._snapshot.close()
+
     def close(self) -> None:
         self.connection.close()
+        self._close_snapshot()
 
     def __enter__(self) -> Self:
         return self
@@ -649,7 +672,7 @@ def connect(runs_dir: str | os.PathLike[str] | None = None) -> duckdb.DuckDBPyCo
     Raises:
         QueryError: the directory does not exist or holds no runs.
     """
-    db = ResultsDatabase(runs_dir)
+    db = ResultsDatabase(runs_dir, pin_files=False)  # nothing would remove the pins
     db.views()
     return db.connection
 

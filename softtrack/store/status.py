@@ -106,8 +106,10 @@ def episodes_by_arm(train: pd.DataFrame) -> dict[int | None, pd.DataFrame]:
 def final_stage_returns(
     train: pd.DataFrame, fraction: float, total_timesteps: int, arm_budget: int
 ) -> dict[int | None, tuple[float | None, int]]:
-    """docs/environment.md per policy of a run: the mean finite return of the training episodes that ended
-    after ``(1 − fraction) · budget`` env steps, and their count.
+    """docs/environment.md per policy of a run: the mean return of the training episodes that ended
+    after ``(1 − fraction) · budget`` env steps, and their count. An infinite return is kept,
+    so the mean is ``±inf`` (``nan`` with both signs) and says so; only a return that is not a
+    number at all (unreadable, NaN) is left out.
 
     Args:
         train: the run's ``train_episodes`` table (``global_step``, ``return``, maybe ``arm``),
@@ -124,7 +126,7 @@ def final_stage_returns(
         budget = total_timesteps if arm is None else arm_budget
         step = pd.to_numeric(part["global_step"], errors="coerce")
         ret = pd.to_numeric(part["return"], errors="coerce")
-        final = ret[(step > (1.0 - fraction) * budget) & np.isfinite(ret)]
+        final = ret[(step > (1.0 - fraction) * budget) & ret.notna()]
         out[arm] = (float(final.mean()) if len(final) else None, len(final))
     return out
 

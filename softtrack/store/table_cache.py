@@ -115,6 +115,9 @@ class CachedTable:
         self.name = name
         self.files = list(files)
         self.path = root / CATALOG_DIR / "tables" / f"{name}.parquet"
+        #: where the copy is read from: ``path`` or a link to one version of it
+        #: (:class:`~softtrack.store.query_snapshot.QuerySnapshot`)
+        self.read_path = self.path
         self._verified = self.path.with_suffix(".verified")
 
     @property
@@ -125,11 +128,12 @@ class CachedTable:
     def _copied(self, con: duckdb.DuckDBPyConnection) -> set[tuple[str, str]]:
         """(file, stamp) of every file in a copy its writer verified; empty without one."""
         try:
-            if self._verified.read_text(encoding="utf-8").strip() != file_stamp(str(self.path)):
+            verified = self._verified.read_text(encoding="utf-8").strip()
+            if verified != file_stamp(str(self.read_path)):
                 return set()
             rows = con.execute(
                 f"SELECT DISTINCT {FILE_COLUMN}, {STAMP_COLUMN} FROM read_parquet(?)",
-                [str(self.path)],
+                [str(self.read_path)],
             ).fetchall()
         except (OSError, UnicodeDecodeError, duckdb.Error):
             return set()
@@ -149,7 +153,7 @@ class CachedTable:
         parts = []
         if fresh:
             parts.append(
-                f"SELECT * EXCLUDE ({STAMP_COLUMN}) FROM read_parquet({_lit(str(self.path))}) "
+                f"SELECT * EXCLUDE ({STAMP_COLUMN}) FROM read_parquet({_lit(str(self.read_path))}) "
                 f"AS c SEMI JOIN {files} AS s "
                 f"ON c.{FILE_COLUMN} = s.{MAP_FILE} AND c.{STAMP_COLUMN} = s.{MAP_STAMP}"
             )
