@@ -22,6 +22,7 @@ LAYERS: list[set[str]] = [
     {"evaluation"},
     {"report", "rl"},
     {"tune"},
+    {"workflows"},
     {"cli_classes"},
     {"api", "workers"},
     {"commands"},

@@ -19,6 +19,7 @@ import numpy as np
 
 from softtrack.evaluation import Policy, independent_policy
 from softtrack.rl.factory import model_class
+from softtrack.rl.target_actor import act_with_target_actor
 from softtrack.spec import ExperimentSpec
 from softtrack.store.disk import check_address_space
 from softtrack.store.layout import MODEL_CHOICES, ModelChoice, PolicyDir
@@ -163,6 +164,8 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
         with stats.open("rb") as handle:
             normalizer = pickle.load(handle)
         normalizer.training = False
+    if spec.algo.act_with_target_actor:
+        act_with_target_actor(model)
     return deterministic_policy(model, normalizer)
 
 

@@ -29,6 +29,7 @@ from typing import Any, Literal
 
 from softtrack.rl.factory import model_class
 from softtrack.rl.policy import candidate_path, policy_choice
+from softtrack.rl.target_actor import act_with_target_actor
 from softtrack.spec import ExperimentSpec
 from softtrack.store.layout import OTHER_MODELS_DIR, PolicyDir
 from softtrack.store.model_zip import deflate_model_zip
@@ -94,6 +95,8 @@ def save_inference_model(spec: ExperimentSpec, source: Path, dest: Path) -> None
         shutil.copy2(source, dest)
         return
     model = model_class(spec).load(str(source), device="cpu")
+    if spec.algo.act_with_target_actor:  # the weights it acts with are all it keeps
+        act_with_target_actor(model)
     strip_training_state(model)
     model.save(str(dest))
     deflate_model_zip(dest)  # the libraries store their members uncompressed: half the size

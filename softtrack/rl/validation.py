@@ -61,6 +61,7 @@ from softtrack.evaluation import (
 from softtrack.evaluation.episodes import EPISODE_BATCH
 from softtrack.rl.callbacks import TrainingClock
 from softtrack.rl.policy import deterministic_policy
+from softtrack.rl.target_actor import acting_with_target_actor
 from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
 from softtrack.store.atomic import atomic_dir, atomic_write_json
@@ -277,6 +278,7 @@ class Validator:
                 f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
             )
         self.duration = float(spec.training.eval_duration)
+        self.act_with_target_actor = spec.algo.act_with_target_actor
         self.trajectories = (
             list(spec.training.eval_trajectories) if spec.training.validation_trajectories else []
         )
@@ -294,7 +296,10 @@ class Validator:
         normalizer = model.get_vec_normalize_env()
         wall_time = None if self.clock is None else self.clock.elapsed()
         act = deterministic_policy(model, normalizer, batches=True)
-        with self.clock.paused() if self.clock is not None else contextlib.nullcontext():
+        with (
+            self.clock.paused() if self.clock is not None else contextlib.nullcontext(),
+            acting_with_target_actor(model, self.act_with_target_actor),
+        ):
             rows = checkpoint_rows(
                 self.record.run_id,
                 act,

@@ -211,6 +211,13 @@ class AlgoSpec(SpecModel):
     target_noise_clip: Float = unit_field(
         0.5, "clip of the target policy smoothing noise (td3)", "action units", ge=0
     )
+    act_with_target_actor: bool = unit_field(
+        False,
+        "td3, ddpg: validation, the kept best model, evaluation and export act with the target "
+        "actor (the Polyak average of the actor's weights, tau per update) instead of the "
+        "actor; training is unchanged (docs/results/time-to-accuracy.md)",
+        "-",
+    )
     noise_type: Literal["normal", "ornstein-uhlenbeck"] | None = unit_field(
         "normal",
         "exploration noise added to actions (td3, ddpg; sac, tqc and crossq explore by "
@@ -293,6 +300,12 @@ class AlgoSpec(SpecModel):
     @model_validator(mode="after")
     def _check_algorithm(self) -> AlgoSpec:
         """Raise the spec error of the first setting the chosen algorithm cannot run with."""
+        if self.act_with_target_actor and self.name not in ("td3", "ddpg"):
+            raise custom_error(
+                f"{self.name} has no target actor (td3 and ddpg have one); set "
+                "algo.act_with_target_actor: false",
+                "act_with_target_actor",
+            )
         if self.name == "crossq" and self.backend != "sbx":
             raise custom_error(
                 "crossq is implemented in sbx only (Stable-Baselines3 and sb3-contrib have no "

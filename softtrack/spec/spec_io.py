@@ -213,6 +213,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "mirror_replay"): False,
     ("algo", "actor_preactivation_penalty"): 0.0,
     ("algo", "n_step_returns"): 1,
+    ("algo", "act_with_target_actor"): False,
     ("algo", "policy_kwargs", "layer_norm"): False,
     ("algo", "policy_kwargs", "log_std_init"): 0.0,
     ("training", "validation_episodes"): 0,
