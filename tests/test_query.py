@@ -439,3 +439,39 @@ def test_a_read_only_runs_directory_is_read_in_place(runs_dir: Path) -> None:
     finally:
         for path, mode in modes.items():
             path.chmod(mode)
+
+
+@pytest.mark.faults("degraded")
+def test_too_few_file_descriptors_name_the_limit_not_a_table(tmp_path: Path) -> None:
+    """Under ``ulimit -n 8`` a query over 40 runs' files blamed a healthy table ("unreadable:
+    move it away"); now one line names the limit, exit 1 (the machine's limit)."""
+    import resource
+    import subprocess
+    import sys
+
+    root = tmp_path / "runs"
+    for k in range(40):
+        path = _write_run(root, f"r{k}", f"01CCCCCCCCCCCCCCCCCCCCCC{k:02d}", "exp-c", k)
+        write_table(path / "tables" / "eval_metrics.parquet", _metrics(path.name, RMSE_B, 0))
+    before = {p: p.read_bytes() for p in root.rglob("*.parquet")}
+
+    def few_files() -> None:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (8, 8))
+
+    result = subprocess.run(
+        [
+            str(Path(sys.executable).parent / "softtrack"),
+            "query",
+            "SELECT count(*) FROM eval_metrics",
+            "--runs-dir",
+            str(root),
+        ],
+        capture_output=True,
+        text=True,
+        preexec_fn=few_files,
+        timeout=120,
+    )
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.count("\n") == 1 and "ulimit -n" in result.stderr
+    assert "move it away" not in result.stderr
+    assert all(p.read_bytes() == data for p, data in before.items())

@@ -129,7 +129,8 @@ def machine_limit(exc: BaseException) -> str | None:
             return str(current)
         code = getattr(current, "errno", None)
         mapping = isinstance(current, ImportError) and "failed to map segment" in str(current)
-        if isinstance(current, MemoryError) or code == errno.ENOMEM or mapping:
+        duckdb_memory = str(current).startswith(("Out of Memory Error", "query: Out of Memory"))
+        if isinstance(current, MemoryError) or code == errno.ENOMEM or mapping or duckdb_memory:
             soft, _ = resource.getrlimit(resource.RLIMIT_AS)
             limit = (
                 "no address-space limit"
@@ -140,7 +141,8 @@ def machine_limit(exc: BaseException) -> str | None:
                 f"out of memory ({limit}); raise the limit or free memory, or ask for less "
                 "(fewer episodes or runs at once, a narrower query)"
             )
-        if code in (errno.EMFILE, errno.ENFILE):
+        text = str(current)
+        if code in (errno.EMFILE, errno.ENFILE) or "Too many open files" in text:  # DuckDB: text
             soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
             return (
                 f"too many open files (the process may open {soft}: ulimit -n); raise the "
