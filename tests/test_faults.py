@@ -951,3 +951,43 @@ def test_evaluate_and_export_take_the_run_lock_the_trainers_take(
     # the lock is free again: evaluation and export go through
     assert _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root)).exit_code == 0
     assert _cli("export", run_id, str(tmp_path / "out"), "--runs-dir", str(root)).exit_code == 0
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("where", ["runs dir", "under it"])
+def test_train_into_a_runs_directory_that_is_a_file_is_one_line(tmp_path: Path, where: str) -> None:
+    blocker = tmp_path / "runs"
+    blocker.write_text("not a directory")
+    runs_dir = blocker if where == "runs dir" else blocker / "sub"
+    result = _cli("train", str(_spec(tmp_path)), "--runs-dir", str(runs_dir))
+    assert result.exit_code == 2
+    line = _one_line(result)
+    assert f"{blocker} is a file where softtrack needs a directory" in line
+    assert blocker.read_text() == "not a directory"
+    result = _cli("runs", "--runs-dir", str(blocker))
+    assert result.exit_code == 2 and "is not a directory" in _one_line(result)
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("command", ["evaluate", "report"])
+def test_a_run_whose_tables_are_a_file_is_refused_before_any_episode(
+    runs: tuple[Path, str], tmp_path: Path, command: str
+) -> None:
+    """Before: `report` evaluated every trajectory, then a traceback (FileExistsError)."""
+    root, run_id = runs
+    tables = next(root.glob("*/tables"))
+    shutil.rmtree(tables)
+    tables.write_text("a file")
+    before = _snapshot(root)
+    args = [run_id, "--runs-dir", str(root)]
+    if command == "report":
+        args += ["--out", str(tmp_path / "report")]
+    result = _cli(command, *args)
+    assert result.exit_code == 2
+    assert "is a file where the run's tables directory belongs" in _one_line(result)
+    assert "3-D RMSE" not in result.output  # no episode ran
+
+    def run_files(snapshot: dict[str, str]) -> dict[str, str]:  # the catalog is a cache
+        return {k: v for k, v in snapshot.items() if not k.startswith(".softtrack-catalog")}
+
+    assert run_files(_snapshot(root)) == run_files(before)

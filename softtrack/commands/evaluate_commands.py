@@ -161,7 +161,7 @@ class _RandomProgress:
         left = (total - done) / rate if rate > 0 else float("inf")
         typer.echo(
             f"{record.run_id[-8:]} random targets: {done:,}/{total:,} episodes "
-            f"({100 * done / total:.0f}%), {rate:.2g} episodes/s"
+            f"({100 * done / total:.0f}%), {rate:,.{1 if rate < 10 else 0}f} episodes/s"
             + (f", {left / 60:.1f} min left" if done < total and math.isfinite(left) else "")
             + ("; Ctrl-C keeps the finished episodes" if done < total else ""),
             err=True,

@@ -152,15 +152,38 @@ def machine_limit(exc: BaseException) -> str | None:
     return None
 
 
+#: A path of the wrong kind: a file where a directory belongs (or the other way round).
+PATH_KIND_ERRNOS = (errno.EEXIST, errno.ENOTDIR, errno.EISDIR)
+
+
+def _path_kind_problem(code: int, path: Path, then: str) -> str:
+    """One line for a file where softtrack needs a directory, or a directory where it needs
+    a file (``mkdir`` onto a file, a path under a file, a directory opened as a file)."""
+    after = f"; {then}" if then else ""
+    if code == errno.EISDIR:
+        return f"{path} is a directory where softtrack needs a file: move it away{after}"
+    blocker = path
+    if code == errno.ENOTDIR:  # some parent of the path is a file
+        blocker = next((p for p in reversed(path.parents) if p.is_file()), path)
+    return (
+        f"{blocker} is a file where softtrack needs a directory: move it away or choose "
+        f"another path{after}"
+    )
+
+
 def storage_problem(
     exc: BaseException, then: str = "", where: str | os.PathLike[str] | None = None
 ) -> str | None:
-    """A one-line message for a full disk or a read-only/unwritable directory behind ``exc``,
+    """A one-line message for a full disk, a read-only/unwritable directory or a path of the
+    wrong kind (a file where a directory belongs, or the other way round) behind ``exc``,
     ending with ``then`` (what to do once it is fixed); ``None`` for any other error.
 
     ``where``: the directory being written when the error does not name its file (a library
     writing through its own file object), e.g. the run's directory."""
     code = _errno(exc)
+    kind_path = _path(exc) if code in PATH_KIND_ERRNOS else None
+    if kind_path is not None and (code != errno.EEXIST or kind_path.is_file()):
+        return _path_kind_problem(code, kind_path, then)
     if code not in FULL_ERRNOS and code not in READ_ONLY_ERRNOS:
         return None
     path = _path(exc) or (Path(where) if where is not None else None)

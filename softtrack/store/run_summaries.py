@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from softtrack.store.catalog import read_catalog
+from softtrack.store.errors import RunStoreError
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, parse_time
 from softtrack.store.location import resolve_runs_dir
 
@@ -153,8 +154,17 @@ def run_listing(
     """Summaries of the runs under ``runs_dir`` (resolved with ``resolve_runs_dir``) from its
     catalog; with ``failed=True`` only the failed runs; with ``limit`` only the ``limit``
     created last, in directory order as always.
-    ``progress(done, total)`` is called while runs are read from their directories."""
+    ``progress(done, total)`` is called while runs are read from their directories.
+
+    Raises:
+        RunStoreError: ``runs_dir`` is a file (a missing directory has no runs).
+    """
     root = resolve_runs_dir(runs_dir)
+    if root.exists() and not root.is_dir():
+        raise RunStoreError(
+            f"{root} is not a directory; pass the directory your runs are in with --runs-dir "
+            "(the shipped runs: --runs-dir models)"
+        )
     if not root.is_dir():
         return RunListing([], 0)
     snapshot = read_catalog(root, progress=progress)

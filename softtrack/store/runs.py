@@ -267,6 +267,15 @@ class RunRecord:
     def tables_dir(self) -> Path:
         return self.path / "tables"
 
+    def check_tables_dir(self) -> None:
+        """Raise :class:`RunStoreError` when ``tables`` exists but is not a directory, before
+        any work whose results would go there is done."""
+        if self.tables_dir.exists() and not self.tables_dir.is_dir():
+            raise RunStoreError(
+                f"{self.tables_dir} is a file where the run's tables directory belongs: move "
+                "it away, then run the command again"
+            )
+
     def table_path(self, name: str) -> Path:
         """``tables/<name>.parquet``, e.g. ``table_path("train_episodes")``."""
         return self.tables_dir / f"{name}.parquet"

@@ -119,6 +119,9 @@ def evaluate(
         write and require_model(r, spec, model) == model_paths(r, spec)
         for r, spec in ((r, r.load_spec()) for r in records)
     ]
+    for record, store in zip(records, stores, strict=True):
+        if store:
+            record.check_tables_dir()
     records = [
         writable_run(r, runs_dir, in_place=in_place, on_copied=on_copied) if store else r
         for r, store in zip(records, stores, strict=True)

@@ -71,6 +71,7 @@ def report(
                 f"{record.path}: no stored evaluation; run `softtrack evaluate {record.path}` first"
             )
     for record in records:
+        record.check_tables_dir()
         spec = record.load_spec()
         trained = all(p.is_file() for p in model_paths(record, spec))
         if trained and not _evaluated_or_damaged(record):
