@@ -181,9 +181,10 @@ def storage_problem(
     ``where``: the directory being written when the error does not name its file (a library
     writing through its own file object), e.g. the run's directory."""
     code = _errno(exc)
-    kind_path = _path(exc) if code in PATH_KIND_ERRNOS else None
-    if kind_path is not None and (code != errno.EEXIST or kind_path.is_file()):
-        return _path_kind_problem(code, kind_path, then)
+    if code is not None and code in PATH_KIND_ERRNOS:
+        kind_path = _path(exc)
+        if kind_path is not None and (code != errno.EEXIST or kind_path.is_file()):
+            return _path_kind_problem(code, kind_path, then)
     if code not in FULL_ERRNOS and code not in READ_ONLY_ERRNOS:
         return None
     path = _path(exc) or (Path(where) if where is not None else None)
