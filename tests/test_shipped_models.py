@@ -20,6 +20,7 @@ from reproduce_study import FEATURED, KEEP_STEPS, lean, lean_validation  # noqa:
 from softtrack.evaluation import EVAL_TRAJECTORIES  # noqa: E402
 from softtrack.evaluation.episode_tables import VALIDATION_SCORED_COLUMNS, validation_score  # noqa: E402
 from softtrack.report.data import Group, episode_rmse, load_runs, representative_run  # noqa: E402
+from softtrack.store.runs import RunStore  # noqa: E402
 from softtrack.store.selection import select_one_run  # noqa: E402
 from softtrack.store.tables import read_table  # noqa: E402
 
@@ -204,3 +205,18 @@ def test_a_job_that_a_tune_trial_trained_is_derived_from_it(tmp_path: Path) -> N
     }
     assert rs._existing_run(job0, store.root) == (run_id, "completed")
     assert rs._trained_twin(job0, store.root) is not None  # still, but the job now has its run
+
+
+def test_every_shipped_run_is_finished_or_says_why_not() -> None:
+    """A shipped run is completed, or its run.json's ``notes.incomplete`` says why it stopped
+    early (and ``softtrack resume`` leaves it alone)."""
+    from softtrack.executors.dispatch import resumable
+
+    store = RunStore(ROOT / "models")
+    unexplained = [
+        (r.path.name, r.info.status)
+        for r in store.list_runs()
+        if r.info.status != "completed" and not (r.info.notes or {}).get("incomplete")
+    ]
+    assert unexplained == []
+    assert not [r.path.name for r in store.list_runs() if resumable(r)]

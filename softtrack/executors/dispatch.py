@@ -206,7 +206,10 @@ def execute(
 
 def resumable(record: RunRecord) -> bool:
     """Interrupted (but not pruned by ``softtrack tune``), queued (never started),
-    failed-by-signal and lost runs."""
+    failed-by-signal and lost runs; never a shipped (read-only) run, which has no checkpoints
+    (``notes.incomplete`` says why a shipped run stopped early)."""
+    if record.read_only:
+        return False
     status = effective_status(record)
     if status == "interrupted" and "pruned" in (record.info.notes or {}):
         return False
