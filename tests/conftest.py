@@ -15,6 +15,8 @@ import pytest
 #: which CI runs after it; every module they exercise keeps faster tests in ``make test``.
 LONG_TESTS = frozenset(
     {
+        "tests/test_query.py::test_a_signal_mid_query_stops_it_with_one_line[2]",
+        "tests/test_query.py::test_a_signal_mid_query_stops_it_with_one_line[15]",
         "tests/test_install.py::test_the_wheel_runs_quickstart_and_a_shipped_policy_outside_the_checkout",
         "tests/test_animate.py::test_report_html_replays_the_featured_controller_read_only",
         "tests/test_animate.py::test_two_shipped_runs_side_by_side_read_only",

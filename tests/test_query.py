@@ -475,3 +475,36 @@ def test_too_few_file_descriptors_name_the_limit_not_a_table(tmp_path: Path) -> 
     assert result.stderr.count("\n") == 1 and "ulimit -n" in result.stderr
     assert "move it away" not in result.stderr
     assert all(p.read_bytes() == data for p, data in before.items())
+
+
+@pytest.mark.faults("traceback")
+@pytest.mark.parametrize("signum", [2, 15])
+def test_a_signal_mid_query_stops_it_with_one_line(runs_dir: Path, signum: int) -> None:
+    """SIGTERM (or Ctrl-C) while DuckDB computes: a "RuntimeError: Query interrupted"
+    traceback before (DuckDB turns the signal into its own error); one line, 128 + signal."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    command = str(Path(sys.executable).parent / "softtrack")
+    sql = "SELECT sum(range) FROM range(100000000000)"
+    process = subprocess.Popen(
+        [command, "query", sql, "--runs-dir", str(runs_dir)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # as from a shell
+    )
+    snapshots = runs_dir / ".softtrack-catalog" / "snapshots"
+    deadline = time.monotonic() + 60
+    while not list(snapshots.glob(f"{process.pid}-*")) and time.monotonic() < deadline:
+        time.sleep(0.1)  # the query pins its files right before DuckDB runs it
+    time.sleep(1.0)
+    process.send_signal(signum)
+    try:
+        _, stderr = process.communicate(timeout=30)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + signum, stderr
+    assert stderr.strip() == f"stopped by {signal.Signals(signum).name}"

@@ -118,6 +118,10 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
             raise typer.Exit(1) from None
         fail(exc)
     except Exception as exc:
+        if _interrupted(exc):
+            signum = _stop_signal[-1] if _stop_signal else signal.SIGINT
+            typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
+            raise typer.Exit(128 + signum) from None
         limit = machine_limit(exc)
         if limit is not None:
             typer.echo(f"error: {limit}", err=True)
@@ -144,8 +148,19 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+#: The stop signal that arrived, for an interrupt that a library reported as its own error.
+_stop_signal: list[int] = []
+
+
 def exit_on_sigterm(signum: int, _frame: object) -> None:
+    _stop_signal.append(signum)
     raise SystemExit(128 + signum)
+
+
+def _interrupted(exc: BaseException) -> bool:
+    """DuckDB turns a signal that arrives mid-query into its own error ("Query interrupted",
+    ``duckdb.InterruptException``), losing the ``SystemExit`` or ``KeyboardInterrupt``."""
+    return type(exc).__name__ == "InterruptException" or str(exc) == "Query interrupted"
 
 
 @app.callback()
