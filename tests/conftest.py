@@ -15,6 +15,9 @@ import pytest
 #: which CI runs after it; every module they exercise keeps faster tests in ``make test``.
 LONG_TESTS = frozenset(
     {
+        "tests/test_target_actor.py::test_a_training_model_acts_with_its_target_actor_inside_and_its_own_after[sbx]",
+        "tests/test_target_actor.py::test_a_training_model_acts_with_its_target_actor_inside_and_its_own_after[sb3]",
+        "tests/test_target_actor.py::test_an_exported_sbx_model_keeps_the_target_actor_it_acts_with",
         "tests/test_query.py::test_a_signal_mid_query_stops_it_with_one_line[2]",
         "tests/test_query.py::test_a_signal_mid_query_stops_it_with_one_line[15]",
         "tests/test_install.py::test_the_wheel_runs_quickstart_and_a_shipped_policy_outside_the_checkout",
