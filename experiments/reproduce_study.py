@@ -386,6 +386,12 @@ JOBS: tuple[Job, ...] = (
         (0, 1, 2),
         policy_only=True,
     ),
+    *seeded_jobs(
+        V + "td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-reachable.yaml",
+        "td3-sbx-128-mirror-fast-transport-fine-10ms-reachable-3e6",
+        (0,),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     Job(
