@@ -15,6 +15,9 @@ import pytest
 #: which CI runs after it; every module they exercise keeps faster tests in ``make test``.
 LONG_TESTS = frozenset(
     {
+        "tests/test_contact.py::test_stability_limit_bounds_the_engine",
+        "tests/test_episodes.py::test_a_batch_of_episodes_equals_each_episode_alone[contact]",
+        "tests/test_contact.py::test_matches_pyelastica_rod_rod_contact[defaults]",
         "tests/test_target_actor.py::test_a_training_model_acts_with_its_target_actor_inside_and_its_own_after[sbx]",
         "tests/test_target_actor.py::test_a_training_model_acts_with_its_target_actor_inside_and_its_own_after[sb3]",
         "tests/test_target_actor.py::test_an_exported_sbx_model_keeps_the_target_actor_it_acts_with",
