@@ -13,12 +13,15 @@
 from __future__ import annotations
 
 import re
+import signal
 import sys
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
 import typer
 from typer.core import TyperCommand, TyperGroup
+
+from softtrack.signals import SignalExit
 
 __all__ = ["App", "Command", "Group"]
 
@@ -62,6 +65,18 @@ class Group(TyperGroup):
             typer.echo("error: aborted", err=True)
             sys.exit(1)
         sys.exit(code if isinstance(code, int) else 0)
+
+    def invoke(self, ctx: Any) -> Any:
+        """Run the command; a Ctrl-C or SIGTERM that unwinds it ends in one line, ``stopped by
+        SIGINT`` (``SIGTERM``), and exit code 128 + the signal."""
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            typer.echo("stopped by SIGINT", err=True)
+            raise typer.Exit(128 + signal.SIGINT) from None
+        except SignalExit as exc:  # SIGTERM's handler (softtrack.commands.common)
+            typer.echo(str(exc), err=True)
+            raise typer.Exit(128 + exc.signum) from None
 
     def get_help_option(self, ctx: Any) -> Any:
         option = super().get_help_option(ctx)

@@ -14,9 +14,33 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["STOP_SIGNALS", "StopFlag", "stop_on_signals"]
+__all__ = ["STOP_SIGNALS", "SignalExit", "StopFlag", "StoppedBySignal", "stop_on_signals"]
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _stopped_by(signum: int) -> str:
+    return f"stopped by {signal.Signals(signum).name}"
+
+
+class StoppedBySignal(Exception):
+    """A signal stopped the work (``signum``: its number); the CLI exits with 128 + it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(_stopped_by(signum))
+        self.signum = signum
+
+
+class SignalExit(SystemExit):
+    """Raised by a signal handler to unwind the command (``finally`` blocks run, ``except
+    Exception`` does not catch it); exit code 128 + ``signum``."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(128 + signum)
+        self.signum = signum
+
+    def __str__(self) -> str:
+        return _stopped_by(self.signum)
 
 
 class StopFlag:

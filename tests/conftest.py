@@ -16,6 +16,14 @@ import pytest
 LONG_TESTS = frozenset(
     {
         "tests/test_contact.py::test_stability_limit_bounds_the_engine",
+        "tests/test_per_arm_td3.py::test_own_arm_actors_see_only_their_arm_and_the_target",
+        "tests/test_train.py::test_interrupt_and_resume[ppo-sb3]",
+        "tests/test_faults.py::test_resume_keeps_started_the_killed_sessions_step_and_every_env_step",
+        "tests/test_episodes.py::test_an_sbx_policy_and_its_independent_pair_run_in_batches",
+        "tests/test_bounded_actor.py::test_the_penalty_pulls_saturated_actions_back",
+        "tests/test_confirmation.py::test_independent_arms_are_confirmed_in_their_own_scene",
+        "tests/test_faults.py::test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones",
+        "tests/test_faults.py::test_resume_without_its_checkpoints_refuses_and_changes_nothing[a file]",
         "tests/test_episodes.py::test_a_batch_of_episodes_equals_each_episode_alone[contact]",
         "tests/test_contact.py::test_matches_pyelastica_rod_rod_contact[defaults]",
         "tests/test_target_actor.py::test_a_training_model_acts_with_its_target_actor_inside_and_its_own_after[sbx]",

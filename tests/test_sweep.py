@@ -166,15 +166,38 @@ def test_lost_run_is_shown_and_selected(tmp_path: Path) -> None:
 
 
 # ---- the local pool -------------------------------------------------------------------------
-def test_sweep_failing_job_and_siblings(tmp_path: Path) -> None:
-    """A job that raises mid-training is recorded as failed with its traceback; its siblings
-    complete; `runs --failed` shows it."""
+#: Imported by a worker's interpreter at start (``PYTHONPATH``): the worker whose command line
+#: names ``SOFTTRACK_TEST_BUG_RUN`` raises at its first checkpoint, as a bug in softtrack would.
+_BUG_AT_CHECKPOINT = """
+import os, sys
+bad = os.environ.get("SOFTTRACK_TEST_BUG_RUN")
+if bad and bad in sys.argv:
+    import softtrack.rl.callbacks as callbacks
+    import softtrack.rl.policy_training as policy_training
+
+    def save_checkpoint(*args, **kwargs):
+        raise ZeroDivisionError("a bug at the first checkpoint")
+
+    callbacks.save_checkpoint = policy_training.save_checkpoint = save_checkpoint
+"""
+
+
+def test_sweep_failing_job_and_siblings(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A job that raises mid-training (a bug) is recorded as failed with its traceback; one
+    whose checkpoint directory is a file is interrupted with one line and resumable once it is
+    moved away; their sibling completes; `runs --failed` shows the failed one."""
     spec = load_spec(_spec(tmp_path, checkpoint_interval=100))
     store = RunStore(tmp_path / "runs")
     records = [store.create_run(spec, s) for s in (0, 1, 2)]
-    bad = records[1]
-    (bad.path / "checkpoints").rmdir()
-    (bad.path / "checkpoints").write_text("not a directory")  # the first checkpoint raises
+    bad, blocked = records[1], records[2]
+    inject = tmp_path / "inject"
+    inject.mkdir()
+    (inject / "sitecustomize.py").write_text(_BUG_AT_CHECKPOINT)
+    path = os.pathsep.join(p for p in (str(inject), os.environ.get("PYTHONPATH", "")) if p)
+    monkeypatch.setenv("PYTHONPATH", path)
+    monkeypatch.setenv("SOFTTRACK_TEST_BUG_RUN", bad.run_id)
+    (blocked.path / "checkpoints").rmdir()
+    (blocked.path / "checkpoints").write_text("not a directory")  # the first checkpoint fails
     lines: list[str] = []
     outcome = execute(
         store, [r.run_id for r in records], ExecOptions(workers=2), "S", on_progress=lines.append
@@ -182,18 +205,29 @@ def test_sweep_failing_job_and_siblings(tmp_path: Path) -> None:
     assert outcome.statuses == {
         records[0].run_id: "completed",
         bad.run_id: "failed",
-        records[2].run_id: "completed",
+        blocked.run_id: "interrupted",
     }
-    assert outcome.missing == [(bad.run_id, "failed")] and outcome.exit_code == 1
-    assert lines and "3 runs" in lines[-1] and "2 completed" in lines[-1]
+    assert sorted(outcome.missing) == sorted(
+        [(bad.run_id, "failed"), (blocked.run_id, "interrupted")]
+    )
+    assert outcome.exit_code == 1
+    assert lines and "3 runs" in lines[-1] and "1 completed" in lines[-1]
     info = store.get_run(bad.run_id).info
-    assert info.error and "Traceback" in (info.traceback or "")
+    assert info.error and "ZeroDivisionError" in info.error
+    assert "Traceback" in (info.traceback or "")
     assert "killed_by_signal" not in info.notes
+    blocked_info = store.get_run(blocked.run_id).info
+    assert "is a file where softtrack needs a directory" in (blocked_info.error or "")
+    assert "\n" not in (blocked_info.error or "") and not blocked_info.traceback
     result = runner.invoke(app, ["runs", "--failed", "--runs-dir", str(store.root)])
     assert result.exit_code == 0 and bad.run_id in result.stdout
     assert "Traceback" in result.stdout and records[0].run_id not in result.stdout
-    # a failed-by-exception run is not resumed by experiment name
+    # a failed-by-exception run is not resumed by experiment name; the blocked one is, once
+    # the file is moved away
     assert select_resumable_runs(store, ["tiny"]) == []
+    (blocked.path / "checkpoints").unlink()
+    (blocked.path / "checkpoints").mkdir()
+    assert [r.run_id for r in select_resumable_runs(store, ["tiny"])] == [blocked.run_id]
 
 
 @pytest.mark.faults("held")

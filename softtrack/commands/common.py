@@ -16,6 +16,7 @@ import typer
 
 from softtrack.cli_classes import App, Group
 from softtrack.lazy import lazy_module
+from softtrack.signals import SignalExit, StoppedBySignal
 from softtrack.store import provenance
 from softtrack.store.disk import MachineLimitError, machine_limit, storage_problem
 from softtrack.store.location import resolve_runs_dir
@@ -118,8 +119,10 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
             raise typer.Exit(1) from None
         fail(exc)
     except Exception as exc:
-        if _interrupted(exc):
-            signum = _stop_signal[-1] if _stop_signal else signal.SIGINT
+        if isinstance(exc, StoppedBySignal) or _interrupted(exc):
+            signum = getattr(exc, "signum", None) or (
+                _stop_signal[-1] if _stop_signal else signal.SIGINT
+            )
             typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
             raise typer.Exit(128 + signum) from None
         limit = machine_limit(exc)
@@ -154,7 +157,7 @@ _stop_signal: list[int] = []
 
 def exit_on_sigterm(signum: int, _frame: object) -> None:
     _stop_signal.append(signum)
-    raise SystemExit(128 + signum)
+    raise SignalExit(signum)
 
 
 def _interrupted(exc: BaseException) -> bool:

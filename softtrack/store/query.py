@@ -39,6 +39,7 @@ import dataclasses
 import json
 import os
 import re
+import signal
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,7 @@ from typing import TYPE_CHECKING, Any, Self
 
 import duckdb
 
+from softtrack.signals import StoppedBySignal
 from softtrack.store.catalog import file_stamp, read_catalog
 from softtrack.store.errors import RunStoreError
 from softtrack.store.location import resolve_runs_dir
@@ -58,6 +60,7 @@ from softtrack.store.query_output import (
     write_cursor,
 )
 from softtrack.store.query_snapshot import QuerySnapshot
+from softtrack.store.signal_interrupt import interrupt_on_signals
 from softtrack.store.table_cache import (
     FILE_COLUMN,
     MAP_FILE,
@@ -309,6 +312,12 @@ def _first_line(exc: BaseException) -> str:
 _READ_STATEMENTS = frozenset({"SELECT", "EXPLAIN"})
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """DuckDB's error for a query stopped by ``interrupt()`` or by a signal's handler (which
+    loses the handler's ``SystemExit`` or ``KeyboardInterrupt``)."""
+    return isinstance(exc, duckdb.InterruptException) or str(exc) == "Query interrupted"
+
+
 def check_read_only(sql: str) -> None:
     """Raise :class:`QueryError` for a statement that is not a read (COPY, ATTACH, SET, ...);
     a syntax error is left to the query itself."""
@@ -544,7 +553,16 @@ class ResultsDatabase:
         try:
             check_read_only(sql)
             self._prepare(self._named_in(sql))
-            return self.connection.execute(sql)
+            stopped = False
+            with interrupt_on_signals(self.connection.interrupt) as signals:
+                try:
+                    return self.connection.execute(sql)
+                except (duckdb.Error, RuntimeError) as exc:
+                    stopped = _interrupted(exc)
+                    if not (stopped or signals):
+                        raise
+            # the relay has now read every signal that arrived
+            raise StoppedBySignal(signals[0] if signals else signal.SIGINT) from None
         except duckdb.Error as exc:
             raise QueryError(self._explain(exc)) from None
 

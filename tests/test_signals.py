@@ -1,0 +1,59 @@
+"""Stop signals: the relay that interrupts a native call, and the command line's one line."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+from softtrack.signals import SignalExit, StoppedBySignal
+from softtrack.store.signal_interrupt import interrupt_on_signals
+
+
+@pytest.fixture
+def quiet_sigterm() -> Iterator[list[int]]:
+    """A SIGTERM handler that only records (as a handler whose exception a library lost)."""
+    handled: list[int] = []
+    previous = signal.signal(signal.SIGTERM, lambda signum, _frame: handled.append(signum))
+    yield handled
+    signal.signal(signal.SIGTERM, previous)
+
+
+def test_a_signal_calls_interrupt_from_the_relay(quiet_sigterm: list[int]) -> None:
+    interrupted = threading.Event()
+    with interrupt_on_signals(interrupted.set) as received:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert interrupted.wait(10.0)
+    assert received == [signal.SIGTERM] and quiet_sigterm == [signal.SIGTERM]
+
+
+def test_after_the_block_a_signal_interrupts_nothing(quiet_sigterm: list[int]) -> None:
+    calls: list[int] = []
+    with interrupt_on_signals(lambda: calls.append(1)) as received:
+        pass
+    os.kill(os.getpid(), signal.SIGTERM)
+    assert received == [] and calls == [] and quiet_sigterm == [signal.SIGTERM]
+    assert signal.set_wakeup_fd(-1) == -1  # the wakeup socket was given back
+
+
+def test_outside_the_main_thread_the_block_runs_without_a_relay() -> None:
+    outcome: list[list[int]] = []
+
+    def body() -> None:
+        with interrupt_on_signals(lambda: None) as received:
+            outcome.append(received)
+
+    worker = threading.Thread(target=body)
+    worker.start()
+    worker.join(10.0)
+    assert outcome == [[]]
+
+
+def test_the_stop_errors_name_the_signal_and_the_exit_code() -> None:
+    assert str(StoppedBySignal(signal.SIGTERM)) == "stopped by SIGTERM"
+    stop = SignalExit(signal.SIGTERM)
+    assert stop.code == 143 and str(stop) == "stopped by SIGTERM"
+    assert isinstance(stop, SystemExit) and not isinstance(stop, Exception)
