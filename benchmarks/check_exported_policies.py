@@ -7,7 +7,8 @@ with ``gymnasium.make("softtrack/DualArmTracking-v0", **env_kwargs(spec))`` on t
 the deterministic policy for the run's evaluation length, and compares each arm's 3-D RMSE
 with the run's stored ``eval_metrics``. Rows stored on this CPU kind must be reproduced to
 1e-9 (a deterministic episode); the others are shown with their difference (the closed loop
-amplifies rounding differences between CPU kinds, see ``benchmarks/cross_cpu_spread.py``):
+amplifies rounding differences between CPU kinds, see ``benchmarks/cross_cpu_spread.py``). Planner
+runs (``controller: mpc``) have no policy and are skipped:
 
     .venv/bin/python benchmarks/check_exported_policies.py models/*/
 
@@ -85,6 +86,9 @@ def main() -> None:
     here, failures = cpu_kind(), 0
     print(f"CPU kind here: {here}")
     for run_dir in args.runs:
+        if load_spec(run_dir / "spec.yaml").controller == "mpc":
+            print(f"{run_dir.name}: a planner (controller: mpc), no policy to load; skipped")
+            continue
         if (
             not (run_dir / "policy.json").is_file()
             and not (run_dir / "models" / "arm0" / "policy.json").is_file()

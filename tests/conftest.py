@@ -16,6 +16,14 @@ import pytest
 LONG_TESTS = frozenset(
     {
         "tests/test_contact.py::test_stability_limit_bounds_the_engine",
+        "tests/test_faults.py::test_a_table_of_another_shape_is_named_in_one_line[numbers as text]",
+        "tests/test_faults.py::test_a_table_of_another_shape_is_named_in_one_line[a directory]",
+        "tests/test_per_arm_td3.py::test_train_checkpoint_and_evaluate_a_per_arm_run[False-full]",
+        "tests/test_contact_evaluation.py::test_report_has_contact_section",
+        "tests/test_robustness.py::test_robustness_table_nominal_rows_equal_evaluate",
+        "tests/test_evaluate.py::test_old_metrics_tables_without_action_columns_stay_valid",
+        "tests/test_mirror.py::test_train_a_mirror_replay_run[sbx]",
+        "tests/test_spec.py::test_experiment_file_of_shipped_run_gives_its_hash[ddpg-sbx-1e6-seed0]",
         "tests/test_per_arm_td3.py::test_own_arm_actors_see_only_their_arm_and_the_target",
         "tests/test_train.py::test_interrupt_and_resume[ppo-sb3]",
         "tests/test_faults.py::test_resume_keeps_started_the_killed_sessions_step_and_every_env_step",

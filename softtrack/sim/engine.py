@@ -9,7 +9,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from softtrack.sim.actuation import spline_matrix
-from softtrack.sim.kernels import advance as _advance_kernel
+from softtrack.sim.kernels import BatchContact, BatchMaterial, BatchState
+from softtrack.sim.kernels import advance as advance_batch
 from softtrack.sim.params import (
     MODEL_PARAMETERS,
     InvalidParameterError,
@@ -117,6 +118,37 @@ class RodBatch:
         self._contact_pairs = np.zeros((n_envs, p.n_elem * p.n_elem, 2), dtype=np.int64)
         self._contact_listed = np.full(n_envs, -1, dtype=np.int64)
         self._contact_anchor = np.zeros((n_envs, 2, 4, p.n_nodes))
+        # the arrays above as the engine's structures, built once: the arrays are only ever
+        # changed in place
+        self._structures = (
+            BatchState(
+                self.position, self.velocity, self.directors, self.omega, self.torques, self._finite
+            ),
+            BatchMaterial(
+                self._damping,
+                self._inv_mass,
+                self._mass,
+                self._inertia,
+                self._inv_inertia,
+                self._shear,
+                self._bend,
+                self._volume,
+                c.rest_lengths,
+                c.rest_voronoi_lengths,
+                c.base_position,
+                c.base_directors,
+            ),
+            BatchContact(
+                self._penetration,
+                self._contact_force,
+                self.sphere,
+                self._sphere_params,
+                self._sphere_out,
+                self._contact_pairs,
+                self._contact_listed,
+                self._contact_anchor,
+            ),
+        )
         self.reset()
 
     @property
@@ -331,39 +363,13 @@ class RodBatch:
             raise ValueError(f"n_steps={n_steps!r} must be ≥ 0")
         if steps == 0:
             return
-        c = self.constants
-        _advance_kernel(
-            self.position,
-            self.velocity,
-            self.directors,
-            self.omega,
-            self.torques,
+        advance_batch(
+            *self._structures,
             steps,
             float(p.dt),
-            self._damping,
             float(p.gravity),
-            c.rest_lengths,
-            c.rest_voronoi_lengths,
-            self._inv_mass,
-            self._mass,
-            self._inertia,
-            self._inv_inertia,
-            self._shear,
-            self._bend,
-            c.base_position,
-            c.base_directors,
-            self._finite,
-            self._volume,
             float(p.contact_k),
             float(p.contact_nu),
-            self._penetration,
-            self._contact_force,
-            self.sphere,
-            self._sphere_params,
-            self._sphere_out,
-            self._contact_pairs,
-            self._contact_listed,
-            self._contact_anchor,
         )
         self.time += steps * p.dt
 
