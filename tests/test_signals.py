@@ -31,12 +31,14 @@ def test_a_signal_calls_interrupt_from_the_relay(quiet_sigterm: list[int]) -> No
 
 
 def test_after_the_block_a_signal_interrupts_nothing(quiet_sigterm: list[int]) -> None:
+    before = signal.set_wakeup_fd(-1)
+    signal.set_wakeup_fd(before)
     calls: list[int] = []
     with interrupt_on_signals(lambda: calls.append(1)) as received:
         pass
     os.kill(os.getpid(), signal.SIGTERM)
     assert received == [] and calls == [] and quiet_sigterm == [signal.SIGTERM]
-    assert signal.set_wakeup_fd(-1) == -1  # the wakeup socket was given back
+    assert signal.set_wakeup_fd(before) == before  # the wakeup socket was given back
 
 
 def test_outside_the_main_thread_the_block_runs_without_a_relay() -> None:
