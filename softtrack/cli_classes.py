@@ -21,9 +21,9 @@ from typing import Any, NoReturn
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-from softtrack.signals import SignalExit
+from softtrack.signals import SignalExit, StoppedBySignal
 
-__all__ = ["App", "Command", "Group"]
+__all__ = ["App", "Command", "Group", "stop_signal_behind"]
 
 #: The click Typer is built on (its exception classes): click itself up to Typer 0.24, the
 #: copy Typer vendors from 0.26 on (constraints.txt pins 0.24: it starts 0.3 s sooner).
@@ -71,18 +71,37 @@ class Group(TyperGroup):
         SIGINT`` (``SIGTERM``), and exit code 128 + the signal."""
         try:
             return super().invoke(ctx)
-        except KeyboardInterrupt:
-            typer.echo("stopped by SIGINT", err=True)
-            raise typer.Exit(128 + signal.SIGINT) from None
-        except SignalExit as exc:  # SIGTERM's handler (softtrack.commands.common)
-            typer.echo(str(exc), err=True)
-            raise typer.Exit(128 + exc.signum) from None
+        except (_click.exceptions.Exit, _click.exceptions.ClickException, _click.exceptions.Abort):
+            raise  # the command's own exit and usage errors (already printed where needed)
+        except (KeyboardInterrupt, SignalExit, Exception) as exc:
+            signum = stop_signal_behind(exc)
+            if signum is None:
+                raise
+            typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
+            raise typer.Exit(128 + signum) from None
 
     def get_help_option(self, ctx: Any) -> Any:
         option = super().get_help_option(ctx)
         if option is not None:
             option.metavar = ""
         return option
+
+
+def stop_signal_behind(exc: BaseException) -> int | None:
+    """The stop signal behind ``exc``: Ctrl-C (``KeyboardInterrupt``), SIGTERM's handler
+    (``SignalExit``), a query a signal stopped (``StoppedBySignal``), or any error raised while
+    one of those unwound the command (a signal in the middle of an import leaves a module half
+    made, and the next use of it fails); ``None`` for any other error."""
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        if isinstance(current, KeyboardInterrupt):
+            return int(signal.SIGINT)
+        if isinstance(current, (SignalExit, StoppedBySignal)):
+            return current.signum
+        current = current.__cause__ or current.__context__
+    return None
 
 
 class Command(TyperCommand):

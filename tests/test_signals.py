@@ -59,3 +59,23 @@ def test_the_stop_errors_name_the_signal_and_the_exit_code() -> None:
     stop = SignalExit(signal.SIGTERM)
     assert stop.code == 143 and str(stop) == "stopped by SIGTERM"
     assert isinstance(stop, SystemExit) and not isinstance(stop, Exception)
+
+
+def test_the_stop_signal_behind_an_error_is_found_along_its_chain() -> None:
+    """A signal that lands in the middle of an import leaves a module half made; the error its
+    next use raises still ends the command as stopped by that signal."""
+    from softtrack.cli_classes import stop_signal_behind
+
+    def chained(first: BaseException) -> BaseException:
+        try:
+            try:
+                raise first
+            except BaseException:
+                raise AttributeError("module 'softtrack.api' has no attribute 'X'")  # noqa: B904
+        except AttributeError as exc:
+            return exc
+
+    assert stop_signal_behind(chained(KeyboardInterrupt())) == signal.SIGINT
+    assert stop_signal_behind(chained(SignalExit(signal.SIGTERM))) == signal.SIGTERM
+    assert stop_signal_behind(StoppedBySignal(signal.SIGTERM)) == signal.SIGTERM
+    assert stop_signal_behind(chained(ValueError("a bug"))) is None
