@@ -21,7 +21,7 @@ from typing import Any, NoReturn
 import typer
 from typer.core import TyperCommand, TyperGroup
 
-from softtrack.signals import SignalExit, StoppedBySignal
+from softtrack.signals import SignalExit, StoppedBySignal, stops_received
 
 __all__ = ["App", "Command", "Group", "stop_signal_behind"]
 
@@ -75,6 +75,8 @@ class Group(TyperGroup):
             raise  # the command's own exit and usage errors (already printed where needed)
         except (KeyboardInterrupt, SignalExit, Exception) as exc:
             signum = stop_signal_behind(exc)
+            if signum is None and stops_received():  # the signal's error was lost on the way
+                signum = stops_received()[-1]
             if signum is None:
                 raise
             typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)

@@ -14,13 +14,49 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-__all__ = ["STOP_SIGNALS", "SignalExit", "StopFlag", "StoppedBySignal", "stop_on_signals"]
+__all__ = [
+    "STOP_SIGNALS",
+    "SignalExit",
+    "StopFlag",
+    "StoppedBySignal",
+    "forget_stops",
+    "interrupt_on_sigint",
+    "note_stop",
+    "stop_on_signals",
+    "stops_received",
+]
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _stopped_by(signum: int) -> str:
     return f"stopped by {signal.Signals(signum).name}"
+
+
+#: The stop signals a command received through :func:`note_stop` (numbers, in order).
+_received: list[int] = []
+
+
+def note_stop(signum: int) -> None:
+    """Record that stop signal ``signum`` arrived (the command line's handlers call it)."""
+    _received.append(signum)
+
+
+def stops_received() -> list[int]:
+    """The stop signals recorded since :func:`forget_stops` (numbers, in order)."""
+    return list(_received)
+
+
+def forget_stops() -> None:
+    """Start a command with no stop signal recorded."""
+    _received.clear()
+
+
+def interrupt_on_sigint(signum: int, _frame: object) -> None:
+    """Ctrl-C as Python's default (``KeyboardInterrupt``), recorded first: a library that
+    turns the interrupt into its own error (an import cut in half) cannot hide it."""
+    note_stop(signum)
+    raise KeyboardInterrupt
 
 
 class StoppedBySignal(Exception):

@@ -79,3 +79,32 @@ def test_the_stop_signal_behind_an_error_is_found_along_its_chain() -> None:
     assert stop_signal_behind(chained(SignalExit(signal.SIGTERM))) == signal.SIGTERM
     assert stop_signal_behind(StoppedBySignal(signal.SIGTERM)) == signal.SIGTERM
     assert stop_signal_behind(chained(ValueError("a bug"))) is None
+
+
+def test_a_command_whose_signal_error_was_lost_still_stops_with_one_line() -> None:
+    """A library turned the recorded Ctrl-C into an unrelated error (an import cut in half):
+    the command line still says it stopped, with 128 + the signal."""
+    from typer.testing import CliRunner
+
+    from softtrack.cli_classes import App, Group
+    from softtrack.signals import forget_stops, note_stop
+
+    app = App(cls=Group, add_completion=False)
+
+    @app.command()
+    def half_imported() -> None:
+        note_stop(signal.SIGINT)
+        raise ImportError("cannot import name 'ExecOptions' (partially initialized module)")
+
+    @app.command()
+    def plain_bug() -> None:
+        raise ImportError("a bug")
+
+    try:
+        result = CliRunner().invoke(app, ["half-imported"])
+        assert result.exit_code == 130 and result.stderr.strip() == "stopped by SIGINT"
+        forget_stops()
+        result = CliRunner().invoke(app, ["plain-bug"])
+        assert result.exit_code == 1 and isinstance(result.exception, ImportError)
+    finally:
+        forget_stops()

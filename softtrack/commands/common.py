@@ -16,7 +16,14 @@ import typer
 
 from softtrack.cli_classes import App, Group
 from softtrack.lazy import lazy_module
-from softtrack.signals import SignalExit, StoppedBySignal
+from softtrack.signals import (
+    SignalExit,
+    StoppedBySignal,
+    forget_stops,
+    interrupt_on_sigint,
+    note_stop,
+    stops_received,
+)
 from softtrack.store import provenance
 from softtrack.store.disk import MachineLimitError, machine_limit, storage_problem
 from softtrack.store.location import resolve_runs_dir
@@ -120,9 +127,8 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
         fail(exc)
     except Exception as exc:
         if isinstance(exc, StoppedBySignal) or _interrupted(exc):
-            signum = getattr(exc, "signum", None) or (
-                _stop_signal[-1] if _stop_signal else signal.SIGINT
-            )
+            stops = stops_received()
+            signum = getattr(exc, "signum", None) or (stops[-1] if stops else signal.SIGINT)
             typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
             raise typer.Exit(128 + signum) from None
         limit = machine_limit(exc)
@@ -151,12 +157,8 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
-#: The stop signal that arrived, for an interrupt that a library reported as its own error.
-_stop_signal: list[int] = []
-
-
 def exit_on_sigterm(signum: int, _frame: object) -> None:
-    _stop_signal.append(signum)
+    note_stop(signum)
     raise SignalExit(signum)
 
 
@@ -180,8 +182,12 @@ def main(
     provenance.mark_cli()
     if threading.current_thread() is threading.main_thread():
         # SIGTERM unwinds like Ctrl-C, so every command removes its temporary files (training
-        # and the pools install their own clean stop while they run)
+        # and the pools install their own clean stop while they run); both are recorded, for
+        # an error that a library raised while the signal unwound it (cli_classes.Group)
+        forget_stops()
         signal.signal(signal.SIGTERM, exit_on_sigterm)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, interrupt_on_sigint)
 
 
 class ExecutorChoice(enum.StrEnum):
