@@ -126,11 +126,8 @@ def user_errors(runs_dir: str | None = None) -> Iterator[None]:
             raise typer.Exit(1) from None
         fail(exc)
     except Exception as exc:
-        if isinstance(exc, StoppedBySignal) or _interrupted(exc):
-            stops = stops_received()
-            signum = getattr(exc, "signum", None) or (stops[-1] if stops else signal.SIGINT)
-            typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
-            raise typer.Exit(128 + signum) from None
+        if isinstance(exc, StoppedBySignal) or stops_received():
+            raise  # a stop: one line from cli_classes.Group
         limit = machine_limit(exc)
         if limit is not None:
             typer.echo(f"error: {limit}", err=True)
@@ -160,12 +157,6 @@ def _version(value: bool) -> None:
 def exit_on_sigterm(signum: int, _frame: object) -> None:
     note_stop(signum)
     raise SignalExit(signum)
-
-
-def _interrupted(exc: BaseException) -> bool:
-    """DuckDB turns a signal that arrives mid-query into its own error ("Query interrupted",
-    ``duckdb.InterruptException``), losing the ``SystemExit`` or ``KeyboardInterrupt``."""
-    return type(exc).__name__ == "InterruptException" or str(exc) == "Query interrupted"
 
 
 @app.callback()
