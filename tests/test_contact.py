@@ -62,7 +62,7 @@ def _clearance(nodes: np.ndarray, radius: float) -> float:
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        ({"contact_k": -1.0}, "contact_k=-1.0 must be ≥ 0"),
+        ({"contact_k": -1.0}, "contact_k=-1.0 must be a finite number ≥ 0"),
         ({"contact_nu": 5.0}, "contact_nu=5.0 needs contact_k > 0"),
         ({"contact_k": 1e6, "base_positions": ((0.0, 0.0, 0.0),)}, "needs two arms"),
         ({"contact_k": 1e8}, "use contact_k ≤ 1.68e+07 N/m"),

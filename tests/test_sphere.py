@@ -42,8 +42,8 @@ def _params(**changes: object) -> SimParams:
 @pytest.mark.parametrize(
     ("sphere", "message"),
     [
-        ({"radius": -0.05}, "sphere radius=-0.05 must be > 0 m"),
-        ({"density": 0.0}, "sphere density=0.0 must be > 0"),
+        ({"radius": -0.05}, "sphere radius=-0.05 must be a finite number > 0 m"),
+        ({"density": 0.0}, "sphere density=0.0 must be a finite number > 0"),
         ({"center": (0.03, 0.975, 0.0)}, "by 30 mm; move the centre or use a radius ≤ 0.02 m"),
         ({"center": (0.05, 0.975, 0.0)}, "by 50 mm; move the centre off the arms"),
         ({"contact_k": 0.0}, "sphere contact_nu=100.0 needs contact between the arms and"),
@@ -53,7 +53,7 @@ def _params(**changes: object) -> SimParams:
         ),
         ({"contact_k": 1e8}, "exceeds the explicit stability limit of the sphere's contact"),
         ({"velocity_damping": 1e4}, "makes the friction unstable"),
-        ({"friction": -0.1}, "sphere friction=-0.1 must be ≥ 0"),
+        ({"friction": -0.1}, "sphere friction=-0.1 must be a finite number ≥ 0"),
         ({"mass": 1.0}, "unknown sphere field 'mass'"),
     ],
 )

@@ -129,7 +129,10 @@ def test_resting_random_target_draws_nothing() -> None:
             {"task": "transport", "sphere": {}, "squeeze_penalty": 1.0},
             "squeeze_penalty=1.0 needs a squeeze_band",
         ),
-        ({"task": "transport", "sphere": {"radius": -1.0}}, "sphere radius=-1.0 must be > 0 m"),
+        (
+            {"task": "transport", "sphere": {"radius": -1.0}},
+            "sphere radius=-1.0 must be a finite number > 0 m",
+        ),
         ({"task": "transport", "sphere": {}, "drop_grace": -1.0}, "drop_grace=-1.0 must be"),
     ],
 )

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from softtrack.env.observation_layout import observation_labels
+from softtrack.numbers import out_of_range, setting
 from softtrack.sim.params import MODEL_PARAMETERS, SimParams, model_error_stability
 
 __all__ = [
@@ -102,24 +103,24 @@ class RealismConfig:
             ``(low, high)`` pair a range drawn uniformly per episode; 1 = off.
     """
 
-    obs_noise_node_position: float = 0.0
-    obs_noise_target_position: float = 0.0
-    obs_noise_speed: float = 0.0
-    obs_noise_direction: float = 0.0
-    obs_drop_probability: float = 0.0
-    obs_stuck_probability: float = 0.0
-    obs_stuck_steps: int = 1
-    obs_delay: int = 0
-    action_delay: int = 0
-    action_delay_max: int | None = None
-    actuator_time_constant: float | None = None
-    action_rate_limit: float | None = None
-    torque_limit: float | None = None
-    youngs_modulus_scale: Factor = 1.0
-    density_scale: Factor = 1.0
-    radius_scale: Factor = 1.0
-    damping_scale: Factor = 1.0
-    torque_scale_factor: Factor = 1.0
+    obs_noise_node_position: float = setting(0.0, "m", ge=0)
+    obs_noise_target_position: float = setting(0.0, "m", ge=0)
+    obs_noise_speed: float = setting(0.0, "m/s", ge=0)
+    obs_noise_direction: float = setting(0.0, ge=0)
+    obs_drop_probability: float = setting(0.0, ge=0, lt=1)
+    obs_stuck_probability: float = setting(0.0, ge=0, lt=1)
+    obs_stuck_steps: int = setting(1, "control steps", ge=1, whole=True)
+    obs_delay: int = setting(0, "control steps", ge=0, whole=True)
+    action_delay: int = setting(0, "control steps", ge=0, whole=True)
+    action_delay_max: int | None = setting(None, "control steps", ge=0, whole=True, off=True)
+    actuator_time_constant: float | None = setting(None, "s", gt=0, off=True)
+    action_rate_limit: float | None = setting(None, "control units/s", gt=0, off=True)
+    torque_limit: float | None = setting(None, "N·m", gt=0, off=True)
+    youngs_modulus_scale: Factor = setting(1.0, number=False)
+    density_scale: Factor = setting(1.0, number=False)
+    radius_scale: Factor = setting(1.0, number=False)
+    damping_scale: Factor = setting(1.0, number=False)
+    torque_scale_factor: Factor = setting(1.0, number=False)
 
     @classmethod
     def from_value(cls, value: RealismConfig | Mapping[str, Any] | None) -> RealismConfig:
@@ -185,33 +186,15 @@ class RealismConfig:
 
     def validate(self) -> None:
         """Raise ``ValueError`` naming the first invalid field and how to fix it."""
-        for name in (*OBSERVATION_GROUPS.values(), "obs_drop_probability", "obs_stuck_probability"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}={value!r} must be a finite number ≥ 0 (0 = off)")
-        for name in ("obs_drop_probability", "obs_stuck_probability"):
-            if getattr(self, name) >= 1:
-                raise ValueError(f"{name}={getattr(self, name)!r} must be a probability in [0, 1)")
-        for name, low in (("obs_stuck_steps", 1), ("obs_delay", 0), ("action_delay", 0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise ValueError(f"{name}={value!r} must be a whole number ≥ {low}")
+        problem = out_of_range(self)
+        if problem is not None:
+            raise ValueError(problem)
         high = self.action_delay_max
-        if high is not None and (
-            isinstance(high, bool)
-            or not isinstance(high, (int, np.integer))
-            or high < self.action_delay
-        ):
+        if high is not None and high < self.action_delay:
             raise ValueError(
                 f"action_delay_max={high!r} must be a whole number ≥ action_delay "
                 f"({self.action_delay}), or None (a fixed delay)"
             )
-        for name in ("actuator_time_constant", "action_rate_limit", "torque_limit"):
-            value = getattr(self, name)
-            if value is not None and not (
-                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
-            ):
-                raise ValueError(f"{name}={value!r} must be a finite number > 0 (or None = off)")
         for name in MODEL_PARAMETERS:
             value = getattr(self, name)
             pair = value if isinstance(value, (tuple, list)) else (value,)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from softtrack.numbers import is_finite_number
+from softtrack.numbers import is_finite_number, out_of_range, setting
 
 __all__ = ["RewardConfig"]
 
@@ -31,17 +31,17 @@ class RewardConfig:
             actions away from saturation); 0 disables it.
     """
 
-    arm_weights: tuple[float, ...] = (1.0, 1.0)
-    bonus_thresholds: tuple[float, ...] = (0.10, 0.075)
-    bonus_values: tuple[float, ...] = (0.5, 1.0)
-    cooperative_threshold: float = 0.05
-    cooperative_bonus: float = 1.5
-    nonfinite_reward: float = -1000.0
-    collision_penalty: float = 0.0
-    collision_margin: float = 0.0
-    arm_radius: float = 0.05
-    action_rate_penalty: float = 0.0
-    action_penalty: float = 0.0
+    arm_weights: tuple[float, ...] = setting((1.0, 1.0), "1/m²", number=False)
+    bonus_thresholds: tuple[float, ...] = setting((0.10, 0.075), "m", number=False)
+    bonus_values: tuple[float, ...] = setting((0.5, 1.0), "reward units", number=False)
+    cooperative_threshold: float = setting(0.05, "m", gt=0)
+    cooperative_bonus: float = setting(1.5, "reward units")
+    nonfinite_reward: float = setting(-1000.0, "reward units")
+    collision_penalty: float = setting(0.0, "reward units", ge=0)
+    collision_margin: float = setting(0.0, "m", ge=0)
+    arm_radius: float = setting(0.05, "m", gt=0)
+    action_rate_penalty: float = setting(0.0, "reward units", ge=0)
+    action_penalty: float = setting(0.0, "reward units", ge=0)
 
     @classmethod
     def single_arm(cls) -> RewardConfig:
@@ -74,37 +74,9 @@ class RewardConfig:
             )
         if any(t <= 0 for t in self.bonus_thresholds):
             raise ValueError(f"reward bonus_thresholds={self.bonus_thresholds!r} must be > 0 m")
-        for name in (
-            "cooperative_threshold",
-            "cooperative_bonus",
-            "nonfinite_reward",
-            "collision_penalty",
-            "collision_margin",
-            "arm_radius",
-            "action_rate_penalty",
-            "action_penalty",
-        ):
-            if not is_finite_number(getattr(self, name)):
-                raise ValueError(f"reward {name}={getattr(self, name)!r} must be a finite number")
-        if self.cooperative_threshold <= 0:
-            raise ValueError(
-                f"reward cooperative_threshold={self.cooperative_threshold!r} must be > 0 m"
-            )
-        if self.collision_penalty < 0:
-            raise ValueError(
-                f"reward collision_penalty={self.collision_penalty!r} must be ≥ 0 "
-                "(it is subtracted; 0 disables it)"
-            )
-        if self.collision_margin < 0:
-            raise ValueError(f"reward collision_margin={self.collision_margin!r} must be ≥ 0 m")
-        if self.arm_radius <= 0:
-            raise ValueError(f"reward arm_radius={self.arm_radius!r} must be > 0 m")
-        for name in ("action_rate_penalty", "action_penalty"):
-            if getattr(self, name) < 0:
-                raise ValueError(
-                    f"reward {name}={getattr(self, name)!r} must be ≥ 0 (it is "
-                    "subtracted; 0 disables it)"
-                )
+        problem = out_of_range(self, "reward ")
+        if problem is not None:
+            raise ValueError(problem)
 
     @property
     def penalises_actions(self) -> bool:

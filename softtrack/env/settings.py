@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,6 +12,7 @@ from softtrack.env.realism import RealismConfig
 from softtrack.env.reward_config import RewardConfig
 from softtrack.env.targets import TargetConfig
 from softtrack.env.tasks import TaskConfig
+from softtrack.numbers import out_of_range, setting
 from softtrack.sim.params import InvalidParameterError, SimParams
 
 __all__ = ["TrackingConfig", "make_config"]
@@ -37,7 +37,7 @@ class TrackingConfig:
     sim: SimParams
     target: TargetConfig
     reward: RewardConfig
-    episode_duration: float = 10.0
+    episode_duration: float = setting(10.0, "s", gt=0)
     realism: RealismConfig = field(default_factory=RealismConfig)
     task: TaskConfig = field(default_factory=TaskConfig)
     arm: int | None = None
@@ -73,10 +73,9 @@ class TrackingConfig:
                 f"arm_weights has {self.reward.n_arms} entries but the scene has "
                 f"{self.sim.n_arms} arms; give one weight per arm"
             )
-        if not (math.isfinite(self.episode_duration) and self.episode_duration > 0):
-            raise InvalidParameterError(
-                f"episode_duration={self.episode_duration!r} must be a finite number > 0 s"
-            )
+        problem = out_of_range(self)
+        if problem is not None:
+            raise InvalidParameterError(problem)
         if self.max_episode_steps < 1:
             raise InvalidParameterError("episode_duration is shorter than one control step")
         self._validate_object()

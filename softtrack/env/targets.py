@@ -26,7 +26,7 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from softtrack.numbers import is_finite_number
+from softtrack.numbers import is_finite_number, out_of_range, setting
 from softtrack.trajectories import EVAL_TRAJECTORIES, TrajectoryName
 
 __all__ = [
@@ -86,19 +86,19 @@ class TargetConfig:
         fixed_position: position of the ``fixed`` target, m.
     """
 
-    name: str = "random"
-    sphere_radius: float = 0.05
-    speed: float = 0.3
-    speed_min: float | None = None
-    redirect_interval: float = 1.0
-    box_low: tuple[float, float, float] = (-0.6, 0.3, -0.6)
-    box_high: tuple[float, float, float] = (0.6, 0.9, 0.6)
-    center: tuple[float, float, float] = (0.0, 0.6, 0.0)
-    circle_radius: float = 0.3
-    rectangle_size: tuple[float, float] = (0.6, 0.4)
-    figure8_amplitude: tuple[float, float] = (0.3, 0.15)
-    period: float = 10.0
-    fixed_position: tuple[float, float, float] = (0.3, 0.6, 0.0)
+    name: str = setting("random", number=False)
+    sphere_radius: float = setting(0.05, "m", gt=0)
+    speed: float = setting(0.3, "m/s", gt=0)
+    speed_min: float | None = setting(None, "m/s", ge=0, off=True)
+    redirect_interval: float = setting(1.0, "s", gt=0)
+    box_low: tuple[float, float, float] = setting((-0.6, 0.3, -0.6), "m", number=False)
+    box_high: tuple[float, float, float] = setting((0.6, 0.9, 0.6), "m", number=False)
+    center: tuple[float, float, float] = setting((0.0, 0.6, 0.0), "m", number=False)
+    circle_radius: float = setting(0.3, "m", gt=0)
+    rectangle_size: tuple[float, float] = setting((0.6, 0.4), "m", number=False)
+    figure8_amplitude: tuple[float, float] = setting((0.3, 0.15), "m", number=False)
+    period: float = setting(10.0, "s", gt=0)
+    fixed_position: tuple[float, float, float] = setting((0.3, 0.6, 0.0), "m", number=False)
 
     @property
     def angular_frequency(self) -> float:
@@ -111,17 +111,13 @@ class TargetConfig:
             raise ValueError(
                 f"target name={self.name!r} is unknown; use one of {', '.join(TARGET_MODES)}"
             )
-        positive = ("sphere_radius", "speed", "redirect_interval", "circle_radius", "period")
-        for field_name in positive:
-            value = getattr(self, field_name)
-            if not (is_finite_number(value) and value > 0):
-                raise ValueError(f"target {field_name}={value!r} must be a finite number > 0")
-        if self.speed_min is not None and not (
-            is_finite_number(self.speed_min) and 0 <= self.speed_min <= self.speed
-        ):
+        problem = out_of_range(self, "target ")
+        if problem is not None:
+            raise ValueError(problem)
+        if self.speed_min is not None and self.speed_min > self.speed:
             raise ValueError(
-                f"target speed_min={self.speed_min!r} must be a finite number in [0, speed="
-                f"{self.speed!r}]; leave it unset for a constant speed"
+                f"target speed_min={self.speed_min!r} exceeds speed={self.speed!r}, the largest "
+                "speed drawn; make speed_min <= speed (or leave it unset for a constant speed)"
             )
         for field_name, length in (
             ("box_low", 3),

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from softtrack.numbers import out_of_range, setting
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = ["N_ARMS", "TASKS", "TaskConfig"]
@@ -68,17 +69,17 @@ class TaskConfig:
             zero action holds the sphere and a policy learns what to add to the squeeze.
     """
 
-    name: str = "shared"
-    standoff: float = 0.1
-    approach: float = 2.0
-    drop_grace: float = 0.5
-    hold_bonus: float = 0.25
-    squeeze_band: tuple[float, float] = (0.0, 0.0)
-    squeeze_penalty: float = 0.0
-    drop_penalty: float = 100.0
-    reach_penalty: float = 2.0
-    bonus_needs_grip: bool = True
-    grip: float = 0.0
+    name: str = setting("shared", number=False)
+    standoff: float = setting(0.1, "m", ge=0)
+    approach: float = setting(2.0, "s", ge=0)
+    drop_grace: float = setting(0.5, "s", ge=0)
+    hold_bonus: float = setting(0.25, "reward units", ge=0)
+    squeeze_band: tuple[float, float] = setting((0.0, 0.0), "N", number=False)
+    squeeze_penalty: float = setting(0.0, "reward units", ge=0)
+    drop_penalty: float = setting(100.0, "reward units", ge=0)
+    reach_penalty: float = setting(2.0, "reward units per m", ge=0)
+    bonus_needs_grip: bool = setting(True, number=False)
+    grip: float = setting(0.0, ge=-1, le=1)
 
     @property
     def carries_object(self) -> bool:
@@ -89,23 +90,9 @@ class TaskConfig:
         """Raise ``ValueError`` naming the invalid field and the fix."""
         if self.name not in TASKS:
             raise ValueError(f"task {self.name!r} is unknown; use one of {', '.join(TASKS)}")
-        if not (
-            isinstance(self.standoff, (int, float))
-            and math.isfinite(self.standoff)
-            and self.standoff >= 0
-        ):
-            raise ValueError(f"standoff={self.standoff!r} must be a finite number ≥ 0 m")
-        for name, unit in (
-            ("approach", "s"),
-            ("drop_grace", "s"),
-            ("hold_bonus", "reward units"),
-            ("squeeze_penalty", "reward units"),
-            ("drop_penalty", "reward units"),
-            ("reach_penalty", "reward units per m"),
-        ):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name}={value!r} must be a finite number ≥ 0 {unit}")
+        problem = out_of_range(self)
+        if problem is not None:
+            raise ValueError(problem)
         band = self.squeeze_band
         if (
             len(band) != 2
@@ -116,8 +103,6 @@ class TaskConfig:
                 f"squeeze_band={band!r} must be (low, high) with 0 ≤ low ≤ high N; "
                 "(0, 0) switches force regulation off"
             )
-        if not (isinstance(self.grip, (int, float)) and -1.0 <= self.grip <= 1.0):
-            raise ValueError(f"grip={self.grip!r} must be a control value in [-1, 1], e.g. 0.03")
         if self.grip and not self.carries_object:
             raise ValueError(
                 f"grip={self.grip!r} squeezes a sphere, which only the transport task has; "

@@ -40,6 +40,7 @@ import pandas as pd
 from softtrack.env.core import TrackingCore
 from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import EVAL_TRAJECTORIES, trajectory_position
+from softtrack.numbers import out_of_range, setting
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
@@ -86,28 +87,23 @@ class SearchSettings:
         seed: of the samples' random numbers.
     """
 
-    population: int = 32
-    iterations: int = 6
-    elite: int = 6
-    initial_std: float = 0.1
-    min_std: float = 0.05
-    ramp: float = 0.5
-    hold: float = 2.0
-    batch: int = 128
-    seed: int = 0
+    population: int = setting(32, ge=1, whole=True)
+    iterations: int = setting(6, ge=1, whole=True)
+    elite: int = setting(6, ge=1, whole=True)
+    initial_std: float = setting(0.1, "control units", gt=0)
+    min_std: float = setting(0.05, "control units", gt=0)
+    ramp: float = setting(0.5, "s", ge=0)
+    hold: float = setting(2.0, "s", gt=0)
+    batch: int = setting(128, ge=1, whole=True)
+    seed: int = setting(0, ge=0, whole=True)
 
     def validate(self) -> None:
         """Raise ValueError naming the first setting out of range and how to fix it."""
-        for name in ("population", "iterations", "elite", "batch"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name}={getattr(self, name)} must be at least 1")
+        problem = out_of_range(self)
+        if problem is not None:
+            raise ValueError(problem)
         if self.elite > self.population:
             raise ValueError(f"elite={self.elite} must not exceed population={self.population}")
-        for name in ("initial_std", "min_std", "hold"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise ValueError(f"{name}={getattr(self, name)} must be a number > 0")
-        if not (math.isfinite(self.ramp) and self.ramp >= 0):
-            raise ValueError(f"ramp={self.ramp} must be a number ≥ 0")
         if self.hold < JUDGE_WINDOW:
             raise ValueError(f"hold={self.hold} s must be at least the {JUDGE_WINDOW}-s judging")
 

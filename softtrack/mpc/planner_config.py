@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from softtrack.numbers import out_of_range, setting
+
 __all__ = ["PlannerConfig"]
 
 
@@ -16,7 +18,7 @@ class PlannerConfig:
     Attributes:
         method: ``mppi`` or ``cem``.
         samples: K plans rolled out per iteration (≥ 2).
-        horizon: H control steps planned ahead (≥ 1).
+        horizon: H control steps planned ahead (≥ 1; 50 = 100 ms at the study's control step).
         knots: values per control value along the horizon (2 ≤ knots ≤ H, or H = 1 and 1);
             ``None`` = H.
         iterations: sampling iterations per plan (≥ 1).
@@ -30,19 +32,19 @@ class PlannerConfig:
         action_weight: c_act on the mean squared control value.
     """
 
-    method: Literal["mppi", "cem"] = "mppi"
-    samples: int = 64
-    horizon: int = 10
-    knots: int | None = None
-    iterations: int = 1
-    noise_std: float = 0.3
-    temperature: float = 0.05
-    elite_fraction: float = 0.1
-    replan_interval: int = 1
-    warm_start: bool = True
+    method: Literal["mppi", "cem"] = setting("mppi", number=False)
+    samples: int = setting(64, ge=2, whole=True)
+    horizon: int = setting(50, "control steps", ge=1, whole=True)
+    knots: int | None = setting(5, ge=1, whole=True, off=True)
+    iterations: int = setting(1, ge=1, whole=True)
+    noise_std: float = setting(0.3, "control units", gt=0)
+    temperature: float = setting(0.05, gt=0)
+    elite_fraction: float = setting(0.1, gt=0, le=1)
+    replan_interval: int = setting(5, "control steps", ge=1, whole=True)
+    warm_start: bool = setting(True, number=False)
     arm_weights: tuple[float, ...] = (1.0, 1.0)
-    action_rate_weight: float = 0.0
-    action_weight: float = 0.0
+    action_rate_weight: float = setting(0.0, ge=0)
+    action_weight: float = setting(0.0, ge=0)
 
     @property
     def n_knots(self) -> int:
@@ -52,14 +54,9 @@ class PlannerConfig:
         """Raise ``ValueError`` naming the first invalid setting and its valid range."""
         if self.method not in ("mppi", "cem"):
             raise ValueError(f"method={self.method!r}: use mppi or cem")
-        for name, low in (
-            ("samples", 2),
-            ("horizon", 1),
-            ("iterations", 1),
-            ("replan_interval", 1),
-        ):
-            if int(getattr(self, name)) < low:
-                raise ValueError(f"{name}={getattr(self, name)!r} must be ≥ {low}")
+        problem = out_of_range(self)
+        if problem is not None:
+            raise ValueError(problem)
         if not 1 <= self.n_knots <= self.horizon or (self.n_knots == 1 and self.horizon > 1):
             raise ValueError(
                 f"knots={self.knots!r} must be in 2 … horizon ({self.horizon}), "
@@ -69,10 +66,3 @@ class PlannerConfig:
             raise ValueError(
                 f"replan_interval={self.replan_interval} must be ≤ horizon ({self.horizon})"
             )
-        for name in ("noise_std", "temperature"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name}={getattr(self, name)!r} must be > 0")
-        if not 0 < self.elite_fraction <= 1:
-            raise ValueError(f"elite_fraction={self.elite_fraction!r} must be in (0, 1]")
-        if self.action_rate_weight < 0 or self.action_weight < 0:
-            raise ValueError("action_rate_weight and action_weight must be ≥ 0")

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from softtrack.numbers import out_of_range, setting
 from softtrack.sim.sphere import SphereParams
 from softtrack.sim.stability import (
     contact_mode,
@@ -95,23 +96,25 @@ class SimParams:
             two arms only); None (the default) = no object.
     """
 
-    n_elem: int = 20
-    length: float = 1.0
-    radius: float = 0.05
-    density: float = 1000.0
-    youngs_modulus: float = 1.0e7
-    poisson_ratio: float = 0.5
-    shear_correction: float = 27.0 / 28.0
-    damping: float = 30.0
-    dt: float = 2.0e-4
-    steps_per_action: int = 10
-    gravity: float = 0.0
-    torque_scale: float = 75.0
-    base_positions: tuple[tuple[float, float, float], ...] = ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0))
+    n_elem: int = setting(20, ge=2, whole=True)
+    length: float = setting(1.0, "m", gt=0)
+    radius: float = setting(0.05, "m", gt=0)
+    density: float = setting(1000.0, "kg/m³", gt=0)
+    youngs_modulus: float = setting(1.0e7, "Pa", gt=0)
+    poisson_ratio: float = setting(0.5, gt=-1, le=0.5)
+    shear_correction: float = setting(27.0 / 28.0, gt=0)
+    damping: float = setting(30.0, "N·s/m²", ge=0)
+    dt: float = setting(2.0e-4, "s", gt=0)
+    steps_per_action: int = setting(10, ge=1, whole=True)
+    gravity: float = setting(0.0, "m/s²")
+    torque_scale: float = setting(75.0, "N·m")
+    base_positions: tuple[tuple[float, float, float], ...] = setting(
+        ((-0.1, 0.0, 0.0), (0.1, 0.0, 0.0)), "m", number=False
+    )
     direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    contact_k: float = 0.0
-    contact_nu: float = 0.0
+    contact_k: float = setting(0.0, "N/m", ge=0)
+    contact_nu: float = setting(0.0, "N·s/m", ge=0)
     sphere: SphereParams | None = None
 
     @classmethod
@@ -183,35 +186,9 @@ class SimParams:
 
     def validate(self) -> None:
         """Raise :class:`InvalidParameterError` naming the first invalid field and the fix."""
-        if not isinstance(self.n_elem, (int, np.integer)) or self.n_elem < 2:
-            raise InvalidParameterError(f"n_elem={self.n_elem!r} must be an integer ≥ 2")
-        if not isinstance(self.steps_per_action, (int, np.integer)) or self.steps_per_action < 1:
-            raise InvalidParameterError(
-                f"steps_per_action={self.steps_per_action!r} must be an integer ≥ 1"
-            )
-        for name in ("length", "radius", "density", "youngs_modulus", "dt"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InvalidParameterError(f"{name}={value!r} must be a finite number > 0")
-        for name in (
-            "damping",
-            "gravity",
-            "torque_scale",
-            "shear_correction",
-            "contact_k",
-            "contact_nu",
-        ):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value)):
-                raise InvalidParameterError(f"{name}={value!r} must be a finite number")
-        if self.damping < 0:
-            raise InvalidParameterError(f"damping={self.damping!r} must be ≥ 0")
-        if self.shear_correction <= 0:
-            raise InvalidParameterError(f"shear_correction={self.shear_correction!r} must be > 0")
-        if not (-1.0 < self.poisson_ratio <= 0.5):
-            raise InvalidParameterError(
-                f"poisson_ratio={self.poisson_ratio!r} must lie in (-1, 0.5]"
-            )
+        problem = out_of_range(self)
+        if problem is not None:
+            raise InvalidParameterError(problem)
         if self.n_arms < 1 or any(len(p) != 3 for p in self.base_positions):
             raise InvalidParameterError(
                 "base_positions must be a list of (x, y, z) points, one per arm"
@@ -256,12 +233,7 @@ class SimParams:
             raise InvalidParameterError(problem)
 
     def _validate_contact(self) -> None:
-        """The contact fields: signs, two arms, and a contact_k stable at dt."""
-        for name in ("contact_k", "contact_nu"):
-            if getattr(self, name) < 0:
-                raise InvalidParameterError(
-                    f"{name}={getattr(self, name)!r} must be ≥ 0 (0 switches contact off)"
-                )
+        """The contact fields: two arms, and a contact_k stable at dt."""
         if self.contact_k == 0.0:
             if self.contact_nu != 0.0:
                 raise InvalidParameterError(

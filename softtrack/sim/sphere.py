@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from softtrack.numbers import is_finite_number
+from softtrack.numbers import is_finite_number, out_of_range, setting
 from softtrack.sim.rod_properties import RodProperties
 
 __all__ = ["SphereParams"]
@@ -42,13 +42,13 @@ class SphereParams:
     about a third of critical; friction that holds the ball's weight with a squeeze of ~3 N.
     """
 
-    radius: float = 0.05
-    density: float = 500.0
-    center: tuple[float, float, float] = (0.0, 0.975, 0.0)
-    contact_k: float = 1.0e5
-    contact_nu: float = 100.0
-    velocity_damping: float = 100.0
-    friction: float = 0.5
+    radius: float = setting(0.05, "m", gt=0)
+    density: float = setting(500.0, "kg/m³", gt=0)
+    center: tuple[float, float, float] = setting((0.0, 0.975, 0.0), "m", number=False)
+    contact_k: float = setting(1.0e5, "N/m", ge=0)
+    contact_nu: float = setting(100.0, "N·s/m", ge=0)
+    velocity_damping: float = setting(100.0, "N·s/m", ge=0)
+    friction: float = setting(0.5, ge=0)
 
     @property
     def volume(self) -> float:
@@ -105,23 +105,9 @@ class SphereParams:
     def problems(self, params: RodProperties) -> str | None:
         """The first thing wrong with this sphere in the scene ``params``, as one sentence
         naming the field and the fix; None if it is valid."""
-        for name in (
-            "radius",
-            "density",
-            "contact_k",
-            "contact_nu",
-            "velocity_damping",
-            "friction",
-        ):
-            if not is_finite_number(getattr(self, name)):
-                return f"sphere {name}={getattr(self, name)!r} must be a finite number"
-        if self.radius <= 0:
-            return f"sphere radius={self.radius!r} must be > 0 m"
-        if self.density <= 0:
-            return f"sphere density={self.density!r} must be > 0 kg/m³"
-        for name in ("contact_k", "contact_nu", "velocity_damping", "friction"):
-            if getattr(self, name) < 0:
-                return f"sphere {name}={getattr(self, name)!r} must be ≥ 0"
+        problem = out_of_range(self, "sphere ")
+        if problem is not None:
+            return problem
         if len(self.center) != 3 or not all(is_finite_number(c) for c in self.center):
             return f"sphere center={self.center!r} must be a finite (x, y, z) point"
         if self.contact_k == 0.0:

@@ -6,11 +6,15 @@ See :mod:`softtrack.spec`."""
 from __future__ import annotations
 
 import math
+import re
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
 from pydantic_core import PydanticCustomError
+
+from softtrack.numbers import range_of
 
 ERROR_TYPE = "softtrack"  # type of the PydanticCustomErrors raised by our own validators
 
@@ -143,6 +147,29 @@ Factor = Annotated[float | tuple[float, float], BeforeValidator(_factor)]
 def unit_field(default: Any, text: str, unit: str, **constraints: Any) -> Any:
     """A field whose description ends with its unit in brackets."""
     return Field(default, description=f"{text} [{unit}]", **constraints)
+
+
+def check_with_dataclass(model: BaseModel, validate: Callable[[], object]) -> None:
+    """Run the ``validate`` of the dataclass that spec section ``model`` configures; its
+    ``ValueError`` ("[section ]<field>=<value> must be …") becomes a validation error on that
+    field, so the cross-field checks are the dataclass's, written once."""
+    try:
+        validate()
+    except ValueError as exc:
+        message = str(exc)
+        match = re.match(r"^(?:\w+ )?(\w+)=", message)
+        named = match.group(1) if match else ""
+        raise custom_error(message, named if named in type(model).model_fields else "") from None
+
+
+def setting_field(settings: type, name: str, text: str, **shape: Any) -> Any:
+    """A field that configures field ``name`` of the dataclass ``settings``: its default, unit
+    and range are that field's (:func:`softtrack.numbers.setting`), written once there; ``text``
+    describes it; ``shape`` adds Pydantic's length keywords for a list (``min_length``)."""
+    range_ = range_of(settings, name)
+    default = settings.__dataclass_fields__[name].default  # type: ignore[attr-defined]
+    keywords: dict[str, Any] = {**range_.constraints(), **shape}
+    return Field(default, description=f"{text} [{range_.unit}]", **keywords)
 
 
 def section_field(cls: type[BaseModel], text: str) -> Any:

@@ -14,7 +14,15 @@ from pydantic import Field, field_validator, model_validator
 
 from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.params import MODEL_PARAMETERS
-from softtrack.spec.fields import Float, Int, SpecModel, custom_error, unit_field
+from softtrack.spec.fields import (
+    Float,
+    Int,
+    SpecModel,
+    check_with_dataclass,
+    custom_error,
+    setting_field,
+    unit_field,
+)
 
 __all__ = ["MpcSpec"]
 
@@ -22,42 +30,50 @@ __all__ = ["MpcSpec"]
 class MpcSpec(SpecModel):
     """Sampling model predictive control over the batched engine (``controller: mpc``)."""
 
-    method: Literal["mppi", "cem"] = unit_field(
-        "mppi", "mppi: exponentially weighted mean of the samples; cem: mean of the elite", "-"
+    method: Literal["mppi", "cem"] = setting_field(
+        PlannerConfig,
+        "method",
+        "mppi: exponentially weighted mean of the samples; cem: mean of the elite",
     )
-    samples: Int = unit_field(64, "plans rolled out per iteration (K)", "-", ge=2)
-    horizon: Int = unit_field(
-        50, "control steps planned ahead (H; 50 = 100 ms)", "control steps", ge=1
+    samples: Int = setting_field(PlannerConfig, "samples", "plans rolled out per iteration (K)")
+    horizon: Int = setting_field(
+        PlannerConfig, "horizon", "control steps planned ahead (H; 50 = 100 ms)"
     )
-    knots: Int | None = unit_field(
-        5,
+    knots: Int | None = setting_field(
+        PlannerConfig,
+        "knots",
         "values per control value along the horizon, linearly interpolated (2 … horizon); "
         "null = one per control step",
-        "-",
-        ge=1,
     )
-    iterations: Int = unit_field(1, "sampling iterations per plan", "-", ge=1)
-    noise_std: Float = unit_field(
-        0.3, "std of the Gaussian perturbation of each knot value", "control units", gt=0
+    iterations: Int = setting_field(PlannerConfig, "iterations", "sampling iterations per plan")
+    noise_std: Float = setting_field(
+        PlannerConfig, "noise_std", "std of the Gaussian perturbation of each knot value"
     )
-    temperature: Float = unit_field(
-        0.05, "MPPI's lambda on plan costs normalised to [0, 1] (smaller = greedier)", "-", gt=0
+    temperature: Float = setting_field(
+        PlannerConfig,
+        "temperature",
+        "MPPI's lambda on plan costs normalised to [0, 1] (smaller = greedier)",
     )
-    elite_fraction: Float = unit_field(0.1, "CEM: share of the samples refitted", "-", gt=0, le=1)
-    replan_interval: Int = unit_field(
-        5,
+    elite_fraction: Float = setting_field(
+        PlannerConfig, "elite_fraction", "CEM: share of the samples refitted"
+    )
+    replan_interval: Int = setting_field(
+        PlannerConfig,
+        "replan_interval",
         "control steps executed from one plan before the next (≤ horizon)",
-        "control steps",
-        ge=1,
     )
-    warm_start: bool = unit_field(
-        True, "start each plan from the previous one shifted by the steps executed", "-"
+    warm_start: bool = setting_field(
+        PlannerConfig,
+        "warm_start",
+        "start each plan from the previous one shifted by the steps executed",
     )
-    action_rate_weight: Float = unit_field(
-        0.0, "cost weight of the mean squared change of the control values per step", "-", ge=0
+    action_rate_weight: Float = setting_field(
+        PlannerConfig,
+        "action_rate_weight",
+        "cost weight of the mean squared change of the control values per step",
     )
-    action_weight: Float = unit_field(
-        0.0, "cost weight of the mean squared control value", "-", ge=0
+    action_weight: Float = setting_field(
+        PlannerConfig, "action_weight", "cost weight of the mean squared control value"
     )
     model: Literal["true", "nominal"] = unit_field(
         "true",
@@ -83,13 +99,7 @@ class MpcSpec(SpecModel):
 
     @model_validator(mode="after")
     def _check_plan(self) -> MpcSpec:
-        try:
-            PlannerConfig(**self.planner_kwargs()).validate()
-        except ValueError as exc:
-            field = str(exc).split("=", 1)[0]
-            raise custom_error(
-                str(exc), field if field in type(self).model_fields else ""
-            ) from None
+        check_with_dataclass(self, PlannerConfig(**self.planner_kwargs()).validate)
         return self
 
     def planner_kwargs(self) -> dict[str, Any]:
