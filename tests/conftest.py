@@ -117,8 +117,10 @@ def _private_default_runs_dir(
     tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Commands run without --runs-dir write into a temporary directory, never the
-    checkout's runs/."""
+    checkout's runs/; `softtrack workspace` records its floors in a temporary cache, never the
+    user's ~/.cache."""
     monkeypatch.setenv("SOFTTRACK_RUNS_DIR", str(tmp_path_factory.mktemp("default-runs")))
+    monkeypatch.setenv("SOFTTRACK_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m "not slow" deselects

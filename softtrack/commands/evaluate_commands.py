@@ -137,6 +137,7 @@ def evaluate(
             on_created=_print_created,
             in_place=in_place,
             on_copied=_print_copied,
+            on_warning=lambda record, line: typer.echo(f"{record.run_id}  {line}", err=True),
         )
 
 

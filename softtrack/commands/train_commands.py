@@ -84,7 +84,12 @@ def train(
         else:
             assert spec is not None
             outcomes = api.train(
-                spec, overrides or [], runs_dir=runs_dir, seed=seed, on_start=started
+                spec,
+                overrides or [],
+                runs_dir=runs_dir,
+                seed=seed,
+                on_start=started,
+                on_warning=lambda line: typer.echo(line, err=True),
             )
     for outcome in outcomes:
         if outcome.status == "interrupted" and outcome.error:

@@ -108,15 +108,41 @@ def workspace_command(
             config, settings, per_path, torque_scales or [], on_progress=progress
         )
     if not len(results[0].held):
+        _record(config, results[0], spec)
         fail(
             f"{spec}: no sample held the sphere at rest (grip {config.task.grip:g}, "
             f"{results[0].torque_scale:g} N·m per control unit): the sphere cannot be gripped "
             "where it starts; raise env.task.grip or check env.physics.sphere"
         )
     typer.echo(_summary(resolved.name, config, results))
+    _record(config, results[0], spec)
     if out is not None:
         _write(out, resolved.name, config, results, seed)
         typer.echo(f"wrote {out}/workspace.png, held.parquet, floors.csv, boundary.csv")
+
+
+def _record(config: TrackingConfig, own: WorkspaceResult, spec: str) -> None:
+    """Record the floors at the spec's own actuation (inf where nothing held), for the
+    warnings of `train` and `evaluate`, and say where; a cache that cannot be written loses
+    only the record (one warning line)."""
+    from softtrack.evaluation.workspace_floors import floors_dir, record_floors
+
+    floors = dict(zip(own.floors["path"], own.floors["floor"], strict=True))
+    try:
+        recorded = record_floors(config, floors, own.samples, spec)
+    except OSError as exc:  # the measurement printed stands; only the record is lost
+        typer.echo(
+            f"warning: the floors could not be recorded in {floors_dir()} ({exc.strerror or exc}); "
+            "set SOFTTRACK_CACHE_DIR to a writable directory to keep them",
+            err=True,
+        )
+    else:
+        if len(own.held):
+            typer.echo(
+                f"recorded the floors at {own.torque_scale:g} N·m per unit in {recorded}: "
+                "`train` and `evaluate` of this physics and these paths warn when a path is out "
+                "of reach"
+            )
 
 
 def _summary(name: str, config: TrackingConfig, results: list[WorkspaceResult]) -> str:

@@ -15,6 +15,7 @@ from softtrack.evaluation.run_evaluation import (
     evaluate_random_targets,
     evaluate_run,
 )
+from softtrack.evaluation.workspace_floors import reach_warning
 from softtrack.rl.policy import (
     MODEL_CHOICES,
     ModelChoice,
@@ -28,6 +29,7 @@ from softtrack.spec import (
     load_spec,
     spec_chain,
 )
+from softtrack.spec.env_config import env_config
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir, run_lock
 from softtrack.store.selection import select_runs
 from softtrack.trajectories import EVAL_TRAJECTORIES
@@ -49,6 +51,7 @@ def evaluate(
     on_created: Callable[[RunRecord], None] | None = None,
     in_place: bool = False,
     on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
+    on_warning: Callable[[RunRecord, str], None] | None = None,
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
@@ -79,35 +82,16 @@ def evaluate(
             ``eval_element_moments``, about 2 MB per trajectory); by default only the
             summaries (``eval_moments``, ``eval_moment_peaks``) are stored.
         on_created: called with each run created for an MPC spec.
+        on_warning: called with a transport run whose paths' recorded floors are out of the
+            held sphere's reach, and that line
+            (:func:`~softtrack.evaluation.workspace_floors.reach_warning`).
 
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
     """
 
     chosen = list(EVAL_TRAJECTORIES) if trajectories is None else list(trajectories)
-    unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
-    if unknown:
-        raise SpecError(
-            "trajectories",
-            f"unknown trajectory {unknown[0]!r}",
-            f"choose from {', '.join(EVAL_TRAJECTORIES)} or all",
-        )
-    if random_episodes < 0:
-        raise SpecError(
-            "random_episodes",
-            f"{random_episodes} random-target episodes",
-            "give 0 (none) or more",
-        )
-    if model not in MODEL_CHOICES:
-        raise SpecError(
-            "model", f"unknown model {model!r}", f"choose from {', '.join(MODEL_CHOICES)}"
-        )
-    if not chosen and not random_episodes:
-        raise SpecError(
-            "trajectories",
-            "nothing to evaluate",
-            "name a trajectory, or ask for random-target episodes without trajectories",
-        )
+    _check_request(chosen, random_episodes, model)
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
     mpc_specs = _mpc_specs(references)
@@ -135,6 +119,8 @@ def evaluate(
             stores.append(write)
             if on_created is not None:
                 on_created(record)
+    if on_warning is not None:
+        _warn_out_of_reach(records, chosen, on_warning)
     frames = []
     for record, store in zip(records, stores, strict=True):
         with run_lock(record, "evaluated") if store else contextlib.nullcontext():
@@ -152,6 +138,48 @@ def evaluate(
                 )
             )
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def _check_request(chosen: Sequence[str], random_episodes: int, model: str) -> None:
+    """Raise :class:`SpecError` for an unknown trajectory or model, a negative episode count,
+    or nothing to evaluate."""
+    unknown = sorted(set(chosen) - set(EVAL_TRAJECTORIES))
+    if unknown:
+        raise SpecError(
+            "trajectories",
+            f"unknown trajectory {unknown[0]!r}",
+            f"choose from {', '.join(EVAL_TRAJECTORIES)} or all",
+        )
+    if random_episodes < 0:
+        raise SpecError(
+            "random_episodes",
+            f"{random_episodes} random-target episodes",
+            "give 0 (none) or more",
+        )
+    if model not in MODEL_CHOICES:
+        raise SpecError(
+            "model", f"unknown model {model!r}", f"choose from {', '.join(MODEL_CHOICES)}"
+        )
+    if not chosen and not random_episodes:
+        raise SpecError(
+            "trajectories",
+            "nothing to evaluate",
+            "name a trajectory, or ask for random-target episodes without trajectories",
+        )
+
+
+def _warn_out_of_reach(
+    records: Sequence[RunRecord],
+    paths: Sequence[str],
+    on_warning: Callable[[RunRecord, str], None],
+) -> None:
+    """Tell ``on_warning`` of each transport run whose paths have recorded floors out of the
+    held sphere's reach (:func:`~softtrack.evaluation.workspace_floors.reach_warning`)."""
+    for record in records:
+        config = env_config(record.load_spec())
+        warning = reach_warning(config, str(record.spec_path), paths, unmeasured_note=False)
+        if warning is not None:
+            on_warning(record, warning)
 
 
 def _evaluate_one(

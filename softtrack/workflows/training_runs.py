@@ -7,8 +7,10 @@ import os
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from softtrack.evaluation.workspace_floors import reach_warning
 from softtrack.rl.factory import check_supported
 from softtrack.spec import SpecError, load_spec, spec_chain
+from softtrack.spec.env_config import env_config
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
 from softtrack.store.selection import select_one_run
 
@@ -25,6 +27,7 @@ def train(
     seed: int | None = None,
     on_start: Callable[[RunRecord], None] | None = None,
     show_progress: bool | None = None,
+    on_warning: Callable[[str], None] | None = None,
 ) -> list[TrainOutcome]:
     """Create and train one run per seed of the spec (or only ``seed``), one after another.
 
@@ -33,6 +36,8 @@ def train(
 
     Args:
         on_start: called with each new run before it trains (the CLI prints its id).
+        on_warning: called once, before training, with a transport spec's line about its
+            paths' reach (:func:`~softtrack.evaluation.workspace_floors.reach_warning`).
 
     Returns:
         The outcome of each run started.
@@ -53,6 +58,9 @@ def train(
     if seed is not None and not 0 <= seed < 2**32:
         raise SpecError("seed", f"seed {seed} is out of range", "use 0 ≤ seed < 2**32")
     store = RunStore(resolve_runs_dir(runs_dir))
+    warning = reach_warning(env_config(spec), str(path))
+    if warning is not None and on_warning is not None:
+        on_warning(warning)
     outcomes = []
     for s in seeds:
         record = store.create_run(spec, s, spec_files=chain)
