@@ -248,7 +248,7 @@ def test_random_target_episodes_are_held_out_seeded_and_reported(
     assert result.exit_code == 0, result.output
     assert "circle" not in result.output  # -t none: only the random-target episodes
     assert not (fresh / run_id / "tables" / "eval_metrics.parquet").exists()
-    line = next(x for x in result.output.splitlines() if " random " in x and "/s" not in x)
+    line = next(x for x in result.output.splitlines() if " random     3-D RMSE" in x)
     assert "(mean ± std over 2 episodes)" in line
     table = read_table(fresh / run_id / "tables" / "eval_random.parquet")
     assert len(table) == 4 and set(table["trajectory"]) == {"random"}
@@ -532,3 +532,34 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
     run_id = json.loads((shipped / "run.json").read_text())["run_id"]
     rows = read_table(mine / shipped.name / "tables" / "eval_metrics.parquet")
     assert set(rows.loc[rows["trajectory"] == "circle", "run_id"]) == {run_id}
+
+
+def test_random_progress_measures_the_rate_after_the_first_batch(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Episodes finish in batches of 16 (the first after compiling): no rate from the first
+    batch alone, then the rate of the batches after it."""
+    from types import SimpleNamespace
+
+    from softtrack.commands.evaluate_commands import _RandomProgress
+
+    now = [100.0]
+    progress = _RandomProgress(clock=lambda: now[0])
+    record = SimpleNamespace(run_id="01ABCDEFGH12345678")
+    for done in range(1, 17):  # the first batch: all within a millisecond
+        now[0] += 0.0001
+        progress(record, done, 40)  # type: ignore[arg-type]
+    now[0] += 8.0  # the second batch of 16 takes 8 s: 2 episodes/s
+    for done in range(17, 33):
+        progress(record, done, 40)  # type: ignore[arg-type]
+        now[0] += 0.0001
+    lines = capsys.readouterr().err.splitlines()
+    first_batch = [line for line in lines if "/40 episodes (" in line and "16/40" in line]
+    assert first_batch and "episodes/s" not in first_batch[0]
+    assert lines[-1].startswith("12345678 random targets: 32/40 episodes (80%), 2.0 episodes/s")
+    assert "0.1 min left" in lines[-1]  # 8 more at 2 per second
+    assert all(
+        "episodes/s" in line
+        for line in lines
+        if "/40 episodes" in line and int(line.split("/")[0].split()[-1]) > 16
+    )

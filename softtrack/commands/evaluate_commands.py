@@ -6,6 +6,7 @@ from __future__ import annotations
 import enum
 import math
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
@@ -143,30 +144,47 @@ def evaluate(
 
 class _RandomProgress:
     """A stderr line per 5 % of a run's random-target episodes (and at least every 30 s):
-    done, asked, episodes/s and the time left; with Ctrl-C the finished ones are kept."""
+    done, asked, episodes/s and the time left; with Ctrl-C the finished ones are kept.
 
-    def __init__(self) -> None:
-        self.started = time.monotonic()
+    Episodes run in batches that finish together, and the first batch carries the
+    compilation, so the rate is measured from the end of the first batch: until a later batch
+    finishes, a line shows the count alone.
+    """
+
+    #: Episodes finishing within this many seconds of the first belong to its batch.
+    SAME_BATCH_S = 1.0
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self.clock = clock
+        self.first: tuple[float, int] | None = None  # (time, episodes done) of the first batch
         self.shown = (0.0, -1)  # (time, percent step) of the last line
 
     def __call__(self, record: RunRecord, done: int, total: int) -> None:
-        if done == 1:  # the clock starts with the first episode (compilation before it)
-            self.started, self.shown = time.monotonic(), (time.monotonic(), 0)
-            return
-        now = time.monotonic()
+        now = self.clock()
+        if done == 1 or self.first is None:
+            self.first, self.shown = (now, 1), (now, 0)
+            if done < total:
+                return
+        started, in_first = self.first
+        if now - started < self.SAME_BATCH_S:
+            self.first = (started, done)
+            in_first = done
         step = 20 * done // total
         if done < total and step == self.shown[1] and now - self.shown[0] < 30.0:
             return
         self.shown = (now, step)
-        rate = (done - 1) / max(now - self.started, 1e-9)
-        left = (total - done) / rate if rate > 0 else float("inf")
-        typer.echo(
+        line = (
             f"{record.run_id[-8:]} random targets: {done:,}/{total:,} episodes "
-            f"({100 * done / total:.0f}%), {rate:,.{1 if rate < 10 else 0}f} episodes/s"
-            + (f", {left / 60:.1f} min left" if done < total and math.isfinite(left) else "")
-            + ("; Ctrl-C keeps the finished episodes" if done < total else ""),
-            err=True,
+            f"({100 * done / total:.0f}%)"
         )
+        if done > in_first:
+            rate = (done - in_first) / max(now - started, 1e-9)
+            left = (total - done) / rate
+            line += f", {rate:,.{1 if rate < 10 else 0}f} episodes/s"
+            line += f", {left / 60:.1f} min left" if done < total else ""
+        if done < total:
+            line += "; Ctrl-C keeps the finished episodes"
+        typer.echo(line, err=True)
 
 
 def _print_copied(shipped: RunRecord, copy: RunRecord) -> None:
