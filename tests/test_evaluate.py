@@ -537,8 +537,9 @@ def test_shipped_runs_are_read_only_unless_in_place(tmp_path: Path) -> None:
 def test_random_progress_measures_the_rate_after_the_first_batch(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """Episodes finish in batches of 16 (the first after compiling): no rate from the first
-    batch alone, then the rate of the batches after it."""
+    """Episodes finish in batches of 16 (the first after compiling): no rate until a batch
+    after the first has closed, then that batches' rate; a planner's one-by-one episodes read
+    as seconds per episode."""
     from types import SimpleNamespace
 
     from softtrack.commands.evaluate_commands import _RandomProgress
@@ -546,20 +547,21 @@ def test_random_progress_measures_the_rate_after_the_first_batch(
     now = [100.0]
     progress = _RandomProgress(clock=lambda: now[0])
     record = SimpleNamespace(run_id="01ABCDEFGH12345678")
-    for done in range(1, 17):  # the first batch: all within a millisecond
-        now[0] += 0.0001
-        progress(record, done, 40)  # type: ignore[arg-type]
-    now[0] += 8.0  # the second batch of 16 takes 8 s: 2 episodes/s
-    for done in range(17, 33):
-        progress(record, done, 40)  # type: ignore[arg-type]
-        now[0] += 0.0001
+    for batch, seconds in enumerate((30.0, 8.0, 4.0)):  # compile + 16, then 16 in 8 s, 8 in 4 s
+        now[0] += seconds
+        for done in range(16 * batch + 1, min(16 * batch + 16, 40) + 1):
+            progress(record, done, 40)  # type: ignore[arg-type]
+            now[0] += 0.0001
     lines = capsys.readouterr().err.splitlines()
-    first_batch = [line for line in lines if "/40 episodes (" in line and "16/40" in line]
-    assert first_batch and "episodes/s" not in first_batch[0]
-    assert lines[-1].startswith("12345678 random targets: 32/40 episodes (80%), 2.0 episodes/s")
-    assert "0.1 min left" in lines[-1]  # 8 more at 2 per second
-    assert all(
-        "episodes/s" in line
-        for line in lines
-        if "/40 episodes" in line and int(line.split("/")[0].split()[-1]) > 16
-    )
+    counted = {int(line.split("/")[0].split()[-1]): line for line in lines}
+    assert all("episodes/s" not in counted[d] for d in counted if d <= 32)
+    assert counted[34].startswith("12345678 random targets: 34/40 episodes (85%), 2.0 episodes/s")
+    assert "0.1 min left" in counted[34]  # 6 more at 2 per second
+    assert counted[40] == "12345678 random targets: 40/40 episodes (100%), 2.0 episodes/s"
+
+    planner = _RandomProgress(clock=lambda: now[0])
+    for done in (1, 2, 3):  # one episode at a time, 90 s each
+        now[0] += 90.0
+        planner(record, done, 20)  # type: ignore[arg-type]
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert "3/20 episodes (15%), 90 s per episode, 25.5 min left" in last

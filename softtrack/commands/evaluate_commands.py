@@ -144,44 +144,51 @@ def evaluate(
 
 class _RandomProgress:
     """A stderr line per 5 % of a run's random-target episodes (and at least every 30 s):
-    done, asked, episodes/s and the time left; with Ctrl-C the finished ones are kept.
+    done, asked, the rate and the time left; with Ctrl-C the finished ones are kept.
 
-    Episodes run in batches that finish together, and the first batch carries the
-    compilation, so the rate is measured from the end of the first batch: until a later batch
-    finishes, a line shows the count alone.
+    Episodes run in batches that finish together (one by one for a planner), and the first
+    batch carries the compilation. So the rate counts whole batches after the first: a batch
+    has closed when the next episode comes more than :data:`SAME_BATCH_S` later. Until one
+    has, a line shows the count alone.
     """
 
-    #: Episodes finishing within this many seconds of the first belong to its batch.
+    #: Episodes finishing within this many seconds of each other belong to one batch.
     SAME_BATCH_S = 1.0
 
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self.clock = clock
-        self.first: tuple[float, int] | None = None  # (time, episodes done) of the first batch
+        self.first = (0.0, 0)  # (time, episodes done) at the end of the first batch
+        self.previous = (0.0, 0)  # (time, episodes done) at the previous episode
+        self.closed = (0.0, 0)  # (time, episodes done) at the end of the last closed batch
         self.shown = (0.0, -1)  # (time, percent step) of the last line
+        self.in_first_batch = True
 
     def __call__(self, record: RunRecord, done: int, total: int) -> None:
         now = self.clock()
-        if done == 1 or self.first is None:
-            self.first, self.shown = (now, 1), (now, 0)
-            if done < total:
-                return
-        started, in_first = self.first
-        if now - started < self.SAME_BATCH_S:
-            self.first = (started, done)
-            in_first = done
+        if done == 1:  # a new run: its clock starts with its first episode
+            self.first = self.previous = self.closed = (now, 1)
+            self.shown, self.in_first_batch = (now, 0), True
+        elif now - self.previous[0] > self.SAME_BATCH_S:  # the previous episode closed a batch
+            self.closed, self.in_first_batch = self.previous, False
+        elif self.in_first_batch:
+            self.first = self.closed = (now, done)
+        self.previous = (now, done)
         step = 20 * done // total
-        if done < total and step == self.shown[1] and now - self.shown[0] < 30.0:
+        if done == 1 or (done < total and step == self.shown[1] and now - self.shown[0] < 30.0):
             return
         self.shown = (now, step)
         line = (
             f"{record.run_id[-8:]} random targets: {done:,}/{total:,} episodes "
             f"({100 * done / total:.0f}%)"
         )
-        if done > in_first:
-            rate = (done - in_first) / max(now - started, 1e-9)
-            left = (total - done) / rate
-            line += f", {rate:,.{1 if rate < 10 else 0}f} episodes/s"
-            line += f", {left / 60:.1f} min left" if done < total else ""
+        (started, in_first), (closed_at, closed_done) = self.first, self.closed
+        if closed_done > in_first:
+            rate = (closed_done - in_first) / max(closed_at - started, 1e-9)
+            if rate >= 1.0:
+                line += f", {rate:,.{1 if rate < 10 else 0}f} episodes/s"
+            else:  # one episode at a time (a planner): seconds per episode read better
+                line += f", {1.0 / rate:,.0f} s per episode"
+            line += f", {(total - done) / rate / 60:.1f} min left" if done < total else ""
         if done < total:
             line += "; Ctrl-C keeps the finished episodes"
         typer.echo(line, err=True)
