@@ -25,6 +25,7 @@ from softtrack.spec import ExperimentSpec, SpecError, load_spec
 from softtrack.store.tables import read_table
 
 runner = CliRunner()
+ROOT = Path(__file__).resolve().parents[1]
 FIXED = (0.25, 0.75, 0.1)  # m: a target off the arms' straight line
 SMALL = PlannerConfig(samples=8, horizon=25, knots=3, replan_interval=5)
 
@@ -245,3 +246,45 @@ def test_budget_benchmark_writes_its_table_and_figure(
     out = capsys.readouterr().out
     assert all(f"  {label} " in out for label in ("4x6x1x3", "4x6x2x3", "4x6x1x1"))
     assert len(pd.read_csv(merged)) == 3 * 2
+
+
+def test_evaluate_takes_overrides_of_an_mpc_spec_only(tmp_path: Path) -> None:
+    """``--set`` changes an MPC spec evaluated without training; with a run (which keeps the
+    spec it was trained with) it is one line, exit 2, and nothing is created."""
+    spec = ROOT / "experiments/variants/mpc-mppi-64x50-transport-fine-10ms-reachable.yaml"
+    bad = runner.invoke(
+        app,
+        ["evaluate", str(spec), "--set", "env.task.grip=7", "--runs-dir", str(tmp_path)],
+        env={"CI": "1"},
+    )
+    assert bad.exit_code == 2 and "grip" in bad.stderr and "Traceback" not in bad.output
+    shipped = ROOT / "models" / "mpc-mppi-64x50-seed0"
+    runs = tmp_path / "mixed"
+    mixed = runner.invoke(
+        app,
+        [
+            "evaluate",
+            str(spec),
+            str(shipped),
+            "--set",
+            "env.task.grip=0.1",
+            "--runs-dir",
+            str(runs),
+        ],
+        env={"CI": "1"},
+    )
+    assert mixed.exit_code == 2, mixed.output
+    assert mixed.stderr.startswith("error: --set: ") and "keeps the spec" in mixed.stderr
+    assert len(mixed.stderr.strip().splitlines()) == 1 and not runs.exists()
+
+
+def test_evaluate_applies_overrides_to_the_planner_spec(tmp_path: Path) -> None:
+    spec = _mpc_spec(tmp_path)
+    runs = tmp_path / "runs"
+    result = runner.invoke(
+        app,
+        ["evaluate", str(spec), "--set", "mpc.samples=6", "--runs-dir", str(runs), "-t", "circle"],
+    )
+    assert result.exit_code == 0, result.output
+    (run,) = [p for p in runs.iterdir() if (p / "run.json").is_file()]
+    assert load_spec(run / "spec.yaml").mpc.samples == 6

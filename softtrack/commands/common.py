@@ -103,6 +103,7 @@ ARGUMENT_FLAGS = {
     "episodes": "--episodes",
     "executor": "--executor",
     "detach": "--detach",
+    "overrides": "--set",
 }
 
 

@@ -22,6 +22,7 @@ from softtrack.commands.common import (
     MemOption,
     PartitionOption,
     RunsDirOption,
+    SetOption,
     TimeOption,
     TrajectoryChoice,
     app,
@@ -65,6 +66,7 @@ def evaluate(
             "--trajectory", "-t", help="Target trajectory to evaluate on.", case_sensitive=False
         ),
     ] = ALL_TRAJECTORIES,
+    overrides: SetOption = None,
     random: Annotated[
         int,
         typer.Option(
@@ -115,7 +117,8 @@ def evaluate(
 
     A spec file of controller: mpc (a sampling planner, nothing to train) in place of a run
     creates one run per seed of the spec and evaluates it (docs/mpc.md); its metrics add the
-    planning time per control step.
+    planning time per control step. --set changes such a spec, e.g. --set
+    env.task.grip=0.1 (a run keeps the spec it was trained with).
     """
     if trajectory.value == "all":
         chosen: list[str] | None = None
@@ -139,6 +142,7 @@ def evaluate(
             in_place=in_place,
             on_copied=_print_copied,
             on_warning=lambda record, line: typer.echo(f"{record.run_id}  {line}", err=True),
+            overrides=overrides or [],
         )
 
 

@@ -52,6 +52,7 @@ def evaluate(
     in_place: bool = False,
     on_copied: Callable[[RunRecord, RunRecord], None] | None = None,
     on_warning: Callable[[RunRecord, str], None] | None = None,
+    overrides: Sequence[str] = (),
 ) -> pd.DataFrame:
     """Evaluate runs (ids, id prefixes or run directories) on the closed-form trajectories,
     and optionally on held-out episodes of their random training target.
@@ -85,6 +86,8 @@ def evaluate(
         on_warning: called with a transport run whose paths' recorded floors are out of the
             held sphere's reach, and that line
             (:func:`~softtrack.evaluation.workspace_floors.reach_warning`).
+        overrides: ``path=value`` changes (``--set``) of the MPC spec files among
+            ``references``; refused with any other reference (a run keeps its spec).
 
     Returns:
         The metrics rows of the trajectories (one per run, trajectory and arm).
@@ -94,8 +97,16 @@ def evaluate(
     _check_request(chosen, random_episodes, model)
     if not references:
         raise RunStoreError("no run given; name run ids or run directories (see `softtrack runs`)")
-    mpc_specs = _mpc_specs(references)
+    mpc_specs = _mpc_specs(references, overrides)
     selected = [ref for ref in references if ref not in mpc_specs]
+    if overrides and selected:
+        raise SpecError(
+            "overrides",
+            f"{selected[0]} is a run or a trained experiment: it keeps the spec it was trained "
+            "with, and overrides change only a planner's spec (controller: mpc)",
+            "give only MPC spec files with overrides, or train the changed spec with "
+            "`softtrack train SPEC --set ...`",
+        )
     records = select_runs(RunStore(resolve_runs_dir(runs_dir)), selected) if selected else []
     # every run checked before anything is copied or written; results are stored for the
     # runs whose evaluated model is their policy, a shipped run's in its copy
@@ -228,12 +239,13 @@ def _is_spec_file(reference: str) -> bool:
     return Path(reference).suffix in (".yaml", ".yml") and Path(reference).is_file()
 
 
-def _mpc_specs(references: Sequence[str]) -> dict[str, ExperimentSpec]:
+def _mpc_specs(references: Sequence[str], overrides: Sequence[str]) -> dict[str, ExperimentSpec]:
     """The references that are spec files of an MPC controller (evaluated without training),
-    with their specs; any other spec file selects the runs trained from it.
+    with their specs (``overrides`` applied); any other spec file selects the runs trained
+    from it.
 
     Raises:
-        SpecError: a spec file is invalid.
+        SpecError: a spec file or an override is invalid.
     """
-    specs = {ref: load_spec(ref) for ref in references if _is_spec_file(ref)}
+    specs = {ref: load_spec(ref, overrides) for ref in references if _is_spec_file(ref)}
     return {ref: spec for ref, spec in specs.items() if spec.controller == "mpc"}
