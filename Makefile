@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup quickstart test test-slow test-all bench faults readme-animation
+.PHONY: setup quickstart test test-slow test-all bench faults hostile readme-animation
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -35,6 +35,10 @@ test-all: setup
 # hostile queries and specs; ends with its tally of lost / traceback / degraded faults
 faults: setup
 	$(BIN)/python -m pytest -q -n 2 -m faults -p no:randomly
+
+# faults injected as a hostile user would, each command run whole (docs/faults.md); ~5 min
+hostile: setup
+	$(BIN)/python tests/hostile_sweep.py
 
 bench: setup
 	taskset -c 0 $(BIN)/python benchmarks/bench_engine.py

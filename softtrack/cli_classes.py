@@ -79,7 +79,11 @@ class Group(TyperGroup):
                 signum = stops_received()[-1]
             if signum is None:
                 raise
-            typer.echo(f"stopped by {signal.Signals(signum).name}", err=True)
+            kept = "; ".join(stop_notes(exc))
+            typer.echo(
+                f"stopped by {signal.Signals(signum).name}" + (f": {kept}" if kept else ""),
+                err=True,
+            )
             raise typer.Exit(128 + signum) from None
 
     def get_help_option(self, ctx: Any) -> Any:
@@ -104,6 +108,18 @@ def stop_signal_behind(exc: BaseException) -> int | None:
             return current.signum
         current = current.__cause__ or current.__context__
     return None
+
+
+def stop_notes(exc: BaseException) -> list[str]:
+    """What the code a stop unwound kept (``exc.add_note``), along ``exc``'s chain."""
+    notes: list[str] = []
+    seen: set[int] = set()
+    current: BaseException | None = exc
+    while current is not None and id(current) not in seen:
+        seen.add(id(current))
+        notes.extend(getattr(current, "__notes__", ()))
+        current = current.__cause__ or current.__context__
+    return notes
 
 
 class Command(TyperCommand):

@@ -68,7 +68,7 @@ def test_a_video_shows_one_trajectory(tmp_path: Path) -> None:
     ("args", "message"),
     [
         (["--out", "{tmp}/a.avi"], "unknown animation format .avi"),
-        (["--out", "{tmp}/a.gif/b.mp4"], "its directory cannot be created"),
+        (["--out", "{tmp}/a.gif/b.mp4"], "a.gif is a file, not a directory"),
         (["--out", "{tmp}/a.gif", "--strip", "{tmp}/s.jpg"], "a film strip is a PNG"),
     ],
 )

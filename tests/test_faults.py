@@ -876,6 +876,7 @@ def test_ctrl_c_during_many_random_episodes_keeps_the_finished_ones(
     rows = read_table(root / run_id / "tables" / "eval_random.parquet")
     episodes = sorted(set(rows["episode"]))
     assert 1 <= len(episodes) < 400 and episodes == list(range(len(episodes)))
+    assert f"stopped by SIGTERM: kept the {len(episodes)} finished episodes of 400" in err, err
 
 
 @pytest.mark.faults("traceback")
@@ -991,3 +992,145 @@ def test_a_run_whose_tables_are_a_file_is_refused_before_any_episode(
         return {k: v for k, v in snapshot.items() if not k.startswith(".softtrack-catalog")}
 
     assert run_files(_snapshot(root)) == run_files(before)
+
+
+# ---- the hostile sweep of session 26 (tests/hostile_sweep.py): each fault it found ------------
+@pytest.mark.faults("traceback")
+def test_a_file_size_limit_is_one_line_and_exit_1(
+    runs: tuple[Path, str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Under ``ulimit -f`` the table write fails with EFBIG: it was a traceback; now one line
+    naming the limit, exit 1 (a machine limit), and the stored tables unchanged."""
+    from softtrack.store.disk import machine_limit
+
+    root, run_id = runs
+    before = _snapshot(root / run_id / "tables")
+    monkeypatch.setattr(
+        "softtrack.store.tables.pq.write_table",
+        lambda *a, **k: (_ for _ in ()).throw(OSError(errno.EFBIG, "File too large")),
+    )
+    result = _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root))
+    line = _one_line(result)
+    assert result.exit_code == 1 and "file-size limit" in line and "ulimit -f" in line, line
+    assert _snapshot(root / run_id / "tables") == before
+    assert machine_limit(OSError("[errno 27] Error writing bytes to file")) is not None
+
+
+@pytest.mark.faults("degraded")
+@pytest.mark.parametrize("kind", ["a directory", "a FIFO", "too large"])
+def test_a_run_record_of_the_wrong_kind_or_size_is_named(runs: tuple[Path, str], kind: str) -> None:
+    """A run.json that is a directory or a FIFO was listed as "missing"; a 200-MB one was read
+    whole (2.2 GB of memory). Now the listing names what it is, and a record is read only up
+    to 4 MB."""
+    root, run_id = runs
+    record = root / run_id / "run.json"
+    record.unlink()
+    if kind == "a directory":
+        record.mkdir()
+    elif kind == "a FIFO":
+        os.mkfifo(record)
+    else:
+        record.write_text('{"pad": "' + "x" * 5_000_000 + '"}')
+    result = _cli("runs", "--runs-dir", str(root))
+    assert result.exit_code == 0 and "Traceback" not in result.output
+    expected = "larger than 4,000,000 bytes" if kind == "too large" else f"run.json is {kind}"
+    assert expected in result.stdout, result.stdout
+    assert "xxxxxxxxxx" not in result.output
+
+
+@pytest.mark.faults("degraded")
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"format_version": 99}, "a newer softtrack wrote it"),
+        ({"total_timesteps": -5}, "total_timesteps"),
+        ({"global_step": -1}, "global_step"),
+    ],
+    ids=["newer format", "negative budget", "negative step"],
+)
+def test_a_run_record_out_of_its_range_is_unreadable(
+    runs: tuple[Path, str], change: dict[str, int], words: str
+) -> None:
+    """A run.json of a newer layout was evaluated as if it were this one's, and negative
+    counters were listed as progress; now such a record is unreadable, named in one line,
+    and nothing is written."""
+    root, run_id = runs
+    record = root / run_id / "run.json"
+    record.write_text(json.dumps({**json.loads(record.read_text()), **change}))
+    before = _snapshot(root / run_id)
+    result = _cli("evaluate", run_id, "-t", "circle", "--runs-dir", str(root))
+    line = _one_line(result)
+    assert result.exit_code == 2 and words in line and "Value error" not in line, line
+    assert _snapshot(root / run_id) == before
+
+
+@pytest.mark.faults("degraded")
+def test_control_characters_in_a_run_directory_name_are_escaped(runs: tuple[Path, str]) -> None:
+    """A run directory renamed to hold an escape sequence and a newline broke the listing's
+    lines and drove the terminal; now they are printed as escapes."""
+    root, run_id = runs
+    (root / run_id / "run.json").write_text("{")
+    (root / run_id).rename(root / "x\x1b[31mred\nline")
+    result = _cli("runs", "--runs-dir", str(root))
+    assert result.exit_code == 0
+    assert "\x1b" not in result.output and "x\\x1b[31mred\\nline: unreadable" in result.stdout
+
+
+@pytest.mark.faults("degraded")
+def test_a_runs_directory_that_is_a_run_says_so(runs: tuple[Path, str]) -> None:
+    root, run_id = runs
+    result = _cli("runs", "--runs-dir", str(root / run_id))
+    assert result.exit_code == 0
+    assert f"is a run itself; its runs directory is {root}" in result.stderr, result.stderr
+
+
+@pytest.mark.faults("degraded")
+def test_compare_refuses_a_controller_named_twice(runs: tuple[Path, str]) -> None:
+    """``compare A A`` compared a controller with itself (P = 0.50 of nothing)."""
+    root, _run_id = runs
+    result = _cli("compare", "tiny", "tiny", "--runs-dir", str(root))
+    line = _one_line(result)
+    assert result.exit_code == 2 and "both select run" in line, line
+
+
+@pytest.mark.faults("degraded")
+def test_a_target_period_below_two_control_steps_is_refused(tmp_path: Path) -> None:
+    """``env.target.period: 1e-300`` passed validation (the sampled path cannot go round)."""
+    result = _cli("validate", str(_spec(tmp_path)), "--set", "env.target.period=1e-300")
+    line = _one_line(result)
+    assert result.exit_code == 2 and "shorter than two control steps" in line, line
+
+
+@pytest.mark.faults("degraded")
+@pytest.mark.parametrize(
+    "command, blocker",
+    [
+        (["compare", "a", "b", "--figure", "{out}", "--runs-dir", "none"], "directory"),
+        (["animate", "x", "-o", "{out}", "--runs-dir", "none"], "directory"),
+        (["animate", "x", "--strip", "{out}/s.png", "--runs-dir", "none"], "file"),
+        (["workspace", "x.yaml", "--out", "{out}"], "file"),
+        (["workspace", "x.yaml", "--out", "{out}/sub"], "file"),
+    ],
+    ids=[
+        "figure onto a directory",
+        "animation onto a directory",
+        "strip under a file",
+        "workspace onto a file",
+        "workspace under a file",
+    ],
+)
+def test_an_output_path_that_cannot_be_written_is_refused_before_any_work(
+    tmp_path: Path, command: list[str], blocker: str
+) -> None:
+    """An output onto a directory (or under a file) was found only when written: after the
+    replays (animate, 30 s), after minutes of search (workspace, then a traceback), or named as
+    softtrack's own temporary (compare). Now it is one line naming the user's path, at once."""
+    out = tmp_path / "out.png"
+    if blocker == "directory":
+        out.mkdir()
+    else:
+        out.write_text("x")
+    args = [a.replace("{out}", str(out)) for a in command]
+    result = _cli(*args)
+    line = _one_line(result)
+    assert result.exit_code == 2 and str(out) in line and ".tmp" not in line, line

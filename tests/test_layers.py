@@ -12,7 +12,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "softtrack"
 
 #: bottom to top; a package may import those of lower layers only
 LAYERS: list[set[str]] = [
-    {"lazy", "signals", "numbers", "trajectories"},
+    {"lazy", "signals", "numbers", "trajectories", "file_kinds"},
     {"sim", "viz"},
     {"env"},
     {"mpc"},

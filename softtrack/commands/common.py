@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import enum
 import math
+import os
 import signal
 import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import typer
@@ -92,6 +94,23 @@ class OutputFormat(enum.StrEnum):
 def fail(exc: BaseException | str) -> NoReturn:
     typer.echo(f"error: {exc}", err=True)
     raise typer.Exit(2)
+
+
+def refuse_blocked_output(
+    output: str | os.PathLike[str] | None, flag: str, *, directory: bool = False
+) -> None:
+    """Fail (one line, exit 2) before any work when an output path cannot be written: a parent
+    of ``output`` is a file, or ``output`` is of the wrong kind (a directory where a file goes, or
+    the other way round with ``directory``)."""
+    if output is None:
+        return
+    path = Path(output)
+    if path.exists() and path.is_dir() != directory:
+        want = "a directory" if directory else "a file"
+        fail(f"{flag} {path}: exists and is not {want}; choose another {flag}")
+    blocker = next((p for p in path.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        fail(f"{flag} {path}: {blocker} is a file, not a directory; choose another {flag}")
 
 
 #: The library's errors name the argument of a call; the command line names its flag.

@@ -15,6 +15,7 @@ from softtrack.commands.common import (
     SetOption,
     app,
     print_episode,
+    refuse_blocked_output,
     user_errors,
 )
 from softtrack.lazy import lazy_module
@@ -170,6 +171,7 @@ def compare(
     Example: softtrack compare td3-sbx-128-mirror-val-confirm independent-td3-sbx-2e6-val-confirm
     --runs-dir models
     """
+    refuse_blocked_output(figure, "--figure")
     with user_errors(runs_dir):
         if len(selection) < 2:
             raise api.SpecError(
@@ -264,6 +266,8 @@ def animate(
     from softtrack.store.runs import RunStore
     from softtrack.store.selection import select_runs
 
+    refuse_blocked_output(out, "--out")  # before the replays
+    refuse_blocked_output(strip, "--strip")
     with user_errors(runs_dir):
         records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
         chosen = list(EVAL_TRAJECTORIES) if str(trajectory) == "all" else [str(trajectory)]

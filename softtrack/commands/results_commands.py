@@ -80,6 +80,8 @@ def runs(
     if not shown:
         root = resolve_runs_dir(runs_dir)
         note = "" if root.is_dir() else " (the directory does not exist)"
+        if (root / "run.json").is_file():
+            note = f" ({root} is a run itself; its runs directory is {root.parent})"
         typer.echo(f"no {'failed ' if failed else ''}runs in {root}{note}", err=True)
         return
     if failed:

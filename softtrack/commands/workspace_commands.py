@@ -10,7 +10,14 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from softtrack.cli_classes import Command
-from softtrack.commands.common import SetOption, app, fail, print_progress, user_errors
+from softtrack.commands.common import (
+    SetOption,
+    app,
+    fail,
+    print_progress,
+    refuse_blocked_output,
+    user_errors,
+)
 from softtrack.lazy import lazy_module
 
 if TYPE_CHECKING:
@@ -71,6 +78,7 @@ def workspace_command(
     from softtrack.evaluation import workspace
     from softtrack.spec.env_config import env_config
 
+    refuse_blocked_output(out, "--out", directory=True)  # before minutes of search
     with user_errors():
         resolved = api.validate_spec(spec, overrides or [])
         config = env_config(resolved)
@@ -117,7 +125,8 @@ def workspace_command(
     typer.echo(_summary(resolved.name, config, results))
     _record(config, results[0], spec)
     if out is not None:
-        _write(out, resolved.name, config, results, seed)
+        with user_errors():
+            _write(out, resolved.name, config, results, seed)
         typer.echo(f"wrote {out}/workspace.png, held.parquet, floors.csv, boundary.csv")
 
 

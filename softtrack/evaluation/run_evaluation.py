@@ -232,9 +232,11 @@ def evaluate_random_targets(
                 on_episode(record, episode, metrics)
             if on_progress is not None:
                 on_progress(k + 1, episodes)
-    except (KeyboardInterrupt, SystemExit):
+    except (KeyboardInterrupt, SystemExit) as stop:
         if write and parts:  # the finished episodes are kept
-            write_table(record.table_path(RANDOM_TABLE), pd.concat(parts, ignore_index=True))
+            path = record.table_path(RANDOM_TABLE)
+            write_table(path, pd.concat(parts, ignore_index=True))
+            stop.add_note(f"kept the {len(parts)} finished episodes of {episodes} in {path}")
         raise
     table = pd.concat(parts, ignore_index=True)
     if write:

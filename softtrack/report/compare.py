@@ -301,13 +301,22 @@ def compare_selection(
 
     Raises:
         EmptySelectionError, RunNotFoundError: an item names no run (one line with the fix).
-        RunStoreError: an item's runs have no stored ``metric``.
+        RunStoreError: an item's runs have no stored ``metric``; two items select one run.
     """
     store = RunStore(resolve_runs_dir(runs_dir))
     index = RunIndex.of(store)
     tables = []
+    named_by: dict[str, str] = {}
     for item in selection:
-        runs = load_runs(select_runs(store, [item], index), ["random" if random else "metrics"])
+        records = select_runs(store, [item], index)
+        for record in records:
+            earlier = named_by.setdefault(record.info.run_id, item)
+            if earlier != item or selection.count(item) > 1:
+                raise RunStoreError(
+                    f"compare: {earlier!r} and {item!r} both select run {record.info.run_id}; "
+                    "name each controller once, with runs of its own"
+                )
+        runs = load_runs(records, ["random" if random else "metrics"])
         problems = [problem for run in runs for problem in run.problems]
         if problems:  # a seed left out silently would change every interval
             raise RunStoreError(f"{item}: {problems[0]}")

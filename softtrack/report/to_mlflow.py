@@ -30,7 +30,8 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -84,7 +85,25 @@ def _client(tracking_uri: str) -> Any:
             "sync mlflow: MLflow is not installed; install it with "
             "`pip install 'softtrack[mlflow]'` (mlflow-skinny)"
         ) from None
-    return MlflowClient(tracking_uri=tracking_uri)
+    with _store_refusals(tracking_uri):
+        return MlflowClient(tracking_uri=tracking_uri)
+
+
+@contextmanager
+def _store_refusals(tracking_uri: str) -> Iterator[None]:
+    """MLflow's refusals of the tracking store (a file where it wants a directory, a retired
+    file store, a database it cannot open) as one :class:`MlflowSyncError` line."""
+    from mlflow.exceptions import MlflowException
+
+    try:
+        yield
+    except MlflowException as exc:
+        first = " ".join(str(exc.message).split())
+        first = first.split(". ")[0].rstrip(".")[:300]
+        raise MlflowSyncError(
+            f"sync mlflow: the tracking store {tracking_uri} refused the sync ({first}); give "
+            f"another with --tracking-uri, e.g. {DEFAULT_TRACKING_URI}"
+        ) from None
 
 
 def flatten_spec(spec: dict[str, Any], prefix: str = "") -> dict[str, str]:
@@ -309,6 +328,20 @@ def sync_mlflow(
         tables = {
             name: _table(db, name, ids) for name in ("eval_metrics", "train_episodes", "validation")
         }
+    with _store_refusals(uri):
+        _sync_rows(client, root, runs, tables, outcome, on_run)
+    return outcome
+
+
+def _sync_rows(
+    client: Any,
+    root: Path,
+    runs: pd.DataFrame,
+    tables: dict[str, dict[str, pd.DataFrame]],
+    outcome: SyncOutcome,
+    on_run: Callable[[str, str], None] | None,
+) -> None:
+    """Create, replace or skip each run of ``runs`` (rows of the ``runs`` view) in MLflow."""
     experiments: dict[str, str] = {}
     for _, run in runs.iterrows():
         run_id, name = str(run["run_id"]), str(run["name"])
@@ -332,4 +365,3 @@ def sync_mlflow(
             what = "replaced" if existing else "created"
         if on_run is not None:
             on_run(run_id, what)
-    return outcome

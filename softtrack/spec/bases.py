@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import copy
 import os
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from softtrack.file_kinds import FileKindError, FileTooLargeError, read_regular_file
 from softtrack.spec.fields import SpecError
 from softtrack.spec.parsing import _parse_yaml
 
@@ -76,48 +76,23 @@ MAX_SPEC_BYTES = 1_000_000
 
 
 def _read_regular_file(path: Path, label: str) -> bytes:
-    """The bytes of a regular file of at most :data:`MAX_SPEC_BYTES`; a FIFO, a device or a
-    socket is refused before anything is read from it (opened non-blocking, so a FIFO without
-    a writer cannot hang the command), and nothing of the file is ever quoted back."""
+    """The bytes of a regular file of at most :data:`MAX_SPEC_BYTES`
+    (:func:`~softtrack.file_kinds.read_regular_file`: a FIFO, a device or a socket is refused
+    before anything is read from it); nothing of the file is ever quoted back."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError as exc:
-        raise SpecError(
-            label, f"cannot read the file ({exc.strerror})", "check its permissions"
-        ) from None
-    try:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            kind = (
-                "a FIFO"
-                if stat.S_ISFIFO(mode)
-                else "a device"
-                if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-                else "a socket"
-                if stat.S_ISSOCK(mode)
-                else "not a regular file"
-            )
-            raise SpecError(label, f"is {kind}, not a spec file", "give a .yaml spec file")
-        chunks, size = [], 0
-        while size <= MAX_SPEC_BYTES:
-            chunk = os.read(fd, min(65536, MAX_SPEC_BYTES + 1 - size))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            size += len(chunk)
-    except OSError as exc:
-        raise SpecError(
-            label, f"cannot read the file ({exc.strerror})", "check its permissions"
-        ) from None
-    finally:
-        os.close(fd)
-    if size > MAX_SPEC_BYTES:
+        return read_regular_file(path, MAX_SPEC_BYTES)
+    except FileKindError as exc:
+        raise SpecError(label, f"{exc}, not a spec file", "give a .yaml spec file") from None
+    except FileTooLargeError:
         raise SpecError(
             label,
             f"is larger than {MAX_SPEC_BYTES // 1000} kB: not a spec file",
             "give a .yaml spec file (a spec is a few kB)",
-        )
-    return b"".join(chunks)
+        ) from None
+    except OSError as exc:
+        raise SpecError(
+            label, f"cannot read the file ({exc.strerror})", "check its permissions"
+        ) from None
 
 
 def _base_path(label: str, data: dict[str, Any], lines: dict[FieldPath, int]) -> str:

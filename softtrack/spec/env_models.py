@@ -582,6 +582,13 @@ class EnvSpec(SpecModel):
                 f"({control_dt:g} s); use at least {control_dt:g}",
                 "episode_duration",
             )
+        if self.target.period < 2 * control_dt:  # sampled once per step, the path aliases
+            raise custom_error(
+                f"target period {self.target.period:g} s is shorter than two control steps "
+                f"({2 * control_dt:g} s): the sampled path would not go round; use at least "
+                f"{2 * control_dt:g}",
+                "target",
+            )
         check_step_count(self.episode_duration, self.physics.dt, self.physics.steps_per_action)
         ranges = self.realism.model_error_ranges()
         result = model_error_stability(self.sim_params(), ranges) if ranges else None

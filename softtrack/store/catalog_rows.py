@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from softtrack.file_kinds import describe_path
 from softtrack.store.atomic import is_temp_file
 from softtrack.store.catalog import ROW_COLUMNS, run_stamp
 from softtrack.store.runs import RunStore, RunStoreError
@@ -83,9 +84,10 @@ def run_row(run_path: Path) -> RunRow | None:
     row.update(dir=run_path.name, stamp=stamp)
     schemas: dict[str, str] = {}
     if not (run_path / "run.json").is_file():
-        if not (run_path / "spec.yaml").is_file():
+        kind = describe_path(run_path / "run.json")
+        if kind == "missing" and not (run_path / "spec.yaml").is_file():
             return None
-        row["unreadable"] = "run.json is missing"
+        row["unreadable"] = f"run.json is {kind}" + ("" if kind == "missing" else ", not a file")
         return RunRow(row, schemas)
     try:
         record = RunStore(run_path.parent).read_record(run_path)

@@ -54,6 +54,18 @@ def _path(exc: BaseException) -> Path | None:
     return None
 
 
+def _destination(exc: BaseException) -> Path | None:
+    """The destination of a failed rename (``os.replace(temporary, destination)``): the path the
+    user chose, rather than the temporary the error names first."""
+    seen: BaseException | None = exc
+    while seen is not None:
+        name = getattr(seen, "filename2", None)
+        if name:
+            return Path(os.fsdecode(name))
+        seen = seen.__cause__ or seen.__context__
+    return None
+
+
 def _size(path: Path) -> int:
     if path.is_file():
         return path.stat().st_size
@@ -118,7 +130,8 @@ def check_address_space(what: str) -> None:
 def machine_limit(exc: BaseException) -> str | None:
     """A one-line message when ``exc`` (or an error it was raised from) is the machine's
     limit rather than softtrack's input: memory (``MemoryError``, ``ENOMEM``, a limit such as
-    ``ulimit -v``) or open files (``EMFILE``/``ENFILE``, ``ulimit -n``); ``None`` otherwise."""
+    ``ulimit -v``), open files (``EMFILE``/``ENFILE``, ``ulimit -n``) or the size of a file
+    (``EFBIG``, ``ulimit -f``); ``None`` otherwise."""
     import resource
 
     seen: set[int] = set()
@@ -128,6 +141,9 @@ def machine_limit(exc: BaseException) -> str | None:
         if isinstance(current, MachineLimitError):
             return str(current)
         code = getattr(current, "errno", None)
+        if code is None and isinstance(current, OSError):  # pyarrow keeps it in the text
+            found = _ERRNO_IN_TEXT.search(str(current))
+            code = int(found.group(1)) if found else None
         mapping = isinstance(current, ImportError) and "failed to map segment" in str(current)
         duckdb_memory = str(current).startswith(("Out of Memory Error", "query: Out of Memory"))
         if isinstance(current, MemoryError) or code == errno.ENOMEM or mapping or duckdb_memory:
@@ -147,6 +163,13 @@ def machine_limit(exc: BaseException) -> str | None:
             return (
                 f"too many open files (the process may open {soft}: ulimit -n); raise the "
                 "limit (e.g. ulimit -n 4096) and run the command again; no file is damaged"
+            )
+        if code == errno.EFBIG or "File too large" in text:  # pyarrow: text
+            soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+            size = "no limit" if soft == resource.RLIM_INFINITY else f"{soft:,} bytes"
+            return (
+                f"a file reached the file-size limit ({size}: ulimit -f); raise the limit "
+                "(e.g. ulimit -f unlimited) and run the command again; no stored file changed"
             )
         current = current.__cause__ or current.__context__
     return None
@@ -182,7 +205,8 @@ def storage_problem(
     writing through its own file object), e.g. the run's directory."""
     code = _errno(exc)
     if code is not None and code in PATH_KIND_ERRNOS:
-        kind_path = _path(exc)
+        kind_path = _destination(exc) if code == errno.EISDIR else None
+        kind_path = kind_path or _path(exc)
         if kind_path is not None and (code != errno.EEXIST or kind_path.is_file()):
             return _path_kind_problem(code, kind_path, then)
     if code not in FULL_ERRNOS and code not in READ_ONLY_ERRNOS:

@@ -16,6 +16,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from softtrack.file_kinds import printable
 from softtrack.store.catalog import read_catalog
 from softtrack.store.errors import RunStoreError
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, parse_time
@@ -102,7 +103,7 @@ def unreadable_summary(run_path: Path, reason: str) -> dict[str, Any]:
     """The ``softtrack runs`` row of a run whose run.json is missing or unreadable: status
     ``unreadable``, the directory name as its id and the reason, with the fix, as its error."""
     return {
-        "run_id": run_path.name,
+        "run_id": printable(run_path.name),
         "name": "",
         "algo": "",
         "controller": "",
@@ -123,9 +124,9 @@ def unreadable_summary(run_path: Path, reason: str) -> dict[str, Any]:
         "spec_hash": None,
         "git_commit": None,
         "git_dirty": None,
-        "error": f"{reason}; {unreadable_fix(run_path)}",
+        "error": printable(f"{reason}; {unreadable_fix(run_path)}"),
         "traceback": None,
-        "path": str(run_path),
+        "path": printable(str(run_path)),
     }
 
 

@@ -29,6 +29,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from softtrack.env.tasks import N_ARMS
+from softtrack.file_kinds import read_regular_file
 from softtrack.spec import (
     ExperimentSpec,
     SpecError,
@@ -77,6 +78,10 @@ __all__ = [
 
 
 RUN_STATUSES = ("queued", "running", "completed", "failed", "interrupted")
+#: The largest ``run.json`` read (a record is a few kB; a failed run's traceback adds tens).
+MAX_RUN_JSON_BYTES = 4_000_000
+#: The newest layout of ``run.json`` this softtrack reads and writes.
+RUN_FORMAT_VERSION = 1
 RunStatus = Literal["queued", "running", "completed", "failed", "interrupted"]
 
 
@@ -102,7 +107,7 @@ class RunInfo(BaseModel):
 
     model_config = ConfigDict(extra="allow", validate_assignment=True)
 
-    format_version: int = Field(1, description="version of this file's layout")
+    format_version: int = Field(RUN_FORMAT_VERSION, description="version of this file's layout")
     run_id: str = Field(description="ULID of the run (= its directory name)")
     name: str = Field(
         description="experiment name (spec.name: letters, digits, '_', '-', '.'; a name "
@@ -124,10 +129,13 @@ class RunInfo(BaseModel):
     ended: str | None = Field(None, description="time the run ended, ISO 8601 UTC")
     heartbeat: str | None = Field(None, description="last sign of life of the training process")
     total_timesteps: int = Field(
+        ge=0,
         description="training budget of the run, env steps: spec training.total_timesteps, "
-        "times 2 for an independent run (that budget per arm)"
+        "times 2 for an independent run (that budget per arm)",
     )
-    global_step: int = Field(0, description="env steps done so far (independent: over both arms)")
+    global_step: int = Field(
+        0, ge=0, description="env steps done so far (independent: over both arms)"
+    )
     arm_total_timesteps: int | None = Field(
         None,
         description="independent runs: budget per arm, env steps (spec training.total_timesteps); "
@@ -170,6 +178,17 @@ class RunInfo(BaseModel):
         "and steps_per_second",
     )
     notes: dict[str, Any] = Field(default_factory=dict, description="free-form additions")
+
+    @field_validator("format_version", mode="after")
+    @classmethod
+    def _known_format(cls, value: int) -> int:
+        """A run written by a newer softtrack (a later layout) is not read as this one's."""
+        if not 1 <= value <= RUN_FORMAT_VERSION:
+            raise ValueError(
+                f"run format {value} is not one this softtrack reads (1 to "
+                f"{RUN_FORMAT_VERSION}): a newer softtrack wrote it; upgrade softtrack to use it"
+            )
+        return value
 
     @field_validator(
         "seed",
@@ -492,13 +511,16 @@ class RunStore:
 
     def _read(self, path: Path) -> RunInfo:
         try:
-            return RunInfo.model_validate_json((path / "run.json").read_bytes())
+            return RunInfo.model_validate_json(
+                read_regular_file(path / "run.json", MAX_RUN_JSON_BYTES)
+            )
         except ValidationError as exc:
             error = exc.errors()[0]
             where = ".".join(str(part) for part in error["loc"]) or "run.json"
             value = repr(error.get("input"))[:40]
+            message = error["msg"].removeprefix("Value error, ")
             raise RunStoreError(
-                f"{path / 'run.json'}: unreadable run record ({where}: {error['msg']}, got {value})"
+                f"{path / 'run.json'}: unreadable run record ({where}: {message}, got {value})"
             ) from None
         except (OSError, ValueError) as exc:
             first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
