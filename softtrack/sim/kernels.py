@@ -7,12 +7,17 @@ PyElastica function they mirror (:func:`_compute_internal_stresses`,
 :func:`_compute_internal_torques_and_kick`, :func:`_compute_internal_forces`, the contact stages,
 the drift).
 
-Inside a kernel the stages take their arrays one by one, named once at the top: read from a
-structure inside the step loop, a field costs numba a reference-count update each time (the
-batched step ran at 0.65x), and with stages that read structures, or stages split finer, LLVM
-fused some multiply-adds differently (1e-15 m in a contact step, which the closed loop turned
-into a 1 % different RMSE of a shipped contact policy); measured in
-``benchmarks/bench_engine_versions.py`` and ``benchmarks/check_exported_policies.py``.
+Inside a kernel a rod's work arrays travel as the tuple built once before the loops
+(:func:`_rod_work`, :func:`_material_work`, :func:`_rest_geometry`) into the elastic stages
+and the loading; the contact stages (:func:`~softtrack.sim.rod_contact.rod_rod_contact`,
+:func:`~softtrack.sim.sphere_contact.sphere_stage`) take their arrays one by one: as tuples,
+even built once, or wrapped in one more inlined stage, they cost the contact and sphere steps
+12-18 % (numba's reference counting; session 26, ``benchmarks/bench_engine_versions.py``).
+Every stage keeps the arithmetic of the code it was split from, operation for operation: the
+state after 150 control steps of the free, contact and held-sphere scenes is bit for bit the
+one before the split. (Written otherwise, LLVM may fuse multiply-adds differently: 1e-15 m in
+a contact step, which the closed loop turns into a 1 % different RMSE of a shipped contact
+policy; ``benchmarks/check_exported_policies.py`` checks it.)
 
 Without contact each rod is integrated to the end before the next one starts, so
 its whole state (a few kB) stays in L1 cache; with rod–rod contact (:mod:`softtrack.sim.rod_contact`)
@@ -249,31 +254,7 @@ def _curvatures(directors, inv_rest_voronoi, voronoi_mask, kappa, cosines, n_pad
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _compute_internal_stresses(
-    pos,
-    vel,
-    dirs,
-    lengths,
-    inv_lengths,
-    qt,
-    n_local,
-    f_elem,
-    dil_rate,
-    damp_f,
-    kappa,
-    cosines,
-    couple,
-    kxc,
-    rest_len,
-    inv_rest_len,
-    rest_vor,
-    inv_rest_vor,
-    vor_mask,
-    shear_k,
-    bend_k,
-    damp_coef,
-    n_pad,
-):
+def _compute_internal_stresses(rod, material, rest, n_pad):
     """Geometry, strains and stresses of one rod's elements and Voronoi points (outputs in
     place): PyElastica's ``_compute_geometry_from_state``, ``_compute_shear_stretch_strains``,
     ``_compute_internal_shear_stretch_stresses_from_model``, ``_compute_dilatation_rate``,
@@ -283,8 +264,15 @@ def _compute_internal_stresses(
     Per rod (3, n_pad+1) nodes and (3, n_pad) elements: lengths, 1/lengths (m, 1/m); qt = Q·t;
     n_local (N, local frame); f_elem = Qᵀn/e (N, lab frame); dil_rate (1/s); damp_f, the
     damping force of each element on each of its nodes (N); kappa (1/m), couple and kxc (N·m)
-    at the Voronoi points; cosines of the angles between neighbouring frames.
+    at the Voronoi points; cosines of the angles between neighbouring frames. ``rod``,
+    ``material``, ``rest``: the tuples of :func:`_rod_work`, :func:`_material_work` and
+    :func:`_rest_geometry`.
     """
+    pos, vel, dirs = rod[:3]
+    lengths, inv_lengths, dil_rate, f_elem, n_local, qt, damp_f, couple, kxc = rod[5:14]
+    kappa, cosines, damp_coef = material[:3]
+    shear_k, bend_k = material[8:]
+    rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = rest
     for k in range(n_pad):
         dx = pos[0, k + 1] - pos[0, k]
         dy = pos[1, k + 1] - pos[1, k]
@@ -355,27 +343,14 @@ def _compute_internal_stresses(
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _compute_internal_torques_and_kick(
-    om,
-    couple,
-    kxc,
-    lengths,
-    inv_lengths,
-    rest_len,
-    inv_rest_len,
-    inert,
-    inv_inert,
-    dil_rate,
-    qt,
-    n_local,
-    tq,
-    env_damping,
-    dt,
-    n_pad,
-):
+def _compute_internal_torques_and_kick(rod, material, rest, env_damping, dt, n_pad):
     """PyElastica's ``_compute_internal_torques`` with the damping and actuation couples, then
     the angular kick: ω += dt·J⁻¹·τ·e for every element (element 0 clamped), τ the internal,
     damping and actuation couples (local frame)."""
+    om, tq, lengths, inv_lengths, dil_rate = rod[3:8]
+    n_local, qt, _damp_f, couple, kxc = rod[9:14]
+    inert, inv_inert = material[6:8]
+    rest_len, inv_rest_len = rest[:2]
     for k in range(1, n_pad + 1):
         ti0 = couple[0, k] - couple[0, k - 1] + kxc[0, k] + kxc[0, k - 1]
         ti1 = couple[1, k] - couple[1, k - 1] + kxc[1, k] + kxc[1, k - 1]
@@ -426,7 +401,7 @@ def _rod_work(width):
     """One rod's work arrays, ``width`` entries per row: positions, velocities, directors,
     angular velocities, torques, lengths, 1/lengths, dilatation rates, f_elem, n_local, qt,
     damp_f, couple, kxc; for contact the contact node forces, the element radii and reaches,
-    and the positions and reaches the neighbour list was built at."""
+    and the forces on the nodes before contact (:func:`_compute_internal_forces`)."""
     return (
         np.zeros((3, width)),
         np.zeros((3, width)),
@@ -444,8 +419,18 @@ def _rod_work(width):
         np.zeros((3, width)),
         np.zeros((3, width)),
         np.zeros((2, width)),
-        np.zeros((4, width)),
+        np.zeros((3, width)),
     )
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _second_rod_work(width, first):
+    """The work arrays of a second rod whose kick runs right after its own forces: the arrays
+    only that kick reads (dilatation rates, n_local, qt, couples) are ``first``'s, so the
+    two rods' work arrays fit the L1 cache together."""
+    own = _rod_work(width)
+    shared = (first[7], own[8], first[9], first[10], own[11], first[12], first[13])
+    return own[:7] + shared + own[14:]
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
@@ -488,26 +473,11 @@ def _rest_geometry(rest_lengths, rest_voronoi, width):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _load_material(
-    env,
-    damping,
-    inv_mass,
-    mass,
-    inertia,
-    inv_inertia,
-    shear,
-    bend,
-    volume,
-    damp_coef,
-    inv_m,
-    weight_m,
-    inert,
-    inv_inert,
-    shear_k,
-    bend_k,
-    vol,
-):
-    """Copy environment ``env``'s material (model error) into the padded work arrays."""
+def _load_material(env, material_fields, material):
+    """Copy environment ``env``'s material (model error, :class:`BatchMaterial` fields) into
+    the padded work arrays (``material``: :func:`_material_work`)."""
+    damping, inv_mass, mass, inertia, inv_inertia, shear, bend, volume = material_fields[:8]
+    damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k = material[2:]
     n_elem = volume.shape[1]
     for k in range(n_elem):
         damp_coef[k] = -0.25 * damping[env]
@@ -525,27 +495,13 @@ def _load_material(
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _load_rod(
-    position,
-    velocity,
-    directors,
-    omega,
-    torques,
-    base_position,
-    base_directors,
-    env,
-    arm,
-    pos,
-    vel,
-    dirs,
-    om,
-    tq,
-    base_pos,
-    base_dirs,
-    n_pad,
-):
-    """Copy one rod's state, torques and clamp into its padded work arrays; padded nodes
-    continue the last element's line beyond the tip, at rest, with its frame."""
+def _load_rod(state_fields, material_fields, env, arm, rod, base_pos, base_dirs, n_pad):
+    """Copy one rod's state, torques and clamp (:class:`BatchState`, :class:`BatchMaterial`
+    fields) into its padded work arrays (``rod``: :func:`_rod_work`); padded nodes continue
+    the last element's line beyond the tip, at rest, with its frame."""
+    position, velocity, directors, omega, torques = state_fields[:5]
+    base_position, base_directors = material_fields[10:]
+    pos, vel, dirs, om, tq = rod[:5]
     n_elem = omega.shape[3]
     for i in range(3):
         for k in range(n_elem + 1):
@@ -683,110 +639,27 @@ def _build_advance(n_pad):
 
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
     def advance_padded(state_fields, material_fields, n_steps, dt, gravity):
-        position, velocity, directors, omega, torques, finite = state_fields
-        (damping, inv_mass, mass, inertia, inv_inertia, shear, bend, volume) = material_fields[:8]
-        rest_lengths, rest_voronoi, base_position, base_directors = material_fields[8:]
-        n_env = position.shape[0]
-        n_arm = position.shape[1]
-        rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
-            rest_lengths, rest_voronoi, width
-        )
-        (
-            pos,
-            vel,
-            dirs,
-            om,
-            tq,
-            lengths,
-            inv_lengths,
-            dil_rate,
-            f_elem,
-            n_local,
-            qt,
-            damp_f,
-            couple,
-            kxc,
-            _,
-            _,
-            _,
-        ) = _rod_work(width)
-        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k) = (
-            _material_work(width)
-        )
+        position, velocity, directors, omega, _torques, finite = state_fields
+        damping = material_fields[0]
+        rest = _rest_geometry(material_fields[8], material_fields[9], width)
+        rod = _rod_work(width)
+        pos, vel, dirs, om = rod[:4]
+        f_elem, damp_f = rod[8], rod[11]
+        material = _material_work(width)
+        inv_m, weight_m = material[3:5]
         base_pos = np.empty(3)
         base_dirs = np.empty((3, 3))
         half_dt = 0.5 * dt
-        for env in range(n_env):
-            _load_material(
-                env,
-                damping,
-                inv_mass,
-                mass,
-                inertia,
-                inv_inertia,
-                shear,
-                bend,
-                volume,
-                damp_coef,
-                inv_m,
-                weight_m,
-                inert,
-                inv_inert,
-                shear_k,
-                bend_k,
-                vol,
-            )
-            env_damping = damping[env]
+        for env in range(position.shape[0]):
+            _load_material(env, material_fields, material)
             checksum = 0.0
-            for arm in range(n_arm):
-                _load_rod(
-                    position,
-                    velocity,
-                    directors,
-                    omega,
-                    torques,
-                    base_position,
-                    base_directors,
-                    env,
-                    arm,
-                    pos,
-                    vel,
-                    dirs,
-                    om,
-                    tq,
-                    base_pos,
-                    base_dirs,
-                    n_pad,
-                )
+            for arm in range(position.shape[1]):
+                _load_rod(state_fields, material_fields, env, arm, rod, base_pos, base_dirs, n_pad)
                 # The closing half drift of one step and the opening half drift of the next
                 # are one drift of dt (same velocities, same rotation axis), so they are fused.
                 _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_pad)
                 for step in range(n_steps):
-                    _compute_internal_stresses(
-                        pos,
-                        vel,
-                        dirs,
-                        lengths,
-                        inv_lengths,
-                        qt,
-                        n_local,
-                        f_elem,
-                        dil_rate,
-                        damp_f,
-                        kappa,
-                        cosines,
-                        couple,
-                        kxc,
-                        rest_len,
-                        inv_rest_len,
-                        rest_vor,
-                        inv_rest_vor,
-                        vor_mask,
-                        shear_k,
-                        bend_k,
-                        damp_coef,
-                        n_pad,
-                    )
+                    _compute_internal_stresses(rod, material, rest, n_pad)
                     # v += dt·F/m, F = internal + damping + gravity in one pass (written out
                     # here: as an inlined helper this loop ran 25 % slower)
                     for i in range(3):
@@ -801,24 +674,7 @@ def _build_advance(n_pad):
                             )
                             vel[i, k] += dt * (f * inv_m[k])
                         vel[i, 0] = 0.0
-                    _compute_internal_torques_and_kick(
-                        om,
-                        couple,
-                        kxc,
-                        lengths,
-                        inv_lengths,
-                        rest_len,
-                        inv_rest_len,
-                        inert,
-                        inv_inert,
-                        dil_rate,
-                        qt,
-                        n_local,
-                        tq,
-                        env_damping,
-                        dt,
-                        n_pad,
-                    )
+                    _compute_internal_torques_and_kick(rod, material, rest, damping[env], dt, n_pad)
                     drift_dt = half_dt if step == n_steps - 1 else dt
                     _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_pad)
                 checksum += _store_rod(
@@ -854,61 +710,23 @@ def _build_advance_contact(n_pad):
     def advance_contact(
         state_fields, material_fields, contact_fields, n_steps, dt, gravity, contact_k, contact_nu
     ):
-        position, velocity, directors, omega, torques, finite = state_fields
-        (damping, inv_mass, mass, inertia, inv_inertia, shear, bend, volume) = material_fields[:8]
-        rest_lengths, rest_voronoi, base_position, base_directors = material_fields[8:]
+        position, velocity, directors, omega, _torques, finite = state_fields
+        damping = material_fields[0]
+        rest_lengths, rest_voronoi = material_fields[8:10]
         (penetration, contact_force, sphere, sphere_params, sphere_out) = contact_fields[:5]
         contact_pairs, contact_listed, contact_anchor = contact_fields[5:]
-        n_env = position.shape[0]
         n_elem = rest_lengths.shape[0]
-        rest_len, inv_rest_len, rest_vor, inv_rest_vor, vor_mask = _rest_geometry(
-            rest_lengths, rest_voronoi, width
-        )
-        # Each rod's angular kick runs right after its forces (contact exerts no couple and
-        # reads no angular velocity), so the arrays only that kick reads (dilatation rates,
-        # n_local, qt, couples) are shared by the two rods: the two rods' work arrays then
-        # fit the L1 cache together.
-        (
-            pos_a,
-            vel_a,
-            dirs_a,
-            om_a,
-            tq_a,
-            lengths_a,
-            inv_lengths_a,
-            dil_rate,
-            f_elem_a,
-            n_local,
-            qt,
-            damp_f_a,
-            couple,
-            kxc,
-            f_contact_a,
-            geometry_a,
-            _,
-        ) = _rod_work(width)
-        (
-            pos_b,
-            vel_b,
-            dirs_b,
-            om_b,
-            tq_b,
-            lengths_b,
-            inv_lengths_b,
-            _,
-            f_elem_b,
-            _,
-            _,
-            damp_f_b,
-            _,
-            _,
-            f_contact_b,
-            geometry_b,
-            _,
-        ) = _rod_work(width)
-        (kappa, cosines, damp_coef, inv_m, weight_m, vol, inert, inv_inert, shear_k, bend_k) = (
-            _material_work(width)
-        )
+        rest = _rest_geometry(rest_lengths, rest_voronoi, width)
+        rod_a = _rod_work(width)
+        rod_b = _second_rod_work(width, rod_a)
+        pos_a, vel_a, dirs_a, om_a = rod_a[:4]
+        pos_b, vel_b, dirs_b, om_b = rod_b[:4]
+        f_elem_a, damp_f_a, f_elem_b, damp_f_b = rod_a[8], rod_a[11], rod_b[8], rod_b[11]
+        lengths_a, inv_lengths_a, lengths_b, inv_lengths_b = rod_a[5:7] + rod_b[5:7]
+        f_contact_a, geometry_a, node_force_a = rod_a[14:]
+        f_contact_b, geometry_b, node_force_b = rod_b[14:]
+        material = _material_work(width)
+        inv_m, weight_m, vol = material[3:6]
         base_pos_a = np.empty(3)
         base_dirs_a = np.empty((3, 3))
         base_pos_b = np.empty(3)
@@ -917,67 +735,11 @@ def _build_advance_contact(n_pad):
         half_dt = 0.5 * dt
         has_sphere = sphere_params[0] > 0.0
         sphere_work = np.zeros((2, 3))
-        node_force_a = np.zeros((3, width))
-        node_force_b = np.zeros((3, width))
-        for env in range(n_env):
-            _load_material(
-                env,
-                damping,
-                inv_mass,
-                mass,
-                inertia,
-                inv_inertia,
-                shear,
-                bend,
-                volume,
-                damp_coef,
-                inv_m,
-                weight_m,
-                inert,
-                inv_inert,
-                shear_k,
-                bend_k,
-                vol,
-            )
+        for env in range(position.shape[0]):
+            _load_material(env, material_fields, material)
             env_damping = damping[env]
-            _load_rod(
-                position,
-                velocity,
-                directors,
-                omega,
-                torques,
-                base_position,
-                base_directors,
-                env,
-                0,
-                pos_a,
-                vel_a,
-                dirs_a,
-                om_a,
-                tq_a,
-                base_pos_a,
-                base_dirs_a,
-                n_pad,
-            )
-            _load_rod(
-                position,
-                velocity,
-                directors,
-                omega,
-                torques,
-                base_position,
-                base_directors,
-                env,
-                1,
-                pos_b,
-                vel_b,
-                dirs_b,
-                om_b,
-                tq_b,
-                base_pos_b,
-                base_dirs_b,
-                n_pad,
-            )
+            _load_rod(state_fields, material_fields, env, 0, rod_a, base_pos_a, base_dirs_a, n_pad)
+            _load_rod(state_fields, material_fields, env, 1, rod_b, base_pos_b, base_dirs_b, n_pad)
             deepest = 0.0
             force_total = 0.0
             n_pairs = contact_listed[env]
@@ -991,92 +753,10 @@ def _build_advance_contact(n_pad):
             if has_sphere:
                 sphere_drift(body, half_dt)
             for step in range(n_steps):
-                _compute_internal_stresses(
-                    pos_a,
-                    vel_a,
-                    dirs_a,
-                    lengths_a,
-                    inv_lengths_a,
-                    qt,
-                    n_local,
-                    f_elem_a,
-                    dil_rate,
-                    damp_f_a,
-                    kappa,
-                    cosines,
-                    couple,
-                    kxc,
-                    rest_len,
-                    inv_rest_len,
-                    rest_vor,
-                    inv_rest_vor,
-                    vor_mask,
-                    shear_k,
-                    bend_k,
-                    damp_coef,
-                    n_pad,
-                )
-                _compute_internal_torques_and_kick(
-                    om_a,
-                    couple,
-                    kxc,
-                    lengths_a,
-                    inv_lengths_a,
-                    rest_len,
-                    inv_rest_len,
-                    inert,
-                    inv_inert,
-                    dil_rate,
-                    qt,
-                    n_local,
-                    tq_a,
-                    env_damping,
-                    dt,
-                    n_pad,
-                )
-                _compute_internal_stresses(
-                    pos_b,
-                    vel_b,
-                    dirs_b,
-                    lengths_b,
-                    inv_lengths_b,
-                    qt,
-                    n_local,
-                    f_elem_b,
-                    dil_rate,
-                    damp_f_b,
-                    kappa,
-                    cosines,
-                    couple,
-                    kxc,
-                    rest_len,
-                    inv_rest_len,
-                    rest_vor,
-                    inv_rest_vor,
-                    vor_mask,
-                    shear_k,
-                    bend_k,
-                    damp_coef,
-                    n_pad,
-                )
-                _compute_internal_torques_and_kick(
-                    om_b,
-                    couple,
-                    kxc,
-                    lengths_b,
-                    inv_lengths_b,
-                    rest_len,
-                    inv_rest_len,
-                    inert,
-                    inv_inert,
-                    dil_rate,
-                    qt,
-                    n_local,
-                    tq_b,
-                    env_damping,
-                    dt,
-                    n_pad,
-                )
+                _compute_internal_stresses(rod_a, material, rest, n_pad)
+                _compute_internal_torques_and_kick(rod_a, material, rest, env_damping, dt, n_pad)
+                _compute_internal_stresses(rod_b, material, rest, n_pad)
+                _compute_internal_torques_and_kick(rod_b, material, rest, env_damping, dt, n_pad)
                 _compute_internal_forces(f_elem_a, damp_f_a, weight_m, gravity, node_force_a, n_pad)
                 _compute_internal_forces(f_elem_b, damp_f_b, weight_m, gravity, node_force_b, n_pad)
                 if contact_k > 0.0:
