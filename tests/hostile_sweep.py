@@ -243,6 +243,16 @@ def spec_file(work: Path, text: str | bytes, name: str = "s.yaml") -> str:
     return name
 
 
+def workspace_command(out: str) -> list[str]:
+    """A small ``softtrack workspace`` of the reachable transport spec writing to ``out``."""
+    spec = (
+        MODELS.parent
+        / "experiments/variants/td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-reachable.yaml"
+    )
+    search = ["--per-path", "1", "--population", "2", "--iterations", "1"]
+    return ["workspace", str(spec), "--out", out, *search]
+
+
 def quickstart_copy(work: Path) -> str:
     shutil.copy(MODELS.parent / SPEC_OK, work / "q.yaml")
     return "q.yaml"
@@ -453,46 +463,18 @@ def cases() -> list[Case]:
             lambda w: ["validate", spec_file(w, quickstart_text() + "\nname: other\n")],
         )
     )
-    add(
-        Case(
-            "spec-dt-nan",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "env.physics.dt=.nan"],
-            ),
-        )
-    )
-    add(
-        Case(
-            "spec-dt-inf",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "env.physics.dt=1e400"],
-            ),
-        )
-    )
-    add(
-        Case(
-            "spec-steps-huge",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "training.total_timesteps=1e30"],
-            ),
-        )
-    )
-    add(
-        Case(
-            "spec-lr-negative",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "algo.learning_rate=-1"],
-            ),
-        )
-    )
+    bad_overrides = {  # each refused by `validate` with one line
+        "spec-dt-nan": "env.physics.dt=.nan",
+        "spec-dt-inf": "env.physics.dt=1e400",
+        "spec-steps-huge": "training.total_timesteps=1e30",
+        "spec-lr-negative": "algo.learning_rate=-1",
+        "set-unknown-path": "env.physics.nonsense=1",
+        "set-no-equals": "env.physics.dt",
+        "spec-period-tiny": "env.target.period=1e-300",
+        "spec-steps-per-action-huge": "env.physics.steps_per_action=1000000000",
+    }
+    for name, override in bad_overrides.items():
+        add(Case(name, "specs", lambda w, o=override: ["validate", quickstart_copy(w), "--set", o]))
     add(
         Case(
             "spec-name-ansi",
@@ -532,26 +514,6 @@ def cases() -> list[Case]:
     )
     add(Case("spec-secret-itself", "specs", lambda w: ["validate", spec_file(w, SECRET + ": [\n")]))
     add(Case("train-spec-dir", "specs", lambda w: ["train", "runs"]))
-    add(
-        Case(
-            "set-unknown-path",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "env.physics.nonsense=1"],
-            ),
-        )
-    )
-    add(
-        Case(
-            "set-no-equals",
-            "specs",
-            lambda w: do(
-                shutil.copy(MODELS.parent / SPEC_OK, w / "q.yaml"),
-                ["validate", "q.yaml", "--set", "env.physics.dt"],
-            ),
-        )
-    )
 
     # tables and run.json
     def truncate(w: Path, rel: str) -> None:
@@ -870,14 +832,6 @@ def cases() -> list[Case]:
     )
     add(
         Case(
-            "spec-period-tiny",
-            "specs",
-            lambda w: ["validate", quickstart_copy(w), "--set", "env.target.period=1e-300"],
-            timeout=60,
-        )
-    )
-    add(
-        Case(
             "spec-seeds-huge-list",
             "specs",
             lambda w: [
@@ -892,37 +846,9 @@ def cases() -> list[Case]:
     )
     add(
         Case(
-            "spec-steps-per-action-huge",
-            "specs",
-            lambda w: [
-                "validate",
-                quickstart_copy(w),
-                "--set",
-                "env.physics.steps_per_action=1000000000",
-            ],
-            timeout=60,
-        )
-    )
-    add(
-        Case(
             "workspace-out-file",
             "paths",
-            lambda w: do(
-                write(w / "o", "x"),
-                [
-                    "workspace",
-                    str(MODELS.parent / "experiments/variants")
-                    + "/td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-reachable.yaml",
-                    "--out",
-                    "o",
-                    "--per-path",
-                    "1",
-                    "--population",
-                    "2",
-                    "--iterations",
-                    "1",
-                ],
-            ),
+            lambda w: do(write(w / "o", "x"), workspace_command("o")),
             timeout=300,
         )
     )
@@ -930,22 +856,7 @@ def cases() -> list[Case]:
         Case(
             "workspace-out-under-file",
             "paths",
-            lambda w: do(
-                write(w / "o", "x"),
-                [
-                    "workspace",
-                    str(MODELS.parent / "experiments/variants")
-                    + "/td3-sbx-128-3e6-mirror-fast-transport-fine-10ms-reachable.yaml",
-                    "--out",
-                    "o/sub",
-                    "--per-path",
-                    "1",
-                    "--population",
-                    "2",
-                    "--iterations",
-                    "1",
-                ],
-            ),
+            lambda w: do(write(w / "o", "x"), workspace_command("o/sub")),
             timeout=300,
         )
     )
