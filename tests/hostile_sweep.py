@@ -678,6 +678,15 @@ def cases() -> list[Case]:
             lambda w: do(truncate(w, "model.zip"), ["evaluate", RUN, "-t", "circle"]),
         )
     )
+    add(
+        Case(
+            "query-50-million-rows",
+            "limits",
+            lambda w: ["query", "SELECT range AS i, range * 2 AS j FROM range(50000000)"],
+            expect="ok",
+            timeout=300,
+        )
+    )
     add(Case("query-bad-sql", "tables", lambda w: ["query", "SELEC nonsense"]))
     add(
         Case(
