@@ -22,15 +22,14 @@ def _long_functions() -> dict[str, int]:
     return found
 
 
-#: The contact kernel and PyElastica's rod–rod contact pass. Their stages take their arrays one
-#: by one: passed as tuples (even built once) or wrapped in one more inlined stage, the contact
-#: and sphere steps ran 12-18 % slower (session 26, benchmarks/bench_engine_versions.py;
+#: The contact kernel (and its builder). Its contact stages take their arrays one by one:
+#: passed as tuples (even built once) or wrapped in one more inlined stage, the contact and
+#: sphere steps ran 12-19 % slower (session 26, benchmarks/bench_engine_versions.py;
 #: softtrack/sim/kernels.py's docstring). The test fails when one of them shrinks under the
 #: limit (remove it here) or any other function grows past it.
 KNOWN_LONG = {
     "sim/kernels.py:_build_advance_contact",
     "sim/kernels.py:advance_contact",
-    "sim/rod_contact.py:rod_rod_contact",
 }
 
 

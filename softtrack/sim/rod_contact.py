@@ -158,6 +158,54 @@ def _build_neighbours(pos_a, reach_a, pos_b, reach_b, margin, pairs, n_elem):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _unit_normal(pos_a, pos_b, i, j):
+    """The unit vector from element i of rod A to element j of rod B between their closest
+    centreline points, and their distance (m)."""
+    ax = pos_a[0, i]
+    ay = pos_a[1, i]
+    az = pos_a[2, i]
+    bx = pos_b[0, j]
+    by = pos_b[1, j]
+    bz = pos_b[2, j]
+    # edges: PyElastica's l·((x_{k+1} − x_k)/l) is x_{k+1} − x_k to an ulp
+    ex = pos_a[0, i + 1] - ax
+    ey = pos_a[1, i + 1] - ay
+    ez = pos_a[2, i + 1] - az
+    fx = pos_b[0, j + 1] - bx
+    fy = pos_b[1, j + 1] - by
+    fz = pos_b[2, j + 1] - bz
+    t, s = _closest_parameters(ax, ay, az, ex, ey, ez, bx, by, bz, fx, fy, fz)
+    nx = bx + s * fx - ax - t * ex
+    ny = by + s * fy - ay - t * ey
+    nz = bz + s * fz - az - t * ez
+    distance = math.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx / distance, ny / distance, nz / distance, distance
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _refresh_neighbours(pos_a, reach_a, anchor_a, pos_b, reach_b, anchor_b, pairs, n_pairs, n_elem):
+    """The neighbour list's length, after rebuilding it (and its anchors) when there is none
+    (``n_pairs`` < 0) or the nodes have moved more than the margin since it was built."""
+    stale = n_pairs < 0
+    if not stale:
+        moved = _drift_since(pos_a, anchor_a, reach_a, n_elem) + _drift_since(
+            pos_b, anchor_b, reach_b, n_elem
+        )
+        stale = moved > _LIST_MARGIN - _BROAD_PHASE_MARGIN
+    if not stale:
+        return n_pairs
+    listed = _build_neighbours(pos_a, reach_a, pos_b, reach_b, _LIST_MARGIN, pairs, n_elem)
+    for c in range(3):
+        for k in range(n_elem + 1):
+            anchor_a[c, k] = pos_a[c, k]
+            anchor_b[c, k] = pos_b[c, k]
+    for k in range(n_elem):
+        anchor_a[3, k] = reach_a[k]
+        anchor_b[3, k] = reach_b[k]
+    return listed
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
 def rod_rod_contact(
     pos_a,
     vel_a,
@@ -186,21 +234,16 @@ def rod_rod_contact(
 ):
     """The contact forces between rods A and B at this step, into ``f_contact_a/b``.
 
-    Args (per rod, A shown; arrays padded to ≥ n_pad elements / n_pad+1 nodes):
-        pos_a, vel_a: (3, ·) node positions (m) and velocities (m/s).
-        lengths_a, inv_lengths_a: (·,) current element lengths (m) and their inverses.
-        node_force_a: (3, ·) each node's internal, damping and gravity force, N (the node
-            forces before contact).
-        f_contact_a: (3, ·) output, the contact force on each node, N.
-        geometry_a: (2, ·) work array: the element radii r and reaches r + ½l + 1e-5 m, m.
-        anchor_a: (4, ≥ n_elem+1) the real node positions (3 rows) and element reaches when
-            the neighbour list was built.
-        volume: (·,) element volumes, m³ (0 in the padding); stiffness: k, N/m;
-            damping: ν, N·s/m.
-        pairs: (n_elem², 2) int, the neighbour list; n_pairs: its length, < 0 when there is
-            none yet (it is built).
-        n_elem: real elements per rod; n_pad: padded element count (loop trip count).
-        force_on_b: (3,) output, the total contact force on rod B (N); A receives −force_on_b.
+    Args (per rod, A shown; arrays padded to ≥ n_pad elements / n_pad+1 nodes): pos_a, vel_a
+    (3, ·) node positions (m) and velocities (m/s); lengths_a, inv_lengths_a (·,) element
+    lengths (m) and their inverses; node_force_a (3, ·) each node's internal, damping and
+    gravity force, N (before contact); f_contact_a (3, ·) output, the contact force on each
+    node, N; geometry_a (2, ·) work: element radii r and reaches r + ½l + 1e-5 m; anchor_a
+    (4, ≥ n_elem+1) the real node positions and element reaches when the neighbour list was
+    built. volume (·,) element volumes, m³ (0 in the padding); stiffness k, N/m; damping ν,
+    N·s/m. pairs (n_elem², 2) int, the neighbour list, n_pairs its length (< 0: none yet,
+    it is built). n_elem real elements per rod; n_pad padded count (loop trip count).
+    force_on_b (3,) output, the total contact force on rod B (N); A receives −force_on_b.
 
     Returns:
         (deepest overlap max(γ) of the pairs in contact or 0, m; the neighbour list's length).
@@ -210,28 +253,13 @@ def rod_rod_contact(
         for k in range(n_pad + 1):
             f_contact_a[c, k] = 0.0
             f_contact_b[c, k] = 0.0
-    radius_a = geometry_a[0]
-    reach_a = geometry_a[1]
-    radius_b = geometry_b[0]
-    reach_b = geometry_b[1]
+    radius_a, reach_a = geometry_a[0], geometry_a[1]
+    radius_b, reach_b = geometry_b[0], geometry_b[1]
     _reach(volume, inv_lengths_a, lengths_a, radius_a, reach_a, n_elem, n_pad)
     _reach(volume, inv_lengths_b, lengths_b, radius_b, reach_b, n_elem, n_pad)
-    stale = n_pairs < 0
-    if not stale:
-        moved = _drift_since(pos_a, anchor_a, reach_a, n_elem) + _drift_since(
-            pos_b, anchor_b, reach_b, n_elem
-        )
-        stale = moved > _LIST_MARGIN - _BROAD_PHASE_MARGIN
-    listed = n_pairs
-    if stale:
-        listed = _build_neighbours(pos_a, reach_a, pos_b, reach_b, _LIST_MARGIN, pairs, n_elem)
-        for c in range(3):
-            for k in range(n_elem + 1):
-                anchor_a[c, k] = pos_a[c, k]
-                anchor_b[c, k] = pos_b[c, k]
-        for k in range(n_elem):
-            anchor_a[3, k] = reach_a[k]
-            anchor_b[3, k] = reach_b[k]
+    listed = _refresh_neighbours(
+        pos_a, reach_a, anchor_a, pos_b, reach_b, anchor_b, pairs, n_pairs, n_elem
+    )
     deepest = 0.0
     last = n_elem - 1
     for p in range(listed):
@@ -244,33 +272,13 @@ def rod_rod_contact(
         if mx * mx + my * my + mz * mz > limit * limit:
             continue
         # from here on, PyElastica's narrow phase for this pair
-        ax = pos_a[0, i]
-        ay = pos_a[1, i]
-        az = pos_a[2, i]
-        bx = pos_b[0, j]
-        by = pos_b[1, j]
-        bz = pos_b[2, j]
         radii = radius_a[i] + radius_b[j]
-        dx = ax - bx
-        dy = ay - by
-        dz = az - bz
+        dx = pos_a[0, i] - pos_b[0, j]
+        dy = pos_a[1, i] - pos_b[1, j]
+        dz = pos_a[2, i] - pos_b[2, j]
         if math.sqrt(dx * dx + dy * dy + dz * dz) >= radii + (lengths_a[i] + lengths_b[j]):
             continue
-        # edges: PyElastica's l·((x_{k+1} − x_k)/l) is x_{k+1} − x_k to an ulp
-        ex = pos_a[0, i + 1] - ax
-        ey = pos_a[1, i + 1] - ay
-        ez = pos_a[2, i + 1] - az
-        fx = pos_b[0, j + 1] - bx
-        fy = pos_b[1, j + 1] - by
-        fz = pos_b[2, j + 1] - bz
-        t, s = _closest_parameters(ax, ay, az, ex, ey, ez, bx, by, bz, fx, fy, fz)
-        nx = bx + s * fx - ax - t * ex
-        ny = by + s * fy - ay - t * ey
-        nz = bz + s * fz - az - t * ez
-        distance = math.sqrt(nx * nx + ny * ny + nz * nz)
-        nx /= distance
-        ny /= distance
-        nz /= distance
+        nx, ny, nz, distance = _unit_normal(pos_a, pos_b, i, j)
         overlap = radii - distance
         if overlap < _GAMMA_CUTOFF:
             continue
