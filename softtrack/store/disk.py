@@ -27,41 +27,37 @@ _ERRNO_IN_TEXT = re.compile(r"\[errno (\d+)\]", re.IGNORECASE)
 _PATH_IN_TEXT = re.compile(r"(/[^\s'\"]+)")
 
 
+def _own_errno(exc: BaseException) -> int | None:
+    """The errno of ``exc`` itself (pyarrow's OSErrors keep it in their text)."""
+    code = getattr(exc, "errno", None)
+    if code is None and isinstance(exc, OSError):
+        found = _ERRNO_IN_TEXT.search(str(exc))
+        code = int(found.group(1)) if found else None
+    return int(code) if code is not None else None
+
+
 def _errno(exc: BaseException) -> int | None:
     """The errno of ``exc`` or of an OSError it was raised from (pyarrow keeps it in the text)."""
     seen: BaseException | None = exc
     while seen is not None:
-        if isinstance(seen, OSError):
-            if seen.errno is not None:
-                return int(seen.errno)
-            found = _ERRNO_IN_TEXT.search(str(seen))
-            if found:
-                return int(found.group(1))
+        if isinstance(seen, OSError) and _own_errno(seen) is not None:
+            return _own_errno(seen)
         seen = seen.__cause__ or seen.__context__
     return None
 
 
-def _path(exc: BaseException) -> Path | None:
+def _path(exc: BaseException, attribute: str = "filename") -> Path | None:
+    """The file ``exc`` (or an error it was raised from) names: its ``attribute``
+    (``filename2``: the destination of a failed rename, the path the user chose rather than the
+    temporary), else, for ``filename``, a path in its text."""
     seen: BaseException | None = exc
     while seen is not None:
-        name = getattr(seen, "filename", None)
+        name = getattr(seen, attribute, None)
         if name:
             return Path(os.fsdecode(name))
-        found = _PATH_IN_TEXT.search(str(seen))
+        found = _PATH_IN_TEXT.search(str(seen)) if attribute == "filename" else None
         if found:
             return Path(found.group(1))
-        seen = seen.__cause__ or seen.__context__
-    return None
-
-
-def _destination(exc: BaseException) -> Path | None:
-    """The destination of a failed rename (``os.replace(temporary, destination)``): the path the
-    user chose, rather than the temporary the error names first."""
-    seen: BaseException | None = exc
-    while seen is not None:
-        name = getattr(seen, "filename2", None)
-        if name:
-            return Path(os.fsdecode(name))
         seen = seen.__cause__ or seen.__context__
     return None
 
@@ -140,10 +136,7 @@ def machine_limit(exc: BaseException) -> str | None:
         seen.add(id(current))
         if isinstance(current, MachineLimitError):
             return str(current)
-        code = getattr(current, "errno", None)
-        if code is None and isinstance(current, OSError):  # pyarrow keeps it in the text
-            found = _ERRNO_IN_TEXT.search(str(current))
-            code = int(found.group(1)) if found else None
+        code = _own_errno(current)
         mapping = isinstance(current, ImportError) and "failed to map segment" in str(current)
         duckdb_memory = str(current).startswith(("Out of Memory Error", "query: Out of Memory"))
         if isinstance(current, MemoryError) or code == errno.ENOMEM or mapping or duckdb_memory:
@@ -205,7 +198,7 @@ def storage_problem(
     writing through its own file object), e.g. the run's directory."""
     code = _errno(exc)
     if code is not None and code in PATH_KIND_ERRNOS:
-        kind_path = _destination(exc) if code == errno.EISDIR else None
+        kind_path = _path(exc, "filename2") if code == errno.EISDIR else None
         kind_path = kind_path or _path(exc)
         if kind_path is not None and (code != errno.EEXIST or kind_path.is_file()):
             return _path_kind_problem(code, kind_path, then)
