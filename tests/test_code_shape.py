@@ -1,5 +1,4 @@
-"""The code's shape that issue 61 asks for: no function longer than 120 lines, except the
-engine's contact kernel (see KNOWN_LONG)."""
+"""The code's shape that issue 61 asks for: no function longer than 120 lines."""
 
 from __future__ import annotations
 
@@ -22,21 +21,9 @@ def _long_functions() -> dict[str, int]:
     return found
 
 
-#: The contact kernel (and its builder). Its contact stages take their arrays one by one:
-#: passed as tuples (even built once) or wrapped in one more inlined stage, the contact and
-#: sphere steps ran 12-19 % slower (session 26, benchmarks/bench_engine_versions.py;
-#: softtrack/sim/kernels.py's docstring). The test fails when one of them shrinks under the
-#: limit (remove it here) or any other function grows past it.
-KNOWN_LONG = {
-    "sim/kernels.py:_build_advance_contact",
-    "sim/kernels.py:advance_contact",
-}
-
-
 def test_no_function_is_longer_than_120_lines() -> None:
     long = _long_functions()
-    assert not set(long) - KNOWN_LONG, {k: v for k, v in long.items() if k not in KNOWN_LONG}
-    assert not KNOWN_LONG - set(long), "a kernel is short now: remove it from KNOWN_LONG"
+    assert not long, long
 
 
 def test_the_engine_recipe_names_functions_that_exist() -> None:

@@ -401,7 +401,8 @@ def _rod_work(width):
     """One rod's work arrays, ``width`` entries per row: positions, velocities, directors,
     angular velocities, torques, lengths, 1/lengths, dilatation rates, f_elem, n_local, qt,
     damp_f, couple, kxc; for contact the contact node forces, the element radii and reaches,
-    and the forces on the nodes before contact (:func:`_compute_internal_forces`)."""
+    and the forces on the nodes before contact (:func:`_compute_internal_forces`); the clamp's
+    position (3,) and directors (3, 3)."""
     return (
         np.zeros((3, width)),
         np.zeros((3, width)),
@@ -420,6 +421,8 @@ def _rod_work(width):
         np.zeros((3, width)),
         np.zeros((2, width)),
         np.zeros((3, width)),
+        np.empty(3),
+        np.empty((3, 3)),
     )
 
 
@@ -495,13 +498,14 @@ def _load_material(env, material_fields, material):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _load_rod(state_fields, material_fields, env, arm, rod, base_pos, base_dirs, n_pad):
+def _load_rod(state_fields, material_fields, env, arm, rod, n_pad):
     """Copy one rod's state, torques and clamp (:class:`BatchState`, :class:`BatchMaterial`
     fields) into its padded work arrays (``rod``: :func:`_rod_work`); padded nodes continue
     the last element's line beyond the tip, at rest, with its frame."""
     position, velocity, directors, omega, torques = state_fields[:5]
     base_position, base_directors = material_fields[10:]
     pos, vel, dirs, om, tq = rod[:5]
+    base_pos, base_dirs = rod[17:]
     n_elem = omega.shape[3]
     for i in range(3):
         for k in range(n_elem + 1):
@@ -529,9 +533,12 @@ def _load_rod(state_fields, material_fields, env, arm, rod, base_pos, base_dirs,
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _store_rod(pos, vel, dirs, om, env, arm, position, velocity, directors, omega):
-    """Copy a rod's real entries back; returns their sum (NaN and inf propagate through it,
-    so one reduction checks the whole state)."""
+def _store_rod(rod, env, arm, state_fields):
+    """Copy a rod's real entries (``rod``: :func:`_rod_work`) back into the batch state
+    (:class:`BatchState` fields); returns their sum (NaN and inf propagate through it, so one
+    reduction checks the whole state)."""
+    position, velocity, directors, omega = state_fields[:4]
+    pos, vel, dirs, om = rod[:4]
     n_elem = omega.shape[3]
     checksum = 0.0
     for i in range(3):
@@ -639,7 +646,7 @@ def _build_advance(n_pad):
 
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
     def advance_padded(state_fields, material_fields, n_steps, dt, gravity):
-        position, velocity, directors, omega, _torques, finite = state_fields
+        position, finite = state_fields[0], state_fields[5]
         damping = material_fields[0]
         rest = _rest_geometry(material_fields[8], material_fields[9], width)
         rod = _rod_work(width)
@@ -647,14 +654,13 @@ def _build_advance(n_pad):
         f_elem, damp_f = rod[8], rod[11]
         material = _material_work(width)
         inv_m, weight_m = material[3:5]
-        base_pos = np.empty(3)
-        base_dirs = np.empty((3, 3))
+        base_pos, base_dirs = rod[17:]
         half_dt = 0.5 * dt
         for env in range(position.shape[0]):
             _load_material(env, material_fields, material)
             checksum = 0.0
             for arm in range(position.shape[1]):
-                _load_rod(state_fields, material_fields, env, arm, rod, base_pos, base_dirs, n_pad)
+                _load_rod(state_fields, material_fields, env, arm, rod, n_pad)
                 # The closing half drift of one step and the opening half drift of the next
                 # are one drift of dt (same velocities, same rotation axis), so they are fused.
                 _drift(pos, vel, dirs, om, half_dt, base_pos, base_dirs, n_pad)
@@ -677,18 +683,17 @@ def _build_advance(n_pad):
                     _compute_internal_torques_and_kick(rod, material, rest, damping[env], dt, n_pad)
                     drift_dt = half_dt if step == n_steps - 1 else dt
                     _drift(pos, vel, dirs, om, drift_dt, base_pos, base_dirs, n_pad)
-                checksum += _store_rod(
-                    pos, vel, dirs, om, env, arm, position, velocity, directors, omega
-                )
+                checksum += _store_rod(rod, env, arm, state_fields)
             finite[env] = math.isfinite(checksum)
 
     return advance_padded
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _compute_internal_forces(f_elem, damp_f, weight, gravity, node_force, n_pad):
-    """node_force (3, ·) ← each node's internal Δ(Qᵀn/e) + damping + gravity force, N (the
-    forces before contact; the sum in the contact-free kernel's order)."""
+def _compute_internal_forces(rod, weight, gravity, n_pad):
+    """The rod's node_force (3, ·) ← each node's internal Δ(Qᵀn/e) + damping + gravity force,
+    N (the forces before contact; the sum in the contact-free kernel's order)."""
+    f_elem, damp_f, node_force = rod[8], rod[11], rod[16]
     for i in range(3):
         g = -gravity if i == 1 else 0.0
         node_force[i, 0] = f_elem[i, 0] + damp_f[i, 0] + g * weight[0]
@@ -698,54 +703,65 @@ def _compute_internal_forces(f_elem, damp_f, weight, gravity, node_force, n_pad)
             )
 
 
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _norm3(vector):
+    """The length of a (3,) vector."""
+    return math.sqrt(vector[0] * vector[0] + vector[1] * vector[1] + vector[2] * vector[2])
+
+
+@njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
+def _store_contact_env(env, rod_a, rod_b, state_fields, contact_fields, totals, n_pairs, n_steps):
+    """Copy an environment's two rods back and write its contact outputs
+    (:class:`BatchContact` fields): ``totals`` (deepest overlap, m; summed force on rod B, N),
+    the neighbour list's length, the sphere's mean forces; sets ``finite``."""
+    penetration, contact_force, sphere, sphere_params, sphere_out = contact_fields[:5]
+    penetration[env] = totals[0]
+    contact_force[env] = totals[1] / max(n_steps, 1)
+    contact_fields[6][env] = n_pairs
+    checksum = _store_rod(rod_a, env, 0, state_fields)
+    checksum += _store_rod(rod_b, env, 1, state_fields)
+    if sphere_params[0] > 0.0:
+        sphere_out[env, 0:2] /= max(n_steps, 1)
+        checksum += np.sum(sphere[env])
+    state_fields[5][env] = math.isfinite(checksum)
+
+
 def _build_advance_contact(n_pad):
     """The integrator of two rods in contact (:mod:`softtrack.sim.rod_contact`), padded as
-    :func:`_build_advance`: both rods of an environment advance together, step by step, and
-    the contact stage runs between the forces and the kick of every step (PyElastica's
-    synchronize stage).
-    """
+    :func:`_build_advance`: the two rods advance together, with the contact stages between
+    the forces and the kick of every step (PyElastica's synchronize stage)."""
     width = n_pad + 8
 
     @njit(cache=True, fastmath=_FLAGS, error_model="numpy")
     def advance_contact(
         state_fields, material_fields, contact_fields, n_steps, dt, gravity, contact_k, contact_nu
     ):
-        position, velocity, directors, omega, _torques, finite = state_fields
         damping = material_fields[0]
-        rest_lengths, rest_voronoi = material_fields[8:10]
-        (penetration, contact_force, sphere, sphere_params, sphere_out) = contact_fields[:5]
+        sphere, sphere_params, sphere_out = contact_fields[2:5]
         contact_pairs, contact_listed, contact_anchor = contact_fields[5:]
-        n_elem = rest_lengths.shape[0]
-        rest = _rest_geometry(rest_lengths, rest_voronoi, width)
+        n_elem = material_fields[8].shape[0]
+        rest = _rest_geometry(material_fields[8], material_fields[9], width)
         rod_a = _rod_work(width)
         rod_b = _second_rod_work(width, rod_a)
         pos_a, vel_a, dirs_a, om_a = rod_a[:4]
         pos_b, vel_b, dirs_b, om_b = rod_b[:4]
-        f_elem_a, damp_f_a, f_elem_b, damp_f_b = rod_a[8], rod_a[11], rod_b[8], rod_b[11]
         lengths_a, inv_lengths_a, lengths_b, inv_lengths_b = rod_a[5:7] + rod_b[5:7]
-        f_contact_a, geometry_a, node_force_a = rod_a[14:]
-        f_contact_b, geometry_b, node_force_b = rod_b[14:]
+        f_contact_a, geometry_a, node_force_a, base_pos_a, base_dirs_a = rod_a[14:]
+        f_contact_b, geometry_b, node_force_b, base_pos_b, base_dirs_b = rod_b[14:]
         material = _material_work(width)
         inv_m, weight_m, vol = material[3:6]
-        base_pos_a = np.empty(3)
-        base_dirs_a = np.empty((3, 3))
-        base_pos_b = np.empty(3)
-        base_dirs_b = np.empty((3, 3))
         force_on_b = np.zeros(3)
+        totals = np.zeros(2)  # deepest overlap (m), summed |force on rod B| (N)
         half_dt = 0.5 * dt
         has_sphere = sphere_params[0] > 0.0
         sphere_work = np.zeros((2, 3))
-        for env in range(position.shape[0]):
+        for env in range(material_fields[0].shape[0]):
             _load_material(env, material_fields, material)
-            env_damping = damping[env]
-            _load_rod(state_fields, material_fields, env, 0, rod_a, base_pos_a, base_dirs_a, n_pad)
-            _load_rod(state_fields, material_fields, env, 1, rod_b, base_pos_b, base_dirs_b, n_pad)
-            deepest = 0.0
-            force_total = 0.0
-            n_pairs = contact_listed[env]
-            pairs = contact_pairs[env]
-            anchor_a = contact_anchor[env, 0]
-            anchor_b = contact_anchor[env, 1]
+            _load_rod(state_fields, material_fields, env, 0, rod_a, n_pad)
+            _load_rod(state_fields, material_fields, env, 1, rod_b, n_pad)
+            totals[:] = 0.0
+            n_pairs, pairs = contact_listed[env], contact_pairs[env]
+            anchor_a, anchor_b = contact_anchor[env, 0], contact_anchor[env, 1]
             body = sphere[env]
             sphere_out[env, :] = 0.0
             _drift(pos_a, vel_a, dirs_a, om_a, half_dt, base_pos_a, base_dirs_a, n_pad)
@@ -754,11 +770,11 @@ def _build_advance_contact(n_pad):
                 sphere_drift(body, half_dt)
             for step in range(n_steps):
                 _compute_internal_stresses(rod_a, material, rest, n_pad)
-                _compute_internal_torques_and_kick(rod_a, material, rest, env_damping, dt, n_pad)
+                _compute_internal_torques_and_kick(rod_a, material, rest, damping[env], dt, n_pad)
                 _compute_internal_stresses(rod_b, material, rest, n_pad)
-                _compute_internal_torques_and_kick(rod_b, material, rest, env_damping, dt, n_pad)
-                _compute_internal_forces(f_elem_a, damp_f_a, weight_m, gravity, node_force_a, n_pad)
-                _compute_internal_forces(f_elem_b, damp_f_b, weight_m, gravity, node_force_b, n_pad)
+                _compute_internal_torques_and_kick(rod_b, material, rest, damping[env], dt, n_pad)
+                _compute_internal_forces(rod_a, weight_m, gravity, n_pad)
+                _compute_internal_forces(rod_b, weight_m, gravity, n_pad)
                 if contact_k > 0.0:
                     depth, n_pairs = rod_rod_contact(
                         pos_a,
@@ -786,12 +802,8 @@ def _build_advance_contact(n_pad):
                         n_pad,
                         force_on_b,
                     )
-                    deepest = max(deepest, depth)
-                    force_total += math.sqrt(
-                        force_on_b[0] * force_on_b[0]
-                        + force_on_b[1] * force_on_b[1]
-                        + force_on_b[2] * force_on_b[2]
-                    )
+                    totals[0] = max(totals[0], depth)
+                    totals[1] += _norm3(force_on_b)
                 else:
                     f_contact_a[:, : n_pad + 1] = 0.0
                     f_contact_b[:, : n_pad + 1] = 0.0
@@ -829,19 +841,9 @@ def _build_advance_contact(n_pad):
                 _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
                 if has_sphere:
                     sphere_drift(body, drift_dt)
-            penetration[env] = deepest
-            contact_force[env] = force_total / max(n_steps, 1)
-            contact_listed[env] = n_pairs
-            checksum = _store_rod(
-                pos_a, vel_a, dirs_a, om_a, env, 0, position, velocity, directors, omega
+            _store_contact_env(
+                env, rod_a, rod_b, state_fields, contact_fields, totals, n_pairs, n_steps
             )
-            checksum += _store_rod(
-                pos_b, vel_b, dirs_b, om_b, env, 1, position, velocity, directors, omega
-            )
-            if has_sphere:
-                sphere_out[env, 0:2] /= max(n_steps, 1)
-                checksum += np.sum(body)
-            finite[env] = math.isfinite(checksum)
 
     return advance_contact
 
