@@ -690,10 +690,9 @@ def _build_advance(n_pad):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _compute_internal_forces(rod, weight, gravity, n_pad):
-    """The rod's node_force (3, ·) ← each node's internal Δ(Qᵀn/e) + damping + gravity force,
-    N (the forces before contact; the sum in the contact-free kernel's order)."""
-    f_elem, damp_f, node_force = rod[8], rod[11], rod[16]
+def _compute_internal_forces(f_elem, damp_f, weight, gravity, node_force, n_pad):
+    """node_force (3, ·) ← each node's internal Δ(Qᵀn/e) + damping + gravity force, N (the
+    forces before contact; the sum in the contact-free kernel's order)."""
     for i in range(3):
         g = -gravity if i == 1 else 0.0
         node_force[i, 0] = f_elem[i, 0] + damp_f[i, 0] + g * weight[0]
@@ -710,14 +709,14 @@ def _norm3(vector):
 
 
 @njit(cache=True, fastmath=_FLAGS, error_model="numpy", inline="always")
-def _store_contact_env(env, rod_a, rod_b, state_fields, contact_fields, totals, n_pairs, n_steps):
+def _store_contact_env(env, rod_a, rod_b, state_fields, contact_fields, totals, n_steps):
     """Copy an environment's two rods back and write its contact outputs
-    (:class:`BatchContact` fields): ``totals`` (deepest overlap, m; summed force on rod B, N),
-    the neighbour list's length, the sphere's mean forces; sets ``finite``."""
+    (:class:`BatchContact` fields): ``totals`` (deepest overlap, m; summed force on rod B, N;
+    the neighbour list's length), the sphere's mean forces; sets ``finite``."""
     penetration, contact_force, sphere, sphere_params, sphere_out = contact_fields[:5]
     penetration[env] = totals[0]
     contact_force[env] = totals[1] / max(n_steps, 1)
-    contact_fields[6][env] = n_pairs
+    contact_fields[6][env] = totals[2]
     checksum = _store_rod(rod_a, env, 0, state_fields)
     checksum += _store_rod(rod_b, env, 1, state_fields)
     if sphere_params[0] > 0.0:
@@ -746,12 +745,12 @@ def _build_advance_contact(n_pad):
         pos_a, vel_a, dirs_a, om_a = rod_a[:4]
         pos_b, vel_b, dirs_b, om_b = rod_b[:4]
         lengths_a, inv_lengths_a, lengths_b, inv_lengths_b = rod_a[5:7] + rod_b[5:7]
+        f_elem_a, damp_f_a, f_elem_b, damp_f_b = rod_a[8], rod_a[11], rod_b[8], rod_b[11]
         f_contact_a, geometry_a, node_force_a, base_pos_a, base_dirs_a = rod_a[14:]
         f_contact_b, geometry_b, node_force_b, base_pos_b, base_dirs_b = rod_b[14:]
         material = _material_work(width)
         inv_m, weight_m, vol = material[3:6]
         force_on_b = np.zeros(3)
-        totals = np.zeros(2)  # deepest overlap (m), summed |force on rod B| (N)
         half_dt = 0.5 * dt
         has_sphere = sphere_params[0] > 0.0
         sphere_work = np.zeros((2, 3))
@@ -759,7 +758,8 @@ def _build_advance_contact(n_pad):
             _load_material(env, material_fields, material)
             _load_rod(state_fields, material_fields, env, 0, rod_a, n_pad)
             _load_rod(state_fields, material_fields, env, 1, rod_b, n_pad)
-            totals[:] = 0.0
+            deepest = force_total = 0.0
+            env_damping = damping[env]
             n_pairs, pairs = contact_listed[env], contact_pairs[env]
             anchor_a, anchor_b = contact_anchor[env, 0], contact_anchor[env, 1]
             body = sphere[env]
@@ -770,11 +770,11 @@ def _build_advance_contact(n_pad):
                 sphere_drift(body, half_dt)
             for step in range(n_steps):
                 _compute_internal_stresses(rod_a, material, rest, n_pad)
-                _compute_internal_torques_and_kick(rod_a, material, rest, damping[env], dt, n_pad)
+                _compute_internal_torques_and_kick(rod_a, material, rest, env_damping, dt, n_pad)
                 _compute_internal_stresses(rod_b, material, rest, n_pad)
-                _compute_internal_torques_and_kick(rod_b, material, rest, damping[env], dt, n_pad)
-                _compute_internal_forces(rod_a, weight_m, gravity, n_pad)
-                _compute_internal_forces(rod_b, weight_m, gravity, n_pad)
+                _compute_internal_torques_and_kick(rod_b, material, rest, env_damping, dt, n_pad)
+                _compute_internal_forces(f_elem_a, damp_f_a, weight_m, gravity, node_force_a, n_pad)
+                _compute_internal_forces(f_elem_b, damp_f_b, weight_m, gravity, node_force_b, n_pad)
                 if contact_k > 0.0:
                     depth, n_pairs = rod_rod_contact(
                         pos_a,
@@ -802,8 +802,8 @@ def _build_advance_contact(n_pad):
                         n_pad,
                         force_on_b,
                     )
-                    totals[0] = max(totals[0], depth)
-                    totals[1] += _norm3(force_on_b)
+                    deepest = max(deepest, depth)
+                    force_total += _norm3(force_on_b)
                 else:
                     f_contact_a[:, : n_pad + 1] = 0.0
                     f_contact_b[:, : n_pad + 1] = 0.0
@@ -841,9 +841,8 @@ def _build_advance_contact(n_pad):
                 _drift(pos_b, vel_b, dirs_b, om_b, drift_dt, base_pos_b, base_dirs_b, n_pad)
                 if has_sphere:
                     sphere_drift(body, drift_dt)
-            _store_contact_env(
-                env, rod_a, rod_b, state_fields, contact_fields, totals, n_pairs, n_steps
-            )
+            totals = (deepest, force_total, n_pairs)
+            _store_contact_env(env, rod_a, rod_b, state_fields, contact_fields, totals, n_steps)
 
     return advance_contact
 
