@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
-
-import numpy as np
 
 __all__ = ["Range", "is_finite_number", "out_of_range", "range_of", "setting"]
 
@@ -18,17 +17,17 @@ RANGE_KEY = "range"  # the dataclass field metadata key that holds a setting's R
 
 
 def is_finite_number(value: object) -> bool:
-    """True for an int or float (NumPy's included) that is finite; False for a bool, NaN, inf
+    """True for a real number (NumPy's included) that is finite; False for a bool, NaN, inf
     or anything else."""
     return (
-        isinstance(value, (int, float, np.integer, np.floating))
+        isinstance(value, numbers.Real)
         and not isinstance(value, bool)
         and math.isfinite(float(value))
     )
 
 
 def _is_whole_number(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)

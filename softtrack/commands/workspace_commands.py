@@ -18,6 +18,7 @@ from softtrack.commands.common import (
     refuse_blocked_output,
     user_errors,
 )
+from softtrack.evaluation.workspace_settings import GOALS_PER_PATH, SearchSettings
 from softtrack.lazy import lazy_module
 
 if TYPE_CHECKING:
@@ -57,14 +58,16 @@ def workspace_command(
     ] = None,
     per_path: Annotated[
         int, typer.Option("--per-path", metavar="N", help="Goal points per path.")
-    ] = 4,
+    ] = GOALS_PER_PATH,
     population: Annotated[
         int, typer.Option("--population", metavar="N", help="Samples per goal and iteration.")
-    ] = 32,
+    ] = SearchSettings.population,
     iterations: Annotated[
         int, typer.Option("--iterations", metavar="N", help="Search iterations per goal.")
-    ] = 6,
-    seed: Annotated[int, typer.Option("--seed", metavar="N", help="Of the samples.")] = 0,
+    ] = SearchSettings.iterations,
+    seed: Annotated[
+        int, typer.Option("--seed", metavar="N", help="Of the samples.")
+    ] = SearchSettings.seed,
 ) -> None:
     """Measure where two arms can hold the sphere at rest, and each path's floor.
 

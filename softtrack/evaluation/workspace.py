@@ -40,7 +40,7 @@ import pandas as pd
 from softtrack.env.core import TrackingCore
 from softtrack.env.settings import TrackingConfig
 from softtrack.env.targets import EVAL_TRAJECTORIES, trajectory_position
-from softtrack.numbers import out_of_range, setting
+from softtrack.evaluation.workspace_settings import GOALS_PER_PATH, JUDGE_WINDOW, SearchSettings
 from softtrack.sim.actuation import N_CONTROL_POINTS
 
 __all__ = [
@@ -65,47 +65,6 @@ __all__ = [
 N_PARAMETERS = 8
 #: Mean speed below which a held sphere is at rest, m/s.
 STILL_SPEED = 0.05
-#: Seconds at the end of a sample over which holding and rest are judged.
-JUDGE_WINDOW = 0.5
-
-
-@dataclass(frozen=True)
-class SearchSettings:
-    """How :func:`search_workspace` searches (defaults: 192 samples per goal, 2.5 s each).
-
-    Attributes:
-        population: samples per goal and iteration.
-        iterations: cross-entropy iterations per goal.
-        elite: the samples (closest to the goal among those that held) each iteration's
-            distribution is fitted to.
-        initial_std: the least spread of the first iteration's samples, each of which has
-            its own spread, log-uniform between this and 1 (control units).
-        min_std: the least spread an iteration keeps, so the search goes on moving.
-        ramp: seconds over which a sample's action is brought in, s.
-        hold: seconds it is then kept, s.
-        batch: environments stepped together.
-        seed: of the samples' random numbers.
-    """
-
-    population: int = setting(32, ge=1, whole=True)
-    iterations: int = setting(6, ge=1, whole=True)
-    elite: int = setting(6, ge=1, whole=True)
-    initial_std: float = setting(0.1, "control units", gt=0)
-    min_std: float = setting(0.05, "control units", gt=0)
-    ramp: float = setting(0.5, "s", ge=0)
-    hold: float = setting(2.0, "s", gt=0)
-    batch: int = setting(128, ge=1, whole=True)
-    seed: int = setting(0, ge=0, whole=True)
-
-    def validate(self) -> None:
-        """Raise ValueError naming the first setting out of range and how to fix it."""
-        problem = out_of_range(self)
-        if problem is not None:
-            raise ValueError(problem)
-        if self.elite > self.population:
-            raise ValueError(f"elite={self.elite} must not exceed population={self.population}")
-        if self.hold < JUDGE_WINDOW:
-            raise ValueError(f"hold={self.hold} s must be at least the {JUDGE_WINDOW}-s judging")
 
 
 def actions_from_parameters(parameters: np.ndarray) -> np.ndarray:
@@ -171,7 +130,7 @@ def path_points(config: TrackingConfig, name: str, n_points: int = 1000) -> np.n
 
 
 def goal_points(
-    config: TrackingConfig, paths: Sequence[str] = EVAL_TRAJECTORIES, per_path: int = 8
+    config: TrackingConfig, paths: Sequence[str] = EVAL_TRAJECTORIES, per_path: int = GOALS_PER_PATH
 ) -> np.ndarray:
     """(G, 3) the search's goals: ``per_path`` points evenly along each path, then the
     sphere's start, m."""
@@ -340,7 +299,7 @@ def at_torque_scale(config: TrackingConfig, torque_scale: float) -> TrackingConf
 def measure_workspace(
     config: TrackingConfig,
     settings: SearchSettings = SearchSettings(),
-    per_path: int = 4,
+    per_path: int = GOALS_PER_PATH,
     torque_scales: Sequence[float] = (),
     paths: Sequence[str] = EVAL_TRAJECTORIES,
     on_progress: Callable[[float, int, int, int], None] | None = None,
