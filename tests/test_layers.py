@@ -126,12 +126,10 @@ def _cycles(graph: dict[str, set[str]]) -> list[frozenset[str]]:
     return found
 
 
-#: Cycles left by function-local imports that keep start-up fast (issue 61 leaves them to
-#: untangle): the tune section validates its paths against the whole spec, and the catalog and
+#: The cycle left by function-local imports (issue 61 leaves it to untangle): the catalog and
 #: the run store read each other. The test fails on any other cycle, and when one of these is
 #: gone (remove it here).
 KNOWN_CYCLES = {
-    frozenset({"softtrack.spec.models", "softtrack.spec.parsing", "softtrack.spec.tune_models"}),
     frozenset(
         "softtrack.store." + name
         for name in (

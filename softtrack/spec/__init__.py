@@ -29,7 +29,7 @@ Errors a user can make raise :class:`SpecError`, whose ``str`` is one line::
 from softtrack.spec.algo_models import OFF_POLICY_ALGOS, AlgoSpec, PolicyKwargsSpec
 from softtrack.spec.env_models import EnvSpec, PhysicsSpec, RealismSpec, RewardSpec, TargetSpec
 from softtrack.spec.fields import SpecError
-from softtrack.spec.models import ClusterSpec, ExperimentSpec, TrainingSpec
+from softtrack.spec.models import ClusterSpec, ExperimentSpec
 from softtrack.spec.spec_io import (
     chain_comment,
     load_spec,
@@ -39,6 +39,7 @@ from softtrack.spec.spec_io import (
     spec_json_schema,
     spec_to_yaml,
 )
+from softtrack.spec.training_models import TrainingSpec
 from softtrack.spec.tune_models import PrunerSpec, TuneParamSpec, TuneSpec
 
 __all__ = [

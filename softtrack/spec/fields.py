@@ -62,8 +62,9 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def custom_error(message: str, field: str = "") -> PydanticCustomError:
-    """A validation error with our own ``problem; fix`` text; ``field`` is appended to its path."""
+def custom_error(message: str, field: str | tuple[str, ...] = "") -> PydanticCustomError:
+    """A validation error with our own ``problem; fix`` text; ``field`` (dotted, or its parts
+    when a part holds a dot) is appended to its path."""
     return PydanticCustomError(ERROR_TYPE, "{message}", {"message": message, "field": field})
 
 

@@ -18,7 +18,6 @@ from pydantic import (
 from pydantic_core import ErrorDetails
 
 from softtrack.spec.fields import ERROR_TYPE, SpecError
-from softtrack.spec.models import ExperimentSpec
 
 
 # ------------------------------------------------------------------------------------------
@@ -185,7 +184,7 @@ def _suggest(name: str, valid: Iterable[str]) -> str:
     return "valid names: " + ", ".join(valid)
 
 
-def _parse_override(text: str) -> tuple[tuple[str, ...], Any]:
+def _parse_override(text: str, root: type[BaseModel]) -> tuple[tuple[str, ...], Any]:
     label = f"--set {text if len(text) <= 80 else text[:77] + '...'}"
     key, sep, raw = text.partition("=")
     key = key.strip()
@@ -196,7 +195,7 @@ def _parse_override(text: str) -> tuple[tuple[str, ...], Any]:
             "write it as dotted.path=value, e.g. training.total_timesteps=2000",
         )
     parts = tuple(key.split("."))
-    model: type[BaseModel] | None = ExperimentSpec
+    model: type[BaseModel] | None = root
     for depth, part in enumerate(parts):
         where = ".".join(parts[:depth])
         if model is None:
@@ -251,10 +250,13 @@ _TYPE_TAG = re.compile(
 )
 
 
-def _clean_loc(loc: Sequence[Any], extra: str = "") -> tuple[Any, ...]:
-    """Drop pydantic's union-member tags from an error location; append ``extra`` (dotted)."""
+def _clean_loc(
+    loc: Sequence[Any], root: type[BaseModel], extra: str | tuple[str, ...] = ""
+) -> tuple[Any, ...]:
+    """Drop pydantic's union-member tags from an error location (fields of ``root``); append
+    ``extra`` (dotted, or the parts themselves when a part holds a dot)."""
     out: list[Any] = []
-    model: type[BaseModel] | None = ExperimentSpec
+    model: type[BaseModel] | None = root
     for part in loc:
         if model is not None and isinstance(part, str) and part in model.model_fields:
             out.append(part)
@@ -265,7 +267,7 @@ def _clean_loc(loc: Sequence[Any], extra: str = "") -> tuple[Any, ...]:
         out.append(part)
         model = None
     if extra:
-        out.extend(extra.split("."))
+        out.extend(extra.split(".") if isinstance(extra, str) else extra)
     return tuple(out)
 
 
@@ -276,8 +278,8 @@ def _format_loc(loc: Sequence[Any]) -> str:
     return text or "(top level)"
 
 
-def _model_for(loc: Sequence[Any]) -> type[BaseModel] | None:
-    model: type[BaseModel] | None = ExperimentSpec
+def _model_for(loc: Sequence[Any], root: type[BaseModel]) -> type[BaseModel] | None:
+    model: type[BaseModel] | None = root
     for part in loc:
         model = _sub_model(model, part) if isinstance(part, str) else None
     return model
@@ -288,7 +290,7 @@ def _short(value: Any) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _describe(error: ErrorDetails, loc: tuple[Any, ...]) -> tuple[str, str]:
+def _describe(error: ErrorDetails, loc: tuple[Any, ...], root: type[BaseModel]) -> tuple[str, str]:
     """(problem, fix) for one pydantic error."""
     kind, ctx, value = error["type"], error.get("ctx") or {}, error.get("input")
     msg = error["msg"]
@@ -297,7 +299,7 @@ def _describe(error: ErrorDetails, loc: tuple[Any, ...]) -> tuple[str, str]:
         problem, _, fix = str(text).partition("; ")
         return problem, fix or "fix the value (see `softtrack spec --schema`)"
     if kind == "extra_forbidden":
-        parent = _model_for(loc[:-1])
+        parent = _model_for(loc[:-1], root)
         name = str(loc[-1])
         if parent is None:
             return f"unknown field {name!r}", "remove it"
@@ -357,20 +359,21 @@ def _describe(error: ErrorDetails, loc: tuple[Any, ...]) -> tuple[str, str]:
 
 def _convert(
     exc: ValidationError,
+    root: type[BaseModel],
     label: str,
     lines: dict[tuple[Any, ...], int],
     overrides: dict[tuple[str, ...], str],
     files: dict[tuple[Any, ...], str] | None = None,
 ) -> SpecError:
-    """The first error of ``exc`` as a SpecError; ``lines``/``files`` give the line and the file
-    (of a ``base:`` chain; default ``label``) of each field path."""
+    """The first error of ``exc`` (validating ``root``) as a SpecError; ``lines``/``files`` give
+    the line and the file (of a ``base:`` chain; default ``label``) of each field path."""
     errors = exc.errors()
     locs: list[tuple[Any, ...]] = []
     for err in errors:
-        extra = str((err.get("ctx") or {}).get("field", "")) if err["type"] == ERROR_TYPE else ""
-        locs.append(_clean_loc(err["loc"], extra))
+        extra = (err.get("ctx") or {}).get("field", "") if err["type"] == ERROR_TYPE else ""
+        locs.append(_clean_loc(err["loc"], root, extra))
     first, loc = errors[0], locs[0]
-    problem, fix = _describe(first, loc)
+    problem, fix = _describe(first, loc, root)
     n_more = len(set(locs)) - 1
     if n_more > 0:
         fix = (fix + " " if fix else "") + f"(and {n_more} more error{'s' if n_more > 1 else ''})"

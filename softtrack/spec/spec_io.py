@@ -61,7 +61,7 @@ def parse_spec(
     data = copy.deepcopy(data)
     applied: dict[tuple[str, ...], str] = {}
     for text in overrides:
-        parts, value = _parse_override(text)
+        parts, value = _parse_override(text, ExperimentSpec)
         _apply_override(data, parts, value, f"--set {text}")
         applied[parts] = text
     if "name" not in data and default_name is not None:
@@ -70,7 +70,7 @@ def parse_spec(
     try:
         return ExperimentSpec.model_validate(data)
     except ValidationError as exc:
-        raise _convert(exc, source, _lines or {}, applied, _files or {}) from None
+        raise _convert(exc, ExperimentSpec, source, _lines or {}, applied, _files or {}) from None
 
 
 def load_spec(path: str | os.PathLike[str], overrides: Sequence[str] = ()) -> ExperimentSpec:

@@ -21,10 +21,10 @@ spec of every trial's run. See ``docs/tuning.md``.
 
 from __future__ import annotations
 
-import itertools
+import copy
 import json
 import math
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, Field, model_validator
 
@@ -37,16 +37,13 @@ from softtrack.spec.fields import (
     section_field,
     unit_field,
 )
-
-if TYPE_CHECKING:
-    from softtrack.spec.models import ExperimentSpec
+from softtrack.spec.parsing import _suggest
 
 __all__ = [
     "MAX_COMBINATIONS",
     "PrunerSpec",
     "TuneParamSpec",
     "TuneSpec",
-    "check_tune",
     "choice_key",
     "trial_data",
 ]
@@ -75,34 +72,13 @@ def choice_key(value: Any) -> Any:
 
 
 def _check_path(path: str) -> str:
-    """A ``params`` key: the dotted path of a spec field that can take a value."""
-    from pydantic import BaseModel
-
-    from softtrack.spec.models import ExperimentSpec
-    from softtrack.spec.parsing import _sub_model, _suggest
-
+    """A ``params`` key: a dotted path outside the fields that cannot be tuned (that it names a
+    field of the spec is checked with the whole spec: :func:`softtrack.spec.models.check_tune`)."""
     parts = path.split(".")
     if not all(parts):
         raise custom_error(f"malformed field path {path!r}; write it dotted, e.g. algo.batch_size")
     if parts[0] in _NOT_TUNABLE:
         raise custom_error(f"{parts[0]!r} cannot be tuned ({_NOT_TUNABLE[parts[0]]}); remove it")
-    model: type[BaseModel] | None = ExperimentSpec
-    for depth, part in enumerate(parts):
-        if model is None:
-            where = ".".join(parts[:depth])
-            raise custom_error(
-                f"{where!r} has no sub-fields; tune {where} itself with categorical choices"
-            )
-        if part not in model.model_fields:
-            raise custom_error(
-                f"not a spec field: unknown field {part!r}; " + _suggest(part, model.model_fields)
-            )
-        model = _sub_model(model, part)
-    if model is not None:
-        example = next(iter(model.model_fields))
-        raise custom_error(
-            f"{path!r} is a section, not a field; tune one of its fields, e.g. {path}.{example}"
-        )
     return path
 
 
@@ -140,8 +116,6 @@ class TuneParamSpec(SpecModel):
         for key, value in data.items():
             if key not in allowed and value is not None and not (key == "log" and not value):
                 # (another type's keys left unset, as a dumped spec writes them, are fine)
-                from softtrack.spec.parsing import _suggest
-
                 hint = (
                     _suggest(str(key), allowed)
                     if key not in sum(_PARAM_KEYS.values(), ())
@@ -276,8 +250,6 @@ class TuneSpec(SpecModel):
     def _check_keys(cls, data: Any) -> Any:
         """An unknown key (``parms``) is reported before the ``params`` it lacks."""
         if isinstance(data, dict):
-            from softtrack.spec.parsing import _suggest
-
             for key in data:
                 if key not in cls.model_fields:
                     raise custom_error(
@@ -293,12 +265,10 @@ class TuneSpec(SpecModel):
 
 
 # ------------------------------------------------------------------------------------------
-# Checks against the whole spec
+# Trials
 # ------------------------------------------------------------------------------------------
 def trial_data(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
     """``base`` (a spec as plain data, without ``tune``) with each ``path: value`` set."""
-    import copy
-
     data = copy.deepcopy(base)
     for path, value in values.items():
         node = data
@@ -307,57 +277,3 @@ def trial_data(base: dict[str, Any], values: dict[str, Any]) -> dict[str, Any]:
             node = node.setdefault(key, {})
         node[leaf] = copy.deepcopy(value)
     return data
-
-
-def _requirements(spec: ExperimentSpec, where: str) -> None:
-    from softtrack.spec.models import check_validated_checkpoints
-
-    check_validated_checkpoints(
-        spec.training, "metric 'validation'", "tune.metric", where, interval_field="tune.metric"
-    )
-
-
-def check_tune(spec: ExperimentSpec) -> None:
-    """Raise the spec error of the first value of ``spec.tune`` that makes an invalid spec (or
-    a spec that cannot be scored); see the module docstring."""
-    from pydantic import ValidationError
-
-    from softtrack.spec.models import ExperimentSpec
-    from softtrack.spec.parsing import _convert
-
-    tune = spec.tune
-    assert tune is not None
-    base = spec.model_dump(mode="json", exclude={"tune"})
-    _requirements(spec, "")
-    candidates = {path: param.check_values() for path, param in tune.params.items()}
-    # each value alone (with the other fields at the spec's own values), then the combinations
-    points = [{path: v} for path, values in candidates.items() for v in values]
-    if len(candidates) > 1 and math.prod(len(v) for v in candidates.values()) <= MAX_COMBINATIONS:
-        points += [
-            dict(zip(candidates, combo, strict=True))
-            for combo in itertools.product(*candidates.values())
-        ]
-    for point in points:
-        try:
-            trial = ExperimentSpec.model_validate(trial_data(base, point))
-        except ValidationError as exc:
-            inner = _convert(exc, "", {}, {})
-            shown = (
-                ", ".join(f"{p} {json.dumps(v)}" for p, v in point.items())
-                if len(point) > 1
-                else f"{json.dumps(next(iter(point.values())))}"
-            )
-            subject = (
-                f"the combination {shown}"
-                if len(point) > 1
-                else f"{next(iter(point))}: value {shown}"
-            )
-            raise custom_error(
-                f"{subject} makes an invalid spec ({inner.field}: {inner.problem}); narrow "
-                "the range or drop the choice",
-                "tune.params",
-            ) from None
-        where = " when the trial sets " + ", ".join(
-            f"{p} {json.dumps(v)}" for p, v in point.items()
-        )
-        _requirements(trial, where)
