@@ -14,11 +14,18 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from softtrack.evaluation.transport_summary import carried_summary
+from softtrack.evaluation.workspace import measure_workspace
+from softtrack.evaluation.workspace_floors import floors_dir, record_floors
 from softtrack.executors import dispatch
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
 from softtrack.executors.sweep_creation import SweepStopped, create_sweep_runs
+from softtrack.report.animation import animate_runs
+from softtrack.report.compare import compare_selection, profile_figure
+from softtrack.report.to_mlflow import sync_mlflow as sync_runs_to_mlflow
 from softtrack.report.video import VideoError
 from softtrack.rl.factory import check_supported
+from softtrack.rl.policy import load_policy
 from softtrack.rl.policy_export import export_policy_run, relayout_exported_run
 from softtrack.sim.params import InvalidParameterError
 from softtrack.spec import (
@@ -27,6 +34,7 @@ from softtrack.spec import (
     load_spec,
     spec_chain,
 )
+from softtrack.spec.env_config import env_config
 from softtrack.spec.spec_text import (
     resolved_spec_yaml,
     spec_defaults_yaml,
@@ -36,7 +44,7 @@ from softtrack.spec.spec_text import (
 from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.model_zip import deflate_model_zip
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir, run_lock
-from softtrack.store.selection import select_one_run
+from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.status import (
     RUN_TABLE_COLUMNS,
     effective_status,
@@ -65,6 +73,7 @@ from softtrack.workflows.quickstart import (
 from softtrack.workflows.report_runs import report
 from softtrack.workflows.shipped_runs import copy_run
 from softtrack.workflows.training_runs import resume, train
+from softtrack.workflows.workspace_files import write_workspace_files
 
 # Imported where used, because importing them costs seconds at every command's start:
 # softtrack.rl.train (JAX, torch, Stable-Baselines3) and softtrack.report (matplotlib).
@@ -76,20 +85,26 @@ __all__ = [
     "RUN_TABLE_COLUMNS",
     "USER_ERRORS",
     "SweepStopped",
+    "animate",
+    "carried_summary",
     "compare",
     "compare_figure",
     "copy_run",
     "effective_status",
+    "env_config",
     "evaluate",
     "export",
     "final_stage_return",
+    "floors_dir",
     "format_failures",
     "format_runs_table",
     "is_lost",
     "list_run_summaries",
+    "measure_workspace",
     "quickstart",
     "quickstart_pretrained_path",
     "quickstart_spec_path",
+    "record_floors",
     "report",
     "resolved_spec_yaml",
     "resume",
@@ -109,6 +124,7 @@ __all__ = [
     "upgrade",
     "validate_spec",
     "validation_summary",
+    "write_workspace_files",
 ]
 
 #: Errors a user can cause; the CLI prints their one-line message and exits with code 2.
@@ -197,8 +213,6 @@ def compare(
     items name, the first against each other, across their seeds (returns a ``Comparison``;
     ``.lines()`` is what ``softtrack compare`` prints); ``random``: over the held-out
     random-target episodes instead of the trajectories."""
-    from softtrack.report.compare import compare_selection
-
     return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random)
 
 
@@ -211,16 +225,43 @@ def sync_mlflow(
 ) -> Any:
     """:func:`softtrack.report.to_mlflow.sync_mlflow`: write the runs (params, metrics,
     curves, report and policy) to an MLflow tracking store; returns a ``SyncOutcome``."""
-    from softtrack.report.to_mlflow import sync_mlflow as sync
-
-    return sync(selection, runs_dir=runs_dir, tracking_uri=tracking_uri, on_run=on_run)
+    return sync_runs_to_mlflow(
+        selection, runs_dir=runs_dir, tracking_uri=tracking_uri, on_run=on_run
+    )
 
 
 def compare_figure(comparison: Any, path: str | os.PathLike[str]) -> Path:
     """The performance profile of a :func:`compare` result, written to ``path`` (PNG)."""
-    from softtrack.report.compare import profile_figure
-
     return profile_figure([("", comparison)], path)
+
+
+def animate(
+    references: Sequence[str],
+    trajectories: Sequence[str],
+    out: str | os.PathLike[str],
+    *,
+    runs_dir: str | os.PathLike[str] | None = None,
+    fps: float = 30.0,
+    size: tuple[int, int] = (640, 480),
+    strip: str | os.PathLike[str] | None = None,
+    random: int | None = None,
+    on_note: Callable[[str], None] | None = None,
+) -> Path:
+    """:func:`softtrack.report.animation.animate_runs` of the runs ``references`` select
+    (run ids, directories, experiment names or spec files), each replaying its own policy;
+    returns the file written."""
+    records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
+    return animate_runs(
+        records,
+        trajectories,
+        out,
+        load=load_policy,
+        fps=fps,
+        size=size,
+        strip=strip,
+        random=random,
+        on_note=on_note,
+    )
 
 
 # ---- sweeps -------------------------------------------------------------------------------

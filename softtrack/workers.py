@@ -16,8 +16,14 @@ import sys
 import time
 import traceback
 
+from softtrack.evaluation.perturbations import Setting
+from softtrack.evaluation.robustness_runs import evaluate_setting, part_path
 from softtrack.executors.base import EXIT_LOCKED
+from softtrack.rl.policy import load_policy
+from softtrack.rl.train import train_run
 from softtrack.store.runs import RunLockedError, RunStore, RunStoreError, lock_held
+from softtrack.store.selection import select_one_run
+from softtrack.store.tables import write_table
 
 __all__ = ["main", "robustness_main", "run_job", "train_main"]
 
@@ -31,8 +37,6 @@ def run_job(runs_dir: str | os.PathLike[str], run_id: str, *, threads: int = 1) 
     training starts (an invalid stored spec, say) is recorded as failed.
     """
     import torch
-
-    from softtrack.rl.train import train_run
 
     torch.set_num_threads(threads)
     store = RunStore(runs_dir)
@@ -78,12 +82,6 @@ def train_main(argv: list[str] | None = None) -> int:
 def robustness_main(argv: list[str] | None = None) -> int:
     """``python -m softtrack.workers robustness RUN_DIR --level f=v ...``: evaluate one setting
     of one run and write its rows to the run's part file."""
-    from softtrack.evaluation.perturbations import Setting
-    from softtrack.evaluation.robustness_runs import evaluate_setting, part_path
-    from softtrack.rl.policy import load_policy
-    from softtrack.store.selection import select_one_run
-    from softtrack.store.tables import write_table
-
     parser = argparse.ArgumentParser(prog="python -m softtrack.workers robustness")
     parser.add_argument("run", help="run directory")
     parser.add_argument("--level", action="append", default=[], metavar="FACTOR=LEVEL")

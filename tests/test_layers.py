@@ -200,3 +200,43 @@ def test_the_command_line_starts_without_the_heavy_packages() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     ).stdout.split()
     assert loaded == [], f"softtrack.cli imports {loaded} at start"
+
+
+#: At most this many function-local imports of softtrack (issue 61: imports at the top
+#: except a documented few; 68 before).
+MAX_LOCAL_IMPORTS = 8
+
+
+def _local_imports() -> list[tuple[str, int, bool]]:
+    """(file, line, documented) of each function-local import of softtrack: documented when
+    its line, or the comment line just above its block of imports, says why."""
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        lines = path.read_text(encoding="utf-8").splitlines()
+        for function in ast.walk(ast.parse("\n".join(lines))):
+            if not isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(function):
+                names = (
+                    [node.module or ""]
+                    if isinstance(node, ast.ImportFrom)
+                    else [a.name for a in node.names]
+                    if isinstance(node, ast.Import)
+                    else []
+                )
+                if not any(n.split(".")[0] == "softtrack" for n in names):
+                    continue
+                above = node.lineno - 2
+                while above >= 0 and lines[above].strip().startswith(
+                    ("from softtrack", "import softtrack")
+                ):
+                    above -= 1
+                documented = "#" in lines[node.lineno - 1] or lines[above].strip().startswith("#")
+                found.append((str(path.relative_to(PACKAGE)), node.lineno, documented))
+    return found
+
+
+def test_imports_are_at_the_top_except_a_documented_few() -> None:
+    local = _local_imports()
+    assert [f"{p}:{n}" for p, n, documented in local if not documented] == []
+    assert len(local) <= MAX_LOCAL_IMPORTS, [f"{p}:{n}" for p, n, _ in local]

@@ -456,7 +456,7 @@ def test_evaluate_random_prints_the_carried_rate_with_its_interval() -> None:
     """Issue 62's metrics people compare: episodes carried through, hold time, squeeze."""
     import pandas as pd
 
-    from softtrack.commands.evaluate_commands import _carried_summary
+    from softtrack.evaluation.transport_summary import carried_summary
 
     rows = pd.DataFrame(
         {
@@ -469,7 +469,7 @@ def test_evaluate_random_prints_the_carried_rate_with_its_interval() -> None:
             "object_force_mean": [10.0, 12.0, 10.0, 12.0, 10.0, 12.0, 10.0, 12.0],
         }
     )
-    line = _carried_summary(rows)
+    line = carried_summary(rows)
     assert "sphere 3-D RMSE 0.1475 m (mean over 4 episodes)" in line
     assert "carried 3 of 4 (75%, 95 % [30%, 95%])" in line
     assert "held 9.8 s on average (episodes of 12.0 s)" in line

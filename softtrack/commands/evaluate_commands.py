@@ -216,7 +216,7 @@ def _print_created(record: RunRecord) -> None:
 
 def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
     if "object_rmse_3d" in rows:  # transport: one sphere per episode
-        typer.echo(f"{record.run_id}  random     {_carried_summary(rows)}")
+        typer.echo(f"{record.run_id}  random     {api.carried_summary(rows)}")
         return
     per_arm = rows.groupby("arm")["rmse_3d"]
     means, stds = per_arm.mean(), per_arm.std()
@@ -230,29 +230,6 @@ def _print_random(record: RunRecord, rows: pd.DataFrame) -> None:
     typer.echo(
         f"{record.run_id}  random     3-D RMSE arm 1 / arm 2: {cells} m "
         f"(mean ± std over {n} episode{'s' if n != 1 else ''}){note}"
-    )
-
-
-def _carried_summary(rows: pd.DataFrame) -> str:
-    """Transport over random-target episodes: the sphere's mean error, the *carried rate*
-    (episodes carried to the end without a drop, with its 95 % Wilson interval), the mean time
-    it was held before a drop or the end, the share of steps both arms touched it and the mean
-    squeeze per arm."""
-    from softtrack.evaluation.statistics import wilson_interval
-
-    episodes = rows.drop_duplicates("episode")
-    n = len(episodes)
-    dropped = episodes["dropped"].astype(bool)
-    carried = n - int(dropped.sum())
-    low, high = wilson_interval(carried, n)
-    held = episodes["duration"].astype(float)  # a dropped episode ends at its drop
-    squeeze = rows.groupby("arm")["object_force_mean"].mean()
-    return (
-        f"sphere 3-D RMSE {episodes['object_rmse_3d'].mean():.4f} m (mean over {n} episode"
-        f"{'s' if n != 1 else ''}); carried {carried} of {n} ({carried / n:.0%}, 95 % "
-        f"[{low:.0%}, {high:.0%}]); held {held.mean():.1f} s on average (episodes of {held.max():.1f} s), "
-        f"by both arms {episodes['two_arm_contact'].mean():.0%} of the steps; "
-        "squeeze " + " / ".join(f"{v:.1f}" for v in squeeze) + " N (arm 1 / arm 2)"
     )
 
 

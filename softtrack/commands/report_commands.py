@@ -19,7 +19,7 @@ from softtrack.commands.common import (
     user_errors,
 )
 from softtrack.lazy import lazy_module
-from softtrack.store.location import QUICKSTART_PRETRAINED, resolve_runs_dir
+from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.trajectories import EVAL_TRAJECTORIES
 
 if TYPE_CHECKING:
@@ -261,21 +261,15 @@ def animate(
     they are equal to the last bit). Example:
     softtrack animate models/td3-sbx-128-mirror-val-confirm-4e6-seed0 --out circle.mp4
     """
-    from softtrack.report.animation import animate_runs
-    from softtrack.rl.policy import load_policy
-    from softtrack.store.runs import RunStore
-    from softtrack.store.selection import select_runs
-
     refuse_blocked_output(out, "--out")  # before the replays
     refuse_blocked_output(strip, "--strip")
     with user_errors(runs_dir):
-        records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
         chosen = list(EVAL_TRAJECTORIES) if str(trajectory) == "all" else [str(trajectory)]
-        written = animate_runs(
-            records,
+        written = api.animate(
+            references,
             chosen,
             out,
-            load=load_policy,
+            runs_dir=runs_dir,
             fps=fps,
             size=(width, height),
             strip=strip,
@@ -313,7 +307,7 @@ def watch_command(
     changing it; works over SSH and on a SLURM login node. Ctrl-C stops it.
     Example: softtrack watch --runs-dir runs
     """
-    from softtrack.report.watch import watch
+    from softtrack.report.watch import watch  # not api: a light view, at once on a login node
 
     with user_errors(runs_dir):
         try:

@@ -77,20 +77,16 @@ def workspace_command(
     path's floor is the RMSE of each path point's distance to the nearest held point: no
     controller that holds the sphere tracks the path better. Minutes on one core.
     """
-    # here, not at the top: they load the engine, which `softtrack --help` must not
-    from softtrack.evaluation import workspace
-    from softtrack.spec.env_config import env_config
-
     refuse_blocked_output(out, "--out", directory=True)  # before minutes of search
     with user_errors():
         resolved = api.validate_spec(spec, overrides or [])
-        config = env_config(resolved)
+        config = api.env_config(resolved)
         if not config.task.carries_object:
             fail(
                 f"{spec}: env.task.name is {config.task.name}; the workspace is the transport "
                 "task's: give a spec with env.task.name: transport"
             )
-        settings = workspace.SearchSettings(
+        settings = SearchSettings(
             population=population,
             iterations=iterations,
             elite=min(population, max(2, population // 5)),
@@ -115,7 +111,7 @@ def workspace_command(
                     "sphere at rest"
                 )
 
-        results = workspace.measure_workspace(
+        results = api.measure_workspace(
             config, settings, per_path, torque_scales or [], on_progress=progress
         )
     if not len(results[0].held):
@@ -129,7 +125,7 @@ def workspace_command(
     _record(config, results[0], spec)
     if out is not None:
         with user_errors():
-            _write(out, resolved.name, config, results, seed)
+            api.write_workspace_files(out, resolved.name, config, results, seed)
         typer.echo(f"wrote {out}/workspace.png, held.parquet, floors.csv, boundary.csv")
 
 
@@ -137,14 +133,12 @@ def _record(config: TrackingConfig, own: WorkspaceResult, spec: str) -> None:
     """Record the floors at the spec's own actuation (inf where nothing held), for the
     warnings of `train` and `evaluate`, and say where; a cache that cannot be written loses
     only the record (one warning line)."""
-    from softtrack.evaluation.workspace_floors import floors_dir, record_floors
-
     floors = dict(zip(own.floors["path"], own.floors["floor"], strict=True))
     try:
-        recorded = record_floors(config, floors, own.samples, spec)
+        recorded = api.record_floors(config, floors, own.samples, spec)
     except OSError as exc:  # the measurement printed stands; only the record is lost
         typer.echo(
-            f"warning: the floors could not be recorded in {floors_dir()} ({exc.strerror or exc}); "
+            f"warning: the floors could not be recorded in {api.floors_dir()} ({exc.strerror or exc}); "
             "set SOFTTRACK_CACHE_DIR to a writable directory to keep them",
             err=True,
         )
@@ -183,34 +177,3 @@ def _summary(name: str, config: TrackingConfig, results: list[WorkspaceResult]) 
         floors = dict(zip(result.floors["path"], result.floors["floor"], strict=True))
         lines.append(f"{result.torque_scale:<14g}" + "".join(f"{floors[p]:>12.3f}" for p in paths))
     return "\n".join(lines)
-
-
-def _write(
-    out: Path, name: str, config: TrackingConfig, results: list[WorkspaceResult], seed: int
-) -> None:
-    import pandas as pd
-
-    from softtrack.report.workspace_figure import workspace_figure
-    from softtrack.store.atomic import atomic_write_text
-    from softtrack.store.tables import write_table
-
-    out.mkdir(parents=True, exist_ok=True)
-    held = pd.concat(
-        [
-            pd.DataFrame(r.held, columns=["x", "y", "z"]).assign(torque_scale=r.torque_scale)
-            for r in results
-        ],
-        ignore_index=True,
-    )
-    write_table(out / "held.parquet", held)
-    floors = pd.concat([r.floors.assign(torque_scale=r.torque_scale) for r in results])
-    atomic_write_text(out / "floors.csv", floors.to_csv(index=False))
-    boundary = pd.concat([r.boundary.assign(torque_scale=r.torque_scale) for r in results])
-    atomic_write_text(out / "boundary.csv", boundary.to_csv(index=False))
-    workspace_figure(
-        config,
-        results,
-        out / "workspace.png",
-        f"Where two arms can hold the sphere: {name}",
-        f"softtrack workspace, search seed {seed}",
-    )

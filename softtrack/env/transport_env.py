@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from softtrack.env.observation import build_observation, observation_size
+from softtrack.env.targets import trajectory_position
 
 if TYPE_CHECKING:
     from softtrack.env.settings import TrackingConfig
@@ -142,8 +143,6 @@ class TransportModel:
         steps (1, 2, …) from ``step_count``, m: the approach, then the path (closed forms
         exactly; a random target extrapolated at its velocity inside its box), scaled by
         :attr:`goal_motion` as :meth:`update_goal` does."""
-        from softtrack.env.targets import trajectory_position
-
         count = step_count + np.asarray(steps, dtype=float)
         path_time = np.maximum(count - self.approach_steps, 0.0) * self.control_dt
         config = targets.config

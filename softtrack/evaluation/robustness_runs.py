@@ -35,6 +35,8 @@ from softtrack.evaluation.perturbations import (
     store_rows,
 )
 from softtrack.executors.dispatch import ExecOptions, slurm_options
+from softtrack.executors.local import LocalPool
+from softtrack.executors.slurm import submit_commands
 from softtrack.spec import ClusterSpec, ExperimentSpec
 from softtrack.store.runs import RunRecord, RunStore
 
@@ -250,11 +252,8 @@ def _run_jobs(
             on_progress(f"robustness: {done} of {len(jobs)} cells done")
 
     if options.executor == "local":
-        from softtrack.executors.local import LocalPool
-
         LocalPool(options.workers).run(jobs, on_tick=tick, tick_s=10.0)
         return
-    from softtrack.executors.slurm import submit_commands
 
     store = RunStore(Path(records[0].path).parent)
     slurm = slurm_options(options, cluster, store)

@@ -15,8 +15,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from softtrack.executors.base import Job, failed_by_signal
+from softtrack.executors.local import LocalPool
+from softtrack.executors.slurm import SlurmOptions, submit_jobs
 from softtrack.executors.sweep import progress_counts
 from softtrack.spec import ClusterSpec
+from softtrack.store.ids import new_id
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, lock_held
 from softtrack.store.status import effective_status
 
@@ -114,8 +117,6 @@ def _records(store: RunStore, run_ids: Sequence[str]) -> list[RunRecord]:
 
 def slurm_options(opts: ExecOptions, cluster: ClusterSpec, store: RunStore) -> Any:
     """The :class:`~softtrack.executors.slurm.SlurmOptions` of ``opts`` (else ``cluster``'s)."""
-    from softtrack.executors.slurm import SlurmOptions
-
     return SlurmOptions(
         folder=opts.slurm_folder or str(store.root / ".submitit"),
         partition=opts.partition if opts.partition is not None else cluster.partition,
@@ -153,8 +154,6 @@ def execute(
             on_progress(line)
 
     if opts.executor == "local":
-        from softtrack.executors.local import LocalPool
-
         if opts.detach:
             log = store.root / f"sweep-{sweep_id}.log"
             with open(log, "ab") as fh:
@@ -180,8 +179,6 @@ def execute(
             pool.run(jobs, on_tick=tick)
             outcome.stop_signal = pool.stop_signal
     elif opts.executor == "slurm":
-        from softtrack.executors.slurm import submit_jobs
-
         slurm = slurm_options(opts, cluster or ClusterSpec(), store)
         submitted = submit_jobs(jobs, slurm)
         outcome.log = slurm.folder
@@ -279,8 +276,6 @@ def _resumes(record: RunRecord) -> bool:
 
 
 def new_sweep_id() -> str:
-    from softtrack.store.ids import new_id
-
     return new_id()
 
 

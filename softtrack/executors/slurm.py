@@ -33,9 +33,7 @@ def _submitit() -> Any:
     try:
         import submitit
     except ImportError:
-        from softtrack.store.runs import RunStoreError as _E
-
-        raise _E(
+        raise RunStoreError(
             "--executor slurm needs submitit; install it with `pip install 'softtrack[cluster]'`"
         ) from None
     return submitit

@@ -51,6 +51,7 @@ from softtrack.report.evaluation_sections import (
 )
 from softtrack.report.featured import featured_groups
 from softtrack.report.group_summaries import metrics_summary
+from softtrack.report.interactive_build import INTERACTIVE_PAGE, write_interactive
 from softtrack.report.mpc_section import planning_section
 from softtrack.report.plan import plan_figures
 from softtrack.report.robustness_section import robustness_section
@@ -176,8 +177,6 @@ def build_report(
     atomic_write_text(out_dir / "index.html", doc.html(title), fsync=False)
     atomic_write_text(index, doc.markdown(), fsync=False)
     if load is not None:
-        from softtrack.report.interactive_build import INTERACTIVE_PAGE, write_interactive
-
         intro = (
             f"Generated {generated} by `{command}` from {len(runs)} run(s). The featured "
             "controllers are replayed from their policies; every number is from the stored tables."

@@ -19,6 +19,7 @@ from typing import Any
 from softtrack.store.catalog import file_stamp, read_catalog
 from softtrack.store.location import resolve_runs_dir
 from softtrack.store.run_summaries import summary_from_row
+from softtrack.store.runs import RunStore, RunStoreError
 
 __all__ = ["WatchRow", "sparkline", "watch_rows", "watch_table"]
 
@@ -76,9 +77,9 @@ class _ScoreCache:
 
 
 def _read_scores(run_path: Path) -> tuple[float, ...]:
-    from softtrack.report.data import load_run  # pandas: only for runs with a validation table
+    # pandas: loaded only for runs with a validation table, not by every refresh
+    from softtrack.report.data import load_run
     from softtrack.report.group_summaries import validation_scores
-    from softtrack.store.runs import RunStore, RunStoreError
 
     try:
         record = RunStore(run_path.parent).read_record(run_path)

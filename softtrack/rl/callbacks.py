@@ -41,6 +41,7 @@ from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
+from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl.replay_file import save_replay_buffer as save_replay_buffer_file
 from softtrack.store.atomic import atomic_dir, atomic_write_json
 from softtrack.store.layout import PolicyDir
@@ -269,8 +270,6 @@ def save_checkpoint(
 def _tracking_core(env: Any) -> Any:
     """The :class:`~softtrack.env.core.TrackingCore` of a ``TrackingVecEnv``, possibly wrapped
     (``VecMonitor``, ``VecNormalize``)."""
-    from softtrack.env.vec_env import TrackingVecEnv
-
     while not isinstance(env, TrackingVecEnv):
         if not hasattr(env, "venv"):
             raise TypeError(f"{type(env).__name__} wraps no TrackingVecEnv to ramp")

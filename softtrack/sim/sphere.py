@@ -15,6 +15,7 @@ import numpy as np
 
 from softtrack.numbers import is_finite_number, out_of_range, setting
 from softtrack.sim.rod_properties import RodProperties
+from softtrack.sim.stability import mode_is_stable
 
 __all__ = ["SphereParams"]
 
@@ -147,8 +148,6 @@ class SphereParams:
         return deepest
 
     def _stability_problem(self, params: RodProperties) -> str | None:
-        from softtrack.sim.stability import mode_is_stable
-
         share = self._mode_share(params)
         normal = (np.array([[share * self.contact_k]]), np.array([[share * self.contact_nu]]))
         slip = (np.zeros((1, 1)), np.array([[share * self.velocity_damping]]))
@@ -177,8 +176,6 @@ class SphereParams:
     def stiffness_limit(self, params: RodProperties) -> float:
         """The largest contact_k (N/m) stable at ``params.dt`` with this contact_nu, to 1e-4
         relative; 0 when the damping alone is unstable."""
-        from softtrack.sim.stability import mode_is_stable
-
         share = self._mode_share(params)
 
         def stable(k: float) -> bool:

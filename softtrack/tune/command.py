@@ -31,14 +31,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from softtrack.executors import dispatch
+from softtrack.executors.base import worker_env
 from softtrack.executors.dispatch import ExecOptions, slurm_options
+from softtrack.executors.local import LocalPool
+from softtrack.executors.slurm import submit_commands
+from softtrack.rl.factory import check_supported
 from softtrack.spec import SpecError, load_spec, spec_chain
+from softtrack.store.atomic import atomic_write_text
 from softtrack.store.provenance import portable_path
 from softtrack.store.runs import RunStore, resolve_runs_dir
 from softtrack.tune import TuneError
 from softtrack.tune.study import (
     TuneStudy,
     best_spec_text,
+    best_trial,
     counts,
     create_or_continue,
     default_storage,
@@ -47,6 +54,7 @@ from softtrack.tune.study import (
     summary_line,
     top_up,
 )
+from softtrack.tune.worker import work
 
 __all__ = ["TuneOutcome", "TuneWorker", "tune", "tune_best", "tune_status"]
 
@@ -154,9 +162,6 @@ def tune(
         SpecError: the spec (or its tune section) is invalid, or has no tune section.
         TuneError: the study tunes another spec; the storage cannot be opened.
     """
-    from softtrack.executors import dispatch
-    from softtrack.rl.factory import check_supported
-
     options = options or ExecOptions()
     if options.executor not in dispatch.EXECUTORS:
         raise SpecError(
@@ -206,16 +211,12 @@ def tune(
                     )
             outcome.detached, outcome.log = True, str(jobs[0].log_path().parent)
         elif workers == 1:
-            from softtrack.tune.worker import work
-
             code = work(ts, str(root), log=say, show_progress=show_progress)
             if code >= 128:
                 outcome.stop_signal = code - 128
             elif code:
                 outcome.crashed.append(("worker", code))
         else:
-            from softtrack.executors.local import LocalPool
-
             pool = LocalPool(workers)
             root.mkdir(parents=True, exist_ok=True)
             codes = pool.run(jobs, on_tick=_ticker(ts, on_progress))
@@ -236,8 +237,6 @@ def tune(
 
 
 def _worker_env() -> dict[str, str]:
-    from softtrack.executors.base import worker_env
-
     return worker_env(1)
 
 
@@ -263,8 +262,6 @@ def _run_on_slurm(
     workers: int,
     on_progress: Callable[[str], None] | None,
 ) -> str:
-    from softtrack.executors.slurm import submit_commands
-
     slurm = slurm_options(options, ts.spec.cluster, RunStore(root))
     root.mkdir(parents=True, exist_ok=True)
     jobs = [TuneWorker(str(root), url, ts.name, k) for k in range(workers)]
@@ -303,9 +300,6 @@ def tune_best(
     Raises:
         TuneError: no such study, or no complete trial yet.
     """
-    from softtrack.store.atomic import atomic_write_text
-    from softtrack.tune.study import best_trial
-
     root = resolve_runs_dir(runs_dir)
     ts = load_study(_storage_url(storage, root), study)
     target = Path(out) if out is not None else Path(f"{_SAFE.sub('_', study)}-best.yaml")

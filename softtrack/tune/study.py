@@ -49,9 +49,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from softtrack.spec import ExperimentSpec, SpecError, parse_spec, spec_hash
+from softtrack.spec import ExperimentSpec, SpecError, load_spec, parse_spec, spec_hash, spec_to_yaml
 from softtrack.spec.tune_models import TuneSpec, choice_key, trial_data
-from softtrack.store.runs import RunStore, RunStoreError
+from softtrack.store.runs import RunStore, RunStoreError, pid_alive
+from softtrack.store.status import is_lost
 from softtrack.tune import TuneError
 
 __all__ = [
@@ -465,8 +466,6 @@ def _worker_alive(worker: str) -> bool:
     """Whether a trial's ``worker`` (``host:pid``) is a live process on this host (a retry's
     run still looks lost between the moment a worker takes the ticket and the moment it
     locks the run; only the worker's own death makes the trial lost)."""
-    from softtrack.store.runs import pid_alive
-
     host, _, pid = worker.rpartition(":")
     return host == socket.gethostname() and pid.isdigit() and pid_alive(int(pid))
 
@@ -474,8 +473,6 @@ def _worker_alive(worker: str) -> bool:
 def _fail_lost_trials(ts: TuneStudy, store: RunStore) -> None:
     """Fail the running trials whose worker died, each replaced by a retry: by Optuna's
     heartbeat, and by their run being ``lost`` in the store."""
-    from softtrack.store.status import is_lost
-
     optuna = optuna_module()
     with _quiet():
         optuna.storages.fail_stale_trials(ts.study)
@@ -699,8 +696,6 @@ def best_spec_text(ts: TuneStudy, out: Path, runs_dir: str | os.PathLike[str] | 
     """
     import yaml
 
-    from softtrack.spec import load_spec, spec_to_yaml
-
     best = best_trial(ts)
     if best is None:
         raise TuneError(
@@ -793,8 +788,6 @@ def _diff(old: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
 def _hash_of_text(text: str, out: Path) -> str | None:
     """The spec hash of ``text`` if it were the file ``out`` (its base resolved from there)."""
     import tempfile
-
-    from softtrack.spec import load_spec
 
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile(

@@ -34,8 +34,14 @@ from typing import Any
 from softtrack.env.tasks import N_ARMS
 from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.executors.base import failed_by_signal
-from softtrack.spec import ExperimentSpec, SpecError
+from softtrack.rl.factory import check_supported
+from softtrack.rl.train import train_run
+from softtrack.rl.validation import VALIDATION_TABLE, best_model, validation_score
+from softtrack.signals import StopFlag, stop_on_signals
+from softtrack.spec import ExperimentSpec, SpecError, spec_hash
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError
+from softtrack.store.status import effective_status
+from softtrack.store.tables import read_table
 from softtrack.tune import TuneError
 from softtrack.tune.study import (
     HEARTBEAT_S,
@@ -88,8 +94,6 @@ def run_score(record: RunRecord, spec: ExperimentSpec) -> float:
     Raises:
         TuneError: a policy of the run has no validated checkpoint.
     """
-    from softtrack.rl.validation import best_model
-
     arms = [None] if spec.controller == "centralized" else list(range(N_ARMS))
     scores = []
     for arm in arms:
@@ -109,9 +113,6 @@ def _report_step(spec: ExperimentSpec, step: int) -> int:
 
 def _replay_scores(trial: Any, record: RunRecord, spec: ExperimentSpec) -> None:
     """Report a resumed run's validation scores so far to its new trial."""
-    from softtrack.rl.validation import VALIDATION_TABLE, validation_score
-    from softtrack.store.tables import read_table
-
     path = record.table_path(VALIDATION_TABLE)
     if not path.exists():
         return
@@ -137,8 +138,6 @@ def _note_trial(store: RunStore, record: RunRecord, ts: TuneStudy, number: int) 
 def _same_values(ts: TuneStudy, values: dict[str, Any], record: RunRecord) -> bool:
     """Whether ``record`` was trained with the trial's ``values`` (its spec hash is that of
     the trial's spec under the run's own name)."""
-    from softtrack.spec import spec_hash
-
     try:
         return spec_hash(trial_spec(ts, values, record.info.name)) == record.info.spec_hash
     except SpecError:
@@ -160,8 +159,6 @@ def _trial_run(
 
     A retry's run is used only if it was trained with the trial's values; otherwise (or if it
     is gone) the trial gets a fresh run of its own."""
-    from softtrack.store.status import effective_status
-
     attr = run_attr(index)
     run_id = trial.user_attrs.get(attr)
     if run_id:
@@ -227,8 +224,6 @@ def run_trial(
     """Run one taken trial to its end (module docstring): its ``tune.seeds_per_trial`` runs
     one after another, the first watched by the pruner; returns (``complete``, ``pruned``,
     ``interrupted`` or ``failed``, the exit code of its training)."""
-    from softtrack.rl.factory import check_supported
-
     number = trial.number
     try:
         values = suggest(trial, ts.tune)
@@ -274,8 +269,6 @@ def _run_seed(
     """Train (or resume, or score) the trial's run of seed index ``index``; returns its state
     as :func:`run_trial` does, the exit code and, when complete, its score. Only the first
     run reports its validation scores to the pruner."""
-    from softtrack.rl.train import train_run
-
     optuna = optuna_module()
     number = trial.number
     watched = index == 0
@@ -384,8 +377,6 @@ def work(
     ts: TuneStudy, runs_dir: str, *, log: Log = _stderr, show_progress: bool | None = None
 ) -> int:
     """Take and run the study's trials until none is left; the exit code (module docstring)."""
-    from softtrack.signals import StopFlag, stop_on_signals
-
     store = RunStore(runs_dir)
     flag = StopFlag()
     errors = 0

@@ -11,6 +11,7 @@ from softtrack.evaluation.run_evaluation import (
     evaluate_run,
     has_evaluation,
 )
+from softtrack.report import build_report
 from softtrack.rl.policy import (
     load_policy,
     model_paths,
@@ -19,6 +20,7 @@ from softtrack.store.provenance import portable_command
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.tables import TableError
+from softtrack.tune.view import load_view
 
 
 def report(
@@ -55,9 +57,6 @@ def report(
         storage: the studies' Optuna storage URL (default ``sqlite:///<runs dir>/optuna.db``).
         on_problem: told each table that could not be read (left out of the report).
     """
-    from softtrack.report import build_report
-    from softtrack.tune.view import load_view
-
     root = resolve_runs_dir(runs_dir)
     store = RunStore(root)
     views = [load_view(name, storage=storage, runs_dir=root) for name in studies]
