@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable, Sequence
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -43,17 +44,21 @@ from softtrack.spec.spec_text import (
 )
 from softtrack.store.location import QUICKSTART_PRETRAINED
 from softtrack.store.model_zip import deflate_model_zip
+from softtrack.store.run_summaries import (
+    RUN_TABLE_COLUMNS,
+    format_failures,
+    format_runs_table,
+    list_run_summaries,
+    summary_from_row,
+)
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir, run_lock
 from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.status import (
-    RUN_TABLE_COLUMNS,
     effective_status,
+    final_stage_fraction,
     final_stage_return,
-    format_failures,
-    format_runs_table,
+    heartbeat_interval,
     is_lost,
-    list_run_summaries,
-    run_summary,
 )
 from softtrack.store.tables import TableError
 from softtrack.store.upgrade import upgrade_run_tables
@@ -262,6 +267,26 @@ def animate(
         random=random,
         on_note=on_note,
     )
+
+
+def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
+    """One row of ``softtrack runs`` (JSON-serialisable), read from the run's files rather
+    than the catalog."""
+    raw = record.raw_spec()
+    try:
+        final, n_final, last_step = final_stage_return(record, final_stage_fraction(raw))
+    except TableError:
+        final, n_final, last_step = None, 0, 0
+    sweep = (record.info.notes or {}).get("sweep")
+    row = {
+        **record.info.model_dump(),
+        "sweep": None if sweep is None else str(sweep),
+        "heartbeat_interval": heartbeat_interval(raw),
+        "final_return": final,
+        "final_return_episodes": n_final,
+        "last_step": last_step,
+    }
+    return summary_from_row(row, record.path, now or datetime.now(UTC))
 
 
 # ---- sweeps -------------------------------------------------------------------------------

@@ -22,7 +22,8 @@ from typer.testing import CliRunner
 from softtrack.cli import app
 from softtrack.spec import ExperimentSpec
 from softtrack.store import catalog
-from softtrack.store.catalog import CATALOG_DIR, FORMAT_VERSION, catalog_path, read_catalog
+from softtrack.store.catalog import FORMAT_VERSION, catalog_path, read_catalog
+from softtrack.store.catalog_format import CATALOG_DIR, file_stamp
 from softtrack.store.catalog_rows import run_row
 from softtrack.store.run_summaries import run_listing
 from softtrack.store.runs import RunStore
@@ -195,7 +196,7 @@ def test_a_format_1_catalog_is_converted_without_reading_the_runs(store: RunStor
         with pa.ipc.new_file(sink, table.schema.with_metadata(meta)) as writer:
             writer.write_table(table)
     path.unlink()
-    (path.parent / "verified").write_text(catalog.file_stamp(str(older)))
+    (path.parent / "verified").write_text(file_stamp(str(older)))
 
     def no_run_read(*args: Any, **kwargs: Any) -> None:
         raise AssertionError("a run was read from its directory")

@@ -11,8 +11,9 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.spec import parse_spec
+from softtrack.store.run_summaries import list_run_summaries
 from softtrack.store.runs import RunStore
-from softtrack.store.status import final_stage_return, list_run_summaries
+from softtrack.store.status import final_stage_return
 from softtrack.store.tables import append_rows
 
 runner = CliRunner()

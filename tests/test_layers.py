@@ -126,29 +126,8 @@ def _cycles(graph: dict[str, set[str]]) -> list[frozenset[str]]:
     return found
 
 
-#: The cycle left by function-local imports (issue 61 leaves it to untangle): the catalog and
-#: the run store read each other. The test fails on any other cycle, and when one of these is
-#: gone (remove it here).
-KNOWN_CYCLES = {
-    frozenset(
-        "softtrack.store." + name
-        for name in (
-            "catalog",
-            "catalog_rows",
-            "run_summaries",
-            "runs",
-            "status",
-            "table_index",
-            "tables",
-        )
-    ),
-}
-
-
 def test_no_module_import_cycle() -> None:
-    cycles = set(_cycles(_module_graph()))
-    assert not cycles - KNOWN_CYCLES, [sorted(c) for c in cycles - KNOWN_CYCLES]
-    assert not KNOWN_CYCLES - cycles, "a known cycle is gone: remove it from KNOWN_CYCLES"
+    assert [sorted(c) for c in _cycles(_module_graph())] == []
 
 
 def test_the_cycle_finder_sees_type_only_and_local_imports() -> None:

@@ -22,8 +22,9 @@ from softtrack.cli import app
 from softtrack.executors.dispatch import ExecOptions, execute, select_resumable_runs
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds, split_values
 from softtrack.spec import SpecError, load_spec
+from softtrack.store.run_summaries import list_run_summaries
 from softtrack.store.runs import RunStore
-from softtrack.store.status import effective_status, list_run_summaries
+from softtrack.store.status import effective_status
 from softtrack.store.tables import read_table
 
 runner = CliRunner()

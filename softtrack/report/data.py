@@ -145,7 +145,7 @@ class RunData:
     @property
     def arm_budget(self) -> int:
         """Training budget of one arm's policy in an independent run (env steps):
-        :attr:`~softtrack.store.runs.RunInfo.policy_budget`."""
+        :attr:`~softtrack.store.run_records.RunInfo.policy_budget`."""
         return self.record.info.policy_budget
 
     @property

@@ -16,7 +16,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from softtrack.store.catalog import file_stamp, read_catalog
+from softtrack.store.catalog import read_catalog
+from softtrack.store.catalog_format import file_stamp
 from softtrack.store.location import resolve_runs_dir
 from softtrack.store.run_summaries import summary_from_row
 from softtrack.store.runs import RunStore, RunStoreError

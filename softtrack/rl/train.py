@@ -119,7 +119,7 @@ def check_resumable(record: RunRecord) -> None:
 def policy_jobs(spec: ExperimentSpec, record: RunRecord) -> list[PolicyJob]:
     """The policies of the run, in training order: one (centralized) or one per arm, each
     with the budget ``training.total_timesteps`` (run.json: :attr:`RunInfo.policy_budget
-    <softtrack.store.runs.RunInfo.policy_budget>`)."""
+    <softtrack.store.run_records.RunInfo.policy_budget>`)."""
     seed = int(record.info.seed)
     total = int(spec.training.total_timesteps)
     if spec.controller == "independent":

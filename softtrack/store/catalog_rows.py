@@ -7,8 +7,9 @@ table file, its path and schema, so ``softtrack query`` builds its views without
 single Parquet footer. A directory whose ``run.json`` is missing or unreadable (but that holds
 a ``spec.yaml``) gets a row too, with only ``dir`` and ``unreadable`` (the reason) set.
 
-The row's ``stamp`` (:func:`~softtrack.store.catalog.run_stamp`) is taken *before* the files are read, so a change made
-while reading leaves a stamp that no longer matches and the row is read again next time.
+The row's ``stamp`` (:func:`~softtrack.store.catalog_format.run_stamp`) is taken *before*
+the files are read, so a change made while reading leaves a stamp that no longer matches and
+the row is read again next time.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from typing import Any
 
 from softtrack.file_kinds import describe_path
 from softtrack.store.atomic import is_temp_file
-from softtrack.store.catalog import ROW_COLUMNS, run_stamp
-from softtrack.store.runs import RunStore, RunStoreError
+from softtrack.store.catalog_format import ROW_COLUMNS, run_stamp
+from softtrack.store.errors import RunStoreError
+from softtrack.store.run_records import read_run_record
 from softtrack.store.status import (
     final_stage_fraction,
     final_stage_return,
@@ -29,7 +31,7 @@ from softtrack.store.status import (
     training_seconds,
 )
 from softtrack.store.table_index import table_files, table_item
-from softtrack.store.tables import TableError, read_table
+from softtrack.store.table_reading import TableError, read_table
 
 __all__ = ["RunRow", "run_row"]
 
@@ -67,16 +69,17 @@ def _tables_json(run_path: Path, schemas: dict[str, str]) -> str:
 
 @dataclass(frozen=True)
 class RunRow:
-    """A run's catalog row (:data:`~softtrack.store.catalog.ROW_COLUMNS` keys) and the schema texts its ``tables`` cell
-    names by id."""
+    """A run's catalog row (:data:`~softtrack.store.catalog_format.ROW_COLUMNS` keys) and the
+    schema texts its ``tables`` cell names by id."""
 
     row: dict[str, Any]
     schemas: dict[str, str]
 
 
 def run_row(run_path: Path) -> RunRow | None:
-    """The catalog row of one directory of a runs directory (:data:`~softtrack.store.catalog.ROW_COLUMNS`), or ``None``
-    when it holds no run (no ``run.json``, no ``spec.yaml``; a temporary or a file)."""
+    """The catalog row of one directory of a runs directory
+    (:data:`~softtrack.store.catalog_format.ROW_COLUMNS`), or ``None`` when it holds no run (no
+    ``run.json``, no ``spec.yaml``; a temporary or a file)."""
     if is_temp_file(run_path) or not run_path.is_dir():
         return None
     stamp = run_stamp(run_path)
@@ -90,7 +93,7 @@ def run_row(run_path: Path) -> RunRow | None:
         row["unreadable"] = f"run.json is {kind}" + ("" if kind == "missing" else ", not a file")
         return RunRow(row, schemas)
     try:
-        record = RunStore(run_path.parent).read_record(run_path)
+        record = read_run_record(run_path)
     except RunStoreError as exc:
         row["unreadable"] = str(exc).split(": ", 1)[-1]
         return RunRow(row, schemas)

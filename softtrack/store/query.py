@@ -49,7 +49,8 @@ from typing import TYPE_CHECKING, Any, Self
 import duckdb
 
 from softtrack.signals import StoppedBySignal
-from softtrack.store.catalog import file_stamp, read_catalog
+from softtrack.store.catalog import read_catalog
+from softtrack.store.catalog_format import file_stamp
 from softtrack.store.errors import RunStoreError
 from softtrack.store.location import resolve_runs_dir
 from softtrack.store.query_output import (
@@ -286,7 +287,7 @@ def _utc_sql(column: str) -> str:
     return f"TRY_CAST({column} AS TIMESTAMP) - to_minutes(CAST({offset} AS BIGINT))"
 
 
-#: The ``runs`` view from the catalog's columns (softtrack.store.catalog.ROW_COLUMNS).
+#: The ``runs`` view from the catalog's columns (softtrack.store.catalog_format.ROW_COLUMNS).
 _RUNS_SQL = f"""
 CREATE VIEW runs AS
 SELECT run_id, dir, name, algo, controller, seed, status, total_timesteps,

@@ -20,7 +20,7 @@ import secrets
 import shutil
 from pathlib import Path
 
-from softtrack.store.catalog import CATALOG_DIR
+from softtrack.store.catalog_format import CATALOG_DIR
 
 __all__ = ["SNAPSHOTS_DIR", "QuerySnapshot"]
 

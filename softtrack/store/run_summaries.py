@@ -18,7 +18,7 @@ from typing import Any
 
 from softtrack.file_kinds import printable
 from softtrack.store.catalog import read_catalog
-from softtrack.store.errors import RunStoreError
+from softtrack.store.errors import RunStoreError, unreadable_fix
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, parse_time
 from softtrack.store.location import resolve_runs_dir
 
@@ -30,7 +30,6 @@ __all__ = [
     "list_run_summaries",
     "run_listing",
     "summary_from_row",
-    "unreadable_fix",
     "unreadable_summary",
 ]
 
@@ -50,7 +49,7 @@ RUN_TABLE_COLUMNS = (
 
 def summary_from_row(row: Mapping[str, Any], run_path: Path, now: datetime) -> dict[str, Any]:
     """One row of ``softtrack runs`` (JSON-serialisable) from a catalog row
-    (:data:`~softtrack.store.catalog.ROW_COLUMNS`) of the run in ``run_path``."""
+    (:data:`~softtrack.store.catalog_format.ROW_COLUMNS`) of the run in ``run_path``."""
     if row.get("unreadable"):
         return unreadable_summary(run_path, str(row["unreadable"]))
     status = str(row["status"])
@@ -89,14 +88,6 @@ def summary_from_row(row: Mapping[str, Any], run_path: Path, now: datetime) -> d
         "traceback": row["traceback"],
         "path": str(run_path),
     }
-
-
-def unreadable_fix(run_path: Path) -> str:
-    """What to do about a run directory whose ``run.json`` is missing or unreadable."""
-    return (
-        f"restore {run_path / 'run.json'} from a backup or copy, or move the directory "
-        "out of the runs directory"
-    )
 
 
 def unreadable_summary(run_path: Path, reason: str) -> dict[str, Any]:

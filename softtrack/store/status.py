@@ -16,21 +16,12 @@ import numpy as np
 import pandas as pd
 
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, stale_after_s
-from softtrack.store.run_summaries import (
-    RUN_TABLE_COLUMNS,
-    format_failures,
-    format_runs_table,
-    list_run_summaries,
-    summary_from_row,
-    unreadable_summary,
-)
-from softtrack.store.runs import RunRecord
-from softtrack.store.tables import TableError, read_table
+from softtrack.store.run_records import RunRecord
+from softtrack.store.table_reading import read_table
 
 __all__ = [
     "DEFAULT_FINAL_STAGE_FRACTION",
     "DEFAULT_HEARTBEAT_INTERVAL_S",
-    "RUN_TABLE_COLUMNS",
     "complete_episodes",
     "effective_status",
     "episodes_by_arm",
@@ -38,15 +29,10 @@ __all__ = [
     "final_stage_fraction",
     "final_stage_return",
     "final_stage_returns",
-    "format_failures",
-    "format_runs_table",
     "heartbeat_interval",
     "is_lost",
-    "list_run_summaries",
-    "run_summary",
     "stale_after_s",
     "training_seconds",
-    "unreadable_summary",
 ]
 
 #: ``training.final_stage_fraction`` of a spec that does not set it.
@@ -116,7 +102,7 @@ def final_stage_returns(
             split by :func:`episodes_by_arm`.
         total_timesteps: the budget of the rows without an arm (a centralized policy).
         arm_budget: the budget of an arm's policy, whose ``global_step`` counts its own steps
-            (:attr:`~softtrack.store.runs.RunInfo.policy_budget`).
+            (:attr:`~softtrack.store.run_records.RunInfo.policy_budget`).
 
     Returns:
         ``{arm or None: (mean return or None if no episode qualifies, episode count)}``.
@@ -212,23 +198,3 @@ def effective_status(record: RunRecord, *, now: datetime | None = None) -> str:
     """run.json's status, or ``lost`` for a running run whose process is gone (:func:`is_lost`);
     run.json itself is never changed by this."""
     return "lost" if is_lost(record, now=now) else record.info.status
-
-
-# ---- summaries ------------------------------------------------------------------------------
-def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, Any]:
-    """One row of ``softtrack runs`` (JSON-serialisable), read from the run's files."""
-    raw = record.raw_spec()
-    try:
-        final, n_final, last_step = final_stage_return(record, final_stage_fraction(raw))
-    except TableError:
-        final, n_final, last_step = None, 0, 0
-    sweep = (record.info.notes or {}).get("sweep")
-    row = {
-        **record.info.model_dump(),
-        "sweep": None if sweep is None else str(sweep),
-        "heartbeat_interval": heartbeat_interval(raw),
-        "final_return": final,
-        "final_return_episodes": n_final,
-        "last_step": last_step,
-    }
-    return summary_from_row(row, record.path, now or datetime.now(UTC))

@@ -29,7 +29,7 @@ from pathlib import Path
 import duckdb
 
 from softtrack.store.atomic import temp_name
-from softtrack.store.catalog import CATALOG_DIR, file_stamp
+from softtrack.store.catalog_format import CATALOG_DIR, file_stamp
 
 __all__ = [
     "CACHE_MEAN_FILE_BYTES",

@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 
 from softtrack.store.atomic import is_temp_file
-from softtrack.store.catalog import file_stamp
+from softtrack.store.catalog_format import file_stamp
 
 __all__ = ["list_tables", "schema_id", "table_files", "table_item"]
 
