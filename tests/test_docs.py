@@ -95,3 +95,19 @@ def test_query_example_prints_what_the_docs_show(
     assert [line.rstrip() for line in printed] == [line.rstrip() for line in expected], (
         f"{doc}: `{text}` prints something else; update the doc from the command's output"
     )
+
+
+def test_the_readme_stays_a_front_page() -> None:
+    """Issue 61: the README is a front page (≤ 200 lines), its results one table of ≤ 10 rows;
+    the detail lives in docs/."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 200, len(lines)
+    tables: list[int] = []
+    previous = ""
+    for line in lines:
+        if line.startswith("|") and not previous.startswith("|"):
+            tables.append(0)
+        if line.startswith("|") and not set(line) <= set("|-: "):
+            tables[-1] += 1
+        previous = line
+    assert tables and max(tables) - 1 <= 10, tables  # rows below the header
