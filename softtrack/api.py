@@ -16,14 +16,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from softtrack.evaluation.transport_summary import carried_summary
-from softtrack.evaluation.workspace import measure_workspace
 from softtrack.evaluation.workspace_floors import floors_dir, record_floors
 from softtrack.executors import dispatch
 from softtrack.executors.sweep import expand_grid, parse_grid, parse_seeds
 from softtrack.executors.sweep_creation import SweepStopped, create_sweep_runs
-from softtrack.report.animation import animate_runs
-from softtrack.report.compare import compare_selection, profile_figure
-from softtrack.report.to_mlflow import sync_mlflow as sync_runs_to_mlflow
 from softtrack.report.video import VideoError
 from softtrack.rl.factory import check_supported
 from softtrack.rl.policy import load_policy
@@ -83,7 +79,9 @@ from softtrack.workflows.workspace_files import write_workspace_files
 # Imported where used, because importing them costs seconds at every command's start:
 # softtrack.rl.train (JAX, torch, Stable-Baselines3) and softtrack.report (matplotlib).
 if TYPE_CHECKING:
-    pass
+    from softtrack.env.settings import TrackingConfig
+    from softtrack.evaluation.workspace import WorkspaceResult
+    from softtrack.evaluation.workspace_settings import SearchSettings
 
 __all__ = [
     "QUICKSTART_PRETRAINED",
@@ -218,6 +216,8 @@ def compare(
     items name, the first against each other, across their seeds (returns a ``Comparison``;
     ``.lines()`` is what ``softtrack compare`` prints); ``random``: over the held-out
     random-target episodes instead of the trajectories."""
+    from softtrack.report.compare import compare_selection  # the comparison's statistics
+
     return compare_selection(selection, runs_dir=runs_dir, metric=metric, reps=reps, random=random)
 
 
@@ -230,6 +230,9 @@ def sync_mlflow(
 ) -> Any:
     """:func:`softtrack.report.to_mlflow.sync_mlflow`: write the runs (params, metrics,
     curves, report and policy) to an MLflow tracking store; returns a ``SyncOutcome``."""
+    # DuckDB and the results database: loaded when syncing, not with the API
+    from softtrack.report.to_mlflow import sync_mlflow as sync_runs_to_mlflow
+
     return sync_runs_to_mlflow(
         selection, runs_dir=runs_dir, tracking_uri=tracking_uri, on_run=on_run
     )
@@ -237,6 +240,8 @@ def sync_mlflow(
 
 def compare_figure(comparison: Any, path: str | os.PathLike[str]) -> Path:
     """The performance profile of a :func:`compare` result, written to ``path`` (PNG)."""
+    from softtrack.report.compare import profile_figure  # as in compare()
+
     return profile_figure([("", comparison)], path)
 
 
@@ -255,6 +260,8 @@ def animate(
     """:func:`softtrack.report.animation.animate_runs` of the runs ``references`` select
     (run ids, directories, experiment names or spec files), each replaying its own policy;
     returns the file written."""
+    from softtrack.report.animation import animate_runs  # the renderer and its fonts
+
     records = select_runs(RunStore(resolve_runs_dir(runs_dir)), references)
     return animate_runs(
         records,
@@ -287,6 +294,20 @@ def run_summary(record: RunRecord, *, now: datetime | None = None) -> dict[str, 
         "last_step": last_step,
     }
     return summary_from_row(row, record.path, now or datetime.now(UTC))
+
+
+def measure_workspace(
+    config: TrackingConfig,
+    settings: SearchSettings,
+    per_path: int,
+    torque_scales: Sequence[float] = (),
+    on_progress: Callable[[float, int, int, int], None] | None = None,
+) -> list[WorkspaceResult]:
+    """:func:`softtrack.evaluation.workspace.measure_workspace`: where the arms of ``config``
+    hold the sphere at rest, and each path's floor, at its own and each extra torque scale."""
+    from softtrack.evaluation.workspace import measure_workspace as measure  # with the API: +0.5 s
+
+    return measure(config, settings, per_path, torque_scales, on_progress=on_progress)
 
 
 # ---- sweeps -------------------------------------------------------------------------------

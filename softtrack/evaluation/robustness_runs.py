@@ -36,7 +36,6 @@ from softtrack.evaluation.perturbations import (
 )
 from softtrack.executors.dispatch import ExecOptions, slurm_options
 from softtrack.executors.local import LocalPool
-from softtrack.executors.slurm import submit_commands
 from softtrack.spec import ClusterSpec, ExperimentSpec
 from softtrack.store.runs import RunRecord, RunStore
 
@@ -257,6 +256,8 @@ def _run_jobs(
 
     store = RunStore(Path(records[0].path).parent)
     slurm = slurm_options(options, cluster, store)
+    from softtrack.executors.slurm import submit_commands  # submitit: for --executor slurm
+
     submitted = submit_commands(
         [(j.command, str(j.log_path())) for j in jobs], slurm, name="softtrack-robustness"
     )

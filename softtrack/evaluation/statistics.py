@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
 
 __all__ = ["Difference", "mean_difference", "wilson_interval"]
 
@@ -57,6 +56,8 @@ def mean_difference(a: ArrayLike, b: ArrayLike, confidence: float = 0.95) -> Dif
     Raises:
         ValueError: a side has no finite value, or ``confidence`` is outside (0, 1).
     """
+    from scipy import stats  # here: a second of import for the one function that needs it
+
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence={confidence!r} must lie in (0, 1)")
     x = np.asarray(a, dtype=np.float64).reshape(-1)

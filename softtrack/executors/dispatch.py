@@ -15,8 +15,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from softtrack.executors.base import Job, failed_by_signal
-from softtrack.executors.local import LocalPool
-from softtrack.executors.slurm import SlurmOptions, submit_jobs
 from softtrack.executors.sweep import progress_counts
 from softtrack.spec import ClusterSpec
 from softtrack.store.ids import new_id
@@ -117,6 +115,8 @@ def _records(store: RunStore, run_ids: Sequence[str]) -> list[RunRecord]:
 
 def slurm_options(opts: ExecOptions, cluster: ClusterSpec, store: RunStore) -> Any:
     """The :class:`~softtrack.executors.slurm.SlurmOptions` of ``opts`` (else ``cluster``'s)."""
+    from softtrack.executors.slurm import SlurmOptions  # submitit: only for --executor slurm
+
     return SlurmOptions(
         folder=opts.slurm_folder or str(store.root / ".submitit"),
         partition=opts.partition if opts.partition is not None else cluster.partition,
@@ -154,6 +154,8 @@ def execute(
             on_progress(line)
 
     if opts.executor == "local":
+        from softtrack.executors.local import LocalPool  # the pool: only when it runs
+
         if opts.detach:
             log = store.root / f"sweep-{sweep_id}.log"
             with open(log, "ab") as fh:
@@ -179,6 +181,8 @@ def execute(
             pool.run(jobs, on_tick=tick)
             outcome.stop_signal = pool.stop_signal
     elif opts.executor == "slurm":
+        from softtrack.executors.slurm import submit_jobs  # submitit, as above
+
         slurm = slurm_options(opts, cluster or ClusterSpec(), store)
         submitted = submit_jobs(jobs, slurm)
         outcome.log = slurm.folder

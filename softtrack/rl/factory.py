@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from softtrack.env.vec_env import TrackingVecEnv
 from softtrack.rl import variants
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.spec.env_config import env_config
@@ -99,6 +98,9 @@ def make_vec_env(
     ``normalize=False`` to wrap a saved one with ``VecNormalize.load`` instead.
     """
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    # here, not at the top: stable-baselines3 and torch load when an environment is built
+    from softtrack.env.vec_env import TrackingVecEnv
 
     with warnings.catch_warnings():  # TrackingVecEnv has no render mode; SB3 warns about it
         warnings.filterwarnings("ignore", message=".*render_mode.*")

@@ -18,8 +18,6 @@ from typing import Any, Literal
 import numpy as np
 
 from softtrack.evaluation import Policy, independent_policy
-from softtrack.mpc.controller import MpcController
-from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.rl.factory import model_class
 from softtrack.rl.target_actor import act_with_target_actor
 from softtrack.spec import ExperimentSpec
@@ -173,6 +171,10 @@ def load_policy_file(spec: ExperimentSpec, path: Path) -> Policy:
 
 def mpc_controller(spec: ExperimentSpec, seed: int) -> Policy:
     """The sampling MPC of ``spec``'s ``mpc:`` section (arm weights from ``env.reward``)."""
+    # the planner: loaded for planner runs only
+    from softtrack.mpc.controller import MpcController
+    from softtrack.mpc.planner_config import PlannerConfig
+
     config = PlannerConfig(
         **spec.mpc.planner_kwargs(), arm_weights=tuple(spec.env.reward.arm_weights)
     )

@@ -35,7 +35,6 @@ from softtrack.executors import dispatch
 from softtrack.executors.base import worker_env
 from softtrack.executors.dispatch import ExecOptions, slurm_options
 from softtrack.executors.local import LocalPool
-from softtrack.executors.slurm import submit_commands
 from softtrack.rl.factory import check_supported
 from softtrack.spec import SpecError, load_spec, spec_chain
 from softtrack.store.atomic import atomic_write_text
@@ -54,7 +53,6 @@ from softtrack.tune.study import (
     summary_line,
     top_up,
 )
-from softtrack.tune.worker import work
 
 __all__ = ["TuneOutcome", "TuneWorker", "tune", "tune_best", "tune_status"]
 
@@ -211,6 +209,9 @@ def tune(
                     )
             outcome.detached, outcome.log = True, str(jobs[0].log_path().parent)
         elif workers == 1:
+            # here, not at the top: the trainer (torch, JAX) loads when a trial runs here
+            from softtrack.tune.worker import work
+
             code = work(ts, str(root), log=say, show_progress=show_progress)
             if code >= 128:
                 outcome.stop_signal = code - 128
@@ -265,6 +266,8 @@ def _run_on_slurm(
     slurm = slurm_options(options, ts.spec.cluster, RunStore(root))
     root.mkdir(parents=True, exist_ok=True)
     jobs = [TuneWorker(str(root), url, ts.name, k) for k in range(workers)]
+    from softtrack.executors.slurm import submit_commands  # submitit: for --executor slurm
+
     submitted = submit_commands(
         [(j.command, str(j.log_path())) for j in jobs], slurm, name=f"tune-{ts.name}"
     )

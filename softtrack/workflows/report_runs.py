@@ -11,7 +11,6 @@ from softtrack.evaluation.run_evaluation import (
     evaluate_run,
     has_evaluation,
 )
-from softtrack.report import build_report
 from softtrack.rl.policy import (
     load_policy,
     model_paths,
@@ -20,7 +19,6 @@ from softtrack.store.provenance import portable_command
 from softtrack.store.runs import RunRecord, RunStore, RunStoreError, resolve_runs_dir
 from softtrack.store.selection import select_one_run, select_runs
 from softtrack.store.tables import TableError
-from softtrack.tune.view import load_view
 
 
 def report(
@@ -57,6 +55,10 @@ def report(
         storage: the studies' Optuna storage URL (default ``sqlite:///<runs dir>/optuna.db``).
         on_problem: told each table that could not be read (left out of the report).
     """
+    # matplotlib and Optuna: loaded when a report is built, not with the API
+    from softtrack.report import build_report
+    from softtrack.tune.view import load_view
+
     root = resolve_runs_dir(runs_dir)
     store = RunStore(root)
     views = [load_view(name, storage=storage, runs_dir=root) for name in studies]

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 from softtrack.evaluation.workspace_floors import reach_warning
 from softtrack.rl.factory import check_supported
-from softtrack.rl.train import check_resumable, train_run
 from softtrack.spec import SpecError, load_spec, spec_chain
 from softtrack.spec.env_config import env_config
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
@@ -43,6 +42,8 @@ def train(
     Returns:
         The outcome of each run started.
     """
+    from softtrack.rl.train import train_run  # torch and JAX: when a run trains, not with the API
+
     spec = load_spec(path, overrides)
     chain = spec_chain(path)
     if spec.controller == "mpc":
@@ -81,6 +82,8 @@ def resume(
 ) -> TrainOutcome:
     """Continue an interrupted (or killed, or failed) run from its latest checkpoint (``run_id``:
     a run id or unique prefix, a run directory, or an experiment of one run)."""
+    from softtrack.rl.train import check_resumable, train_run  # torch and JAX, as in train()
+
     record = select_one_run(run_id, runs_dir)
     store = RunStore(record.path.parent)
     check_resumable(record)

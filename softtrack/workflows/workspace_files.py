@@ -5,14 +5,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
 from softtrack.env.settings import TrackingConfig
-from softtrack.evaluation.workspace import WorkspaceResult
-from softtrack.report.workspace_figure import workspace_figure
 from softtrack.store.atomic import atomic_write_text
 from softtrack.store.tables import write_table
+
+if TYPE_CHECKING:
+    from softtrack.evaluation.workspace import WorkspaceResult
 
 __all__ = ["write_workspace_files"]
 
@@ -25,6 +27,9 @@ def write_workspace_files(
     path's floor, m, per scale), ``boundary.csv`` (the held region per height) and
     ``workspace.png`` (:func:`~softtrack.report.workspace_figure.workspace_figure`); ``name``
     titles the figure, ``seed`` (of the search) is in its caption."""
+    # matplotlib: loaded when the files are written, not with the API
+    from softtrack.report.workspace_figure import workspace_figure
+
     out.mkdir(parents=True, exist_ok=True)
     held = pd.concat(
         [
