@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from softtrack.env.targets import (
+    EVAL_TRAJECTORIES,
+    HELD_OUT_SCALE,
+    HELD_OUT_SHIFT,
     BatchedTargets,
     TargetConfig,
     trajectory_position,
@@ -413,7 +417,54 @@ def test_trajectory_names_are_defined_once() -> None:
 
     assert EVAL_TRAJECTORIES == ("circle", "rectangle", "figure8")
     assert typing.get_args(TrajectoryName) == EVAL_TRAJECTORIES == evaluated
-    assert TARGET_MODES == ("random", *EVAL_TRAJECTORIES, "fixed")
+    assert TARGET_MODES == ("random", *EVAL_TRAJECTORIES, "paths", "fixed")
     assert tuple(ExperimentSpec(name="x").training.eval_trajectories) == EVAL_TRAJECTORIES
     assert [c.value for c in TrajectoryChoice] == [*EVAL_TRAJECTORIES, "all", "none"]
     assert all(set(cells) == set(EVAL_TRAJECTORIES) for cells in STUDY_RMSE_3D.values())
+
+
+def test_held_out_paths_are_the_trajectories_moved_scaled_and_shifted_in_time() -> None:
+    """Each ``paths`` environment follows its drawn shape's trajectory at phase + sign·t,
+    scaled about the centre and moved; it draws only from its own generator, so a batch is
+    its environments alone, and the draws stay in their documented ranges."""
+    config = TargetConfig(name="paths")
+    n = 24
+    batch = BatchedTargets(config, n)
+    batch.reset(range(n), [np.random.default_rng(100 + k) for k in range(n)])
+    paths = batch._paths
+    assert paths is not None
+    assert set(paths.shape.tolist()) == {0, 1, 2} and set(paths.sign.tolist()) == {-1.0, 1.0}
+    assert np.all((paths.scale >= HELD_OUT_SCALE[0]) & (paths.scale <= HELD_OUT_SCALE[1]))
+    assert np.all(np.abs(paths.shift) <= HELD_OUT_SHIFT * config.circle_radius)
+    for _ in range(37):
+        batch.step(0.05)
+    t = batch.time[0]
+    centre = np.asarray(config.center)
+    for i in range(n):
+        shaped = dataclasses.replace(config, name=EVAL_TRAJECTORIES[paths.shape[i]])
+        along = paths.phase[i] + paths.sign[i] * t
+        expected = (
+            centre
+            + paths.shift[i]
+            + paths.scale[i] * (trajectory_position(shaped, np.array(along)) - centre)
+        )
+        np.testing.assert_allclose(batch.position[i], expected, atol=1e-12)
+        alone = BatchedTargets(config, 1)
+        alone.reset([0], [np.random.default_rng(100 + i)])
+        for _ in range(37):
+            alone.step(0.05)
+        np.testing.assert_array_equal(alone.position[0], batch.position[i])
+    # the velocity is the position's derivative
+    before = batch.position.copy()
+    velocity = batch.velocity.copy()
+    batch.step(1e-6)
+    moved = (batch.position - before) / 1e-6
+    smooth = np.abs(moved - velocity).max(axis=1) < 1e-3  # a rectangle corner may fall between
+    assert smooth.sum() >= n - 2
+
+
+def test_held_out_paths_need_generators_and_have_no_closed_form() -> None:
+    with pytest.raises(ValueError, match="paths targets need one numpy Generator"):
+        BatchedTargets(TargetConfig(name="paths"), 2).reset([0, 1])
+    with pytest.raises(ValueError, match="paths target has no closed-form"):
+        trajectory_position(TargetConfig(name="paths"), np.zeros(3))

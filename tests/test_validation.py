@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from softtrack.cli import app
 from softtrack.evaluation import metrics_table, run_episode
+from softtrack.evaluation.episodes import VALIDATION_PATH_SEED
 from softtrack.report.data import load_run
 from softtrack.report.group_summaries import validation_scores
 from softtrack.rl.factory import algo_class
@@ -264,6 +265,46 @@ def test_validation_trajectories_track_each_checkpoint_without_entering_the_scor
     # they are the evaluation episodes of the checkpoint's model
     rows = extra[(extra["global_step"] == _best_of(scores)) & (extra["trajectory"] == "figure8")]
     again = _episode_metrics(best.best_model_path, tracked.load_spec(), None, "figure8")
+    np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-6)
+
+
+def test_held_out_paths_enter_the_score_and_the_evaluation_trajectories_do_not(
+    tmp_path: Path,
+) -> None:
+    """``training.validation_paths``: each checkpoint also runs that many held-out path
+    episodes (target mode ``paths``, seeds from VALIDATION_PATH_SEED, numbered after the
+    random ones); the score, the kept model and the report's scores average the random and
+    the path episodes, never the evaluation trajectories."""
+    spec = _spec(
+        tmp_path,
+        total_timesteps=400,
+        final_policy="best_validated",
+        validation_paths=2,
+        validation_trajectories=True,
+        eval_trajectories=["circle"],
+        **VALIDATED,
+    )
+    record = _train(spec, tmp_path / "runs")
+    table = _validation(record)
+    paths = table[table["trajectory"] == "paths"]
+    assert sorted(zip(paths["global_step"], paths["episode"], paths["seed"], strict=True)) == [
+        (step, EPISODES + k, VALIDATION_PATH_SEED + k)
+        for step in (200, 400)
+        for k in range(2)
+        for _arm in (0, 1)
+    ]
+    scored = table[table["trajectory"].isin(["random", "paths"])]
+    scores = {s: float(rows["rmse_3d"].mean()) for s, rows in scored.groupby("global_step")}
+    assert {s: validation_score(rows) for s, rows in table.groupby("global_step")} == scores
+    reported = validation_scores(load_run(record))
+    assert dict(zip(reported["global_step"], reported["score"], strict=True)) == scores
+    best = PolicyDir.of_run(record.path)
+    assert [p.name for p in best.list_best()] == [f"step-{_best_of(scores):012d}"]
+    # a path row is the episode of the checkpoint's model on that drawn path
+    rows = paths[(paths["global_step"] == _best_of(scores)) & (paths["episode"] == EPISODES + 1)]
+    again = _episode_metrics(
+        best.best_model_path, record.load_spec(), None, "paths", VALIDATION_PATH_SEED + 1
+    )
     np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-6)
 
 

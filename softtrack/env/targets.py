@@ -8,6 +8,12 @@ Modes:
   the box so that the whole sphere stays inside it.
 * ``circle``, ``rectangle``, ``figure8`` (evaluation): closed-form periodic paths in the
   plane y = ``center[1]``, one lap per ``period`` seconds; see :func:`trajectory_position`.
+* ``paths`` (held-out validation): per episode, drawn from the environment's generator at
+  reset, one of the three trajectories' shapes scaled by a factor uniform in
+  :data:`HELD_OUT_SCALE`, its centre moved by up to :data:`HELD_OUT_SHIFT` × ``circle_radius``
+  along each axis, started at a phase uniform over the period and run either way round: paths
+  like the evaluation's that are not the evaluation's, to select models on
+  (``training.validation_paths``); see :func:`held_out_state`.
 * ``fixed``: a still target at ``fixed_position``.
 
 Everything is vectorised over environments; the only per-environment Python work is drawing
@@ -32,22 +38,32 @@ from softtrack.trajectories import EVAL_TRAJECTORIES, TrajectoryName
 __all__ = [
     "CLOSED_FORM_MODES",
     "EVAL_TRAJECTORIES",
+    "HELD_OUT_SCALE",
+    "HELD_OUT_SHIFT",
     "TARGET_MODES",
     "BatchedTargets",
     "MixedTargets",
     "TargetConfig",
     "TargetMode",
     "TrajectoryName",
+    "held_out_state",
     "trajectory_position",
     "trajectory_velocity",
 ]
 
 #: The closed-form trajectories of the evaluation (the study's three), by name: the one place
 #: the names are written (specs, the CLI, evaluation and reports take them from here).
-#: Every target motion: the random training target, the trajectories, a fixed point.
-TargetMode = Literal["random", TrajectoryName, "fixed"]
+#: Every target motion: the random training target, the trajectories, the held-out paths
+#: like them, a fixed point.
+TargetMode = Literal["random", TrajectoryName, "paths", "fixed"]
 TARGET_MODES: tuple[str, ...] = get_args(TargetMode)
 CLOSED_FORM_MODES: tuple[str, ...] = (*EVAL_TRAJECTORIES, "fixed")
+#: Modes that draw from each environment's generator at reset.
+_DRAWN_MODES = ("random", "paths")
+#: A held-out path's size relative to its trajectory's: uniform in this range.
+HELD_OUT_SCALE = (0.8, 1.2)
+#: A held-out path's centre moves by up to this fraction of ``circle_radius`` along each axis.
+HELD_OUT_SHIFT = 0.15
 
 # A redirect that is due at t = k·interval still happens on the step that ends at
 # k·interval even when the summed time steps fall short of it by rounding (s).
@@ -70,7 +86,7 @@ class TargetConfig:
     """Target motion settings (SI units; defaults are the study's, ``docs/environment.md``).
 
     Attributes:
-        name: one of ``random``, ``circle``, ``rectangle``, ``figure8``, ``fixed``.
+        name: one of ``random``, ``circle``, ``rectangle``, ``figure8``, ``paths``, ``fixed``.
         sphere_radius: radius of the target sphere, m.
         speed: speed of the random target, m/s (its maximum when ``speed_min`` is set).
         speed_min: ``None`` (the study): constant ``speed``. Otherwise every new direction of the
@@ -198,10 +214,10 @@ def _planar(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _closed_form(config: TargetConfig, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    if config.name == "random":
+    if config.name in _DRAWN_MODES:
         raise ValueError(
-            "the random target has no closed-form trajectory; use BatchedTargets, or pick one "
-            f"of {', '.join(CLOSED_FORM_MODES)}"
+            f"the {config.name} target has no closed-form trajectory of its own (each episode "
+            f"draws it); use BatchedTargets, or pick one of {', '.join(CLOSED_FORM_MODES)}"
         )
     if config.name not in CLOSED_FORM_MODES:
         config.validate()  # raises with the list of valid names
@@ -232,7 +248,8 @@ def trajectory_position(config: TargetConfig, t: np.ndarray) -> np.ndarray:
         (..., 3) positions, m.
 
     Raises:
-        ValueError: for the ``random`` mode (it has no closed form) or an unknown name.
+        ValueError: for the ``random`` and ``paths`` modes (each episode draws its own) or an
+            unknown name.
     """
     return _closed_form(config, t)[0]
 
@@ -243,6 +260,76 @@ def trajectory_velocity(config: TargetConfig, t: np.ndarray) -> np.ndarray:
     On the rectangle, a corner belongs to the side that starts there.
     """
     return _closed_form(config, t)[1]
+
+
+@dataclass(frozen=True)
+class HeldOutPaths:
+    """The drawn parameters of ``n`` held-out paths (``paths`` mode).
+
+    Attributes:
+        shape: (n,) index into :data:`EVAL_TRAJECTORIES` of each path's shape.
+        scale: (n,) size relative to the trajectory's, in :data:`HELD_OUT_SCALE`.
+        shift: (n, 3) move of the centre, m.
+        phase: (n,) time along the trajectory at which the path starts, s.
+        sign: (n,) +1 to run the trajectory forwards, −1 backwards.
+    """
+
+    shape: np.ndarray
+    scale: np.ndarray
+    shift: np.ndarray
+    phase: np.ndarray
+    sign: np.ndarray
+
+    @classmethod
+    def unit(cls, n: int) -> HeldOutPaths:
+        """``n`` paths equal to the first trajectory (before any draw)."""
+        return cls(np.zeros(n, np.intp), np.ones(n), np.zeros((n, 3)), np.zeros(n), np.ones(n))
+
+    def draw(self, i: int, config: TargetConfig, rng: np.random.Generator) -> None:
+        """Draw path ``i``'s parameters from ``rng``: the shape (one integer), the scale (one
+        uniform), the shift (three uniforms), the phase (one uniform), the direction (one
+        uniform)."""
+        self.shape[i] = rng.integers(len(EVAL_TRAJECTORIES))
+        self.scale[i] = rng.uniform(*HELD_OUT_SCALE)
+        self.shift[i] = rng.uniform(-1.0, 1.0, 3) * HELD_OUT_SHIFT * config.circle_radius
+        self.phase[i] = rng.uniform(0.0, config.period)
+        self.sign[i] = 1.0 if rng.uniform() < 0.5 else -1.0
+
+
+def held_out_state(
+    config: TargetConfig, paths: HeldOutPaths, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities of held-out paths at times ``t``.
+
+    Args:
+        config: the target settings (the trajectories' sizes, centre and period).
+        paths: the n paths' drawn parameters.
+        t: (n,) each path's time since reset, s.
+
+    Returns:
+        (n, 3) positions, m, and (n, 3) velocities, m/s: path k at time t is its shape's
+        trajectory at ``phase + sign·t``, scaled about the centre by ``scale`` and moved by
+        ``shift``.
+    """
+    t = np.asarray(t, dtype=float)
+    pos = np.empty((len(t), 3))
+    vel = np.zeros((len(t), 3))
+    for k, name in enumerate(EVAL_TRAJECTORIES):
+        members = np.flatnonzero(paths.shape == k)
+        if members.size == 0:
+            continue
+        along = paths.phase[members] + paths.sign[members] * t[members]
+        planar_pos, planar_vel = _planar(dataclasses.replace(config, name=name), along)
+        scale = paths.scale[members, None]
+        planar_pos *= scale
+        planar_vel *= scale * paths.sign[members, None]
+        centre = np.asarray(config.center, dtype=float) + paths.shift[members]
+        pos[members, 0] = centre[:, 0] + planar_pos[:, 0]
+        pos[members, 1] = centre[:, 1]
+        pos[members, 2] = centre[:, 2] + planar_pos[:, 1]
+        vel[members, 0] = planar_vel[:, 0]
+        vel[members, 2] = planar_vel[:, 1]
+    return pos, vel
 
 
 # ---- batched state ---------------------------------------------------------------------------
@@ -276,13 +363,21 @@ class BatchedTargets:
         self._low = np.asarray(config.box_low, dtype=float) + radius
         self._high = np.asarray(config.box_high, dtype=float) - radius
         self._random = config.name == "random"
+        self._drawn = config.name in _DRAWN_MODES
+        self._paths = HeldOutPaths.unit(self.n_envs) if config.name == "paths" else None
         self._rngs: list[np.random.Generator | None] = [None] * self.n_envs
         self._since_redirect = np.zeros(self.n_envs)
         self._all_reset = False  # random mode: has every environment got its generator?
         if self._random:
             self.position[:] = 0.5 * (self._low + self._high)
         else:
-            self.position[:], self.velocity[:] = _closed_form(config, self.time)
+            self.position[:], self.velocity[:] = self._state(self.time)
+
+    def _state(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Closed-form or held-out paths' (n, 3) positions and velocities at times ``t`` (n,)."""
+        if self._paths is not None:
+            return held_out_state(self.config, self._paths, t)
+        return _closed_form(self.config, t)
 
     @property
     def shrunk_box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -299,17 +394,18 @@ class BatchedTargets:
         Args:
             env_indices: (k,) indices of the environments to reset.
             rngs: k generators, ``rngs[i]`` for ``env_indices[i]``; required in random mode
-                (and kept for that environment's later direction draws), ignored otherwise.
-                Random mode draws, per environment, the centre uniformly in the shrunk box
-                (3 uniforms) and then a direction (3 standard normals, normalised).
+                (and kept for that environment's later direction draws) and in paths mode,
+                ignored otherwise. Random mode draws, per environment, the centre uniformly in
+                the shrunk box (3 uniforms) and then a direction (3 standard normals,
+                normalised); paths mode draws the path (:meth:`HeldOutPaths.draw`).
         """
         idx = np.atleast_1d(np.asarray(env_indices, dtype=np.intp))
         if idx.ndim != 1 or np.any((idx < 0) | (idx >= self.n_envs)):
             raise ValueError(f"env_indices must be a 1-D list of indices in [0, {self.n_envs})")
-        if self._random:
+        if self._drawn:
             if rngs is None or len(rngs) != len(idx):
                 raise ValueError(
-                    "random targets need one numpy Generator per reset environment: "
+                    f"{self.config.name} targets need one numpy Generator per reset environment: "
                     f"got {0 if rngs is None else len(rngs)} for {len(idx)} indices"
                 )
             for rng in rngs:
@@ -318,7 +414,11 @@ class BatchedTargets:
         self.time[idx] = 0.0
         self._since_redirect[idx] = 0.0
         if not self._random:
-            self.position[idx], self.velocity[idx] = _closed_form(self.config, self.time[idx])
+            if self._paths is not None:
+                assert rngs is not None
+                for i, rng in zip(idx.tolist(), rngs, strict=True):
+                    self._paths.draw(i, self.config, rng)
+            self.position[:], self.velocity[:] = self._state(self.time)
             return
         assert rngs is not None
         for i, rng in zip(idx.tolist(), rngs, strict=True):
@@ -353,7 +453,7 @@ class BatchedTargets:
             return
         self.time += dt
         if not self._random:
-            self.position[:], self.velocity[:] = _closed_form(self.config, self.time)
+            self.position[:], self.velocity[:] = self._state(self.time)
             return
         if not self._all_reset:
             missing = [i for i, rng in enumerate(self._rngs) if rng is None]

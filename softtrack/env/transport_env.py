@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from softtrack.env.observation import build_observation, observation_size
-from softtrack.env.targets import trajectory_position
+from softtrack.env.targets import CLOSED_FORM_MODES, trajectory_position
 
 if TYPE_CHECKING:
     from softtrack.env.settings import TrackingConfig
@@ -141,12 +141,13 @@ class TransportModel:
     ) -> np.ndarray:
         """(H, 3) environment ``env``'s goal after each of the next ``steps`` (H,) control
         steps (1, 2, …) from ``step_count``, m: the approach, then the path (closed forms
-        exactly; a random target extrapolated at its velocity inside its box), scaled by
+        exactly; a random target or held-out path extrapolated at its velocity inside the random
+        target's box), scaled by
         :attr:`goal_motion` as :meth:`update_goal` does."""
         count = step_count + np.asarray(steps, dtype=float)
         path_time = np.maximum(count - self.approach_steps, 0.0) * self.control_dt
         config = targets.config
-        if config.name != "random":
+        if config.name in CLOSED_FORM_MODES:
             path = trajectory_position(config, path_time)
             path_start = trajectory_position(config, np.zeros(1))[0]
         else:

@@ -27,6 +27,7 @@ __all__ = [
     "CONFIRM_SEED",
     "EVAL_TRAJECTORIES",
     "RANDOM_TARGET_SEED",
+    "VALIDATION_PATH_SEED",
     "VALIDATION_SEED",
     "Episode",
     "Policy",
@@ -44,6 +45,9 @@ RANDOM_TARGET_SEED = 1_000_000
 VALIDATION_SEED = 2_000_000
 # Confirmation episode k after training (softtrack.rl.confirmation) uses CONFIRM_SEED + k.
 CONFIRM_SEED = 3_000_000
+# Held-out path k of validation (target mode "paths") draws its path from seed
+# VALIDATION_PATH_SEED + k (4_000_000 is the robustness sweep's).
+VALIDATION_PATH_SEED = 5_000_000
 
 # A policy maps one observation (obs_dim,) to one action (act_dim,).
 Policy = Callable[[np.ndarray], np.ndarray]

@@ -11,6 +11,7 @@ import pandas as pd
 
 __all__ = [
     "CARRY_SCORE",
+    "HELD_OUT_TARGETS",
     "LOST_OBJECT_ERROR",
     "VALIDATION_SCORED_COLUMNS",
     "carry_errors",
@@ -22,6 +23,10 @@ __all__ = [
 #: after the drop, m: about the arms' reach, more than any carrying error.
 LOST_OBJECT_ERROR = 1.0
 
+
+#: The ``trajectory`` values of the validation rows that enter a checkpoint's score: the
+#: held-out random targets and the held-out paths (target modes).
+HELD_OUT_TARGETS = ("random", "paths")
 
 #: The columns of ``tables/validation.parquet`` that :func:`validation_score` and the report's
 #: validation section read; a shipped run may keep only these (experiments/reproduce_study.py).
@@ -40,10 +45,10 @@ VALIDATION_SCORED_COLUMNS = (
 
 def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) -> float:
     """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
-    (one per episode and arm), m: the mean ``rmse_3d`` of its random-target episodes, or ∞
-    if one terminated (went non-finite). Rows of the evaluation trajectories
-    (``training.validation_trajectories``) are left out: models are selected on held-out
-    random targets only.
+    (one per episode and arm), m: the mean ``rmse_3d`` of its random-target and held-out
+    path episodes (``training.validation_paths``), or ∞ if one terminated (went
+    non-finite). Rows of the evaluation trajectories (``training.validation_trajectories``)
+    are left out: models are never selected on the evaluation's own trajectories.
 
     In the transport task (``object_rmse_3d`` rows) with ``episode_duration`` (s, the
     validation episodes' planned length), a drop ends an episode early: each episode scores
@@ -53,7 +58,7 @@ def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) 
     lower, and one that carries it through scores its mean error, as before. Without
     ``episode_duration`` any drop scores ∞."""
     if "trajectory" in rows:
-        rows = rows[rows["trajectory"] == "random"]
+        rows = rows[rows["trajectory"].isin(HELD_OUT_TARGETS)]
     if len(rows) == 0:
         return math.inf
     carried = "object_rmse_3d" in rows and rows["object_rmse_3d"].notna().all()
@@ -69,7 +74,8 @@ def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) 
 def _carry_score(rows: pd.DataFrame, planned: float) -> float:
     """:func:`validation_score` of transport rows (one per episode and arm; the sphere's
     columns are the same in both arms' rows), ``planned`` s per episode."""
-    episodes = rows.drop_duplicates("episode") if "episode" in rows else rows
+    keys = [column for column in ("trajectory", "episode") if column in rows]
+    episodes = rows.drop_duplicates(keys) if keys else rows
     dropped = episodes["dropped"].fillna(False).astype(bool).to_numpy()
     failed = episodes["terminated"].astype(bool).to_numpy() & ~dropped  # went non-finite
     per_episode = carry_errors(episodes, planned)

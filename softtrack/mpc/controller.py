@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from softtrack.env.targets import trajectory_position
+from softtrack.env.targets import CLOSED_FORM_MODES, trajectory_position
 from softtrack.mpc.planner import SamplingPlanner
 from softtrack.mpc.planner_config import PlannerConfig
 from softtrack.sim.params import MODEL_PARAMETERS
@@ -112,7 +112,7 @@ class MpcController:
             steps = np.arange(1, self.config.horizon + 1)
             return core.transport.goal_ahead(int(core.step_count[0]), targets, 0, steps)
         ahead = np.arange(1, self.config.horizon + 1) * core.config.sim.control_dt
-        if targets.config.name != "random":
+        if targets.config.name in CLOSED_FORM_MODES:
             centre = trajectory_position(targets.config, targets.time[0] + ahead)
         else:
             low, high = targets.shrunk_box

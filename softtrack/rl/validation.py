@@ -19,8 +19,13 @@ run's arm policy in the single-arm scene of its arm.
   evaluate`` runs after training), stored as rows with that ``trajectory``, ``episode`` 0 and
   ``seed`` 0 (unused): the accuracy on the evaluation trajectories against env steps and
   ``wall_time``, for time-to-accuracy (``benchmarks/bench_time_to_accuracy.py``).
-* The checkpoint's **validation score** is the mean 3-D RMSE over its random-target rows (m),
-  or ∞ if an episode went non-finite; trajectory rows never enter it.
+* With ``training.validation_paths: P`` the checkpoint's model also runs P held-out path
+  episodes (target mode ``paths``: the trajectories' shapes scaled, moved, started at another
+  phase, run either way round; path k from seed ``VALIDATION_PATH_SEED`` + k), rows with
+  ``trajectory`` ``paths`` and ``episode`` K + k.
+* The checkpoint's **validation score** is the mean 3-D RMSE over its random-target and
+  held-out path rows (m), or ∞ if an episode went non-finite; the evaluation trajectories'
+  rows never enter it.
 * A model whose score is below every earlier one of its policy is saved to
   ``<policy>/best/step-<step>/`` (:class:`~softtrack.store.layout.PolicyDir`): ``model.zip``,
   ``vecnormalize.pkl`` when normalising, ``state.json`` (``global_step``, ``score``,
@@ -51,6 +56,7 @@ import pandas as pd
 
 from softtrack.env.settings import TrackingConfig
 from softtrack.evaluation import (
+    VALIDATION_PATH_SEED,
     VALIDATION_SEED,
     Episode,
     Policy,
@@ -59,6 +65,7 @@ from softtrack.evaluation import (
     validation_score,
 )
 from softtrack.evaluation.episodes import EPISODE_BATCH
+from softtrack.evaluation.scores import HELD_OUT_TARGETS
 from softtrack.rl.callbacks import TrainingClock
 from softtrack.rl.policy import deterministic_policy
 from softtrack.rl.target_actor import acting_with_target_actor
@@ -215,20 +222,27 @@ def checkpoint_rows(
     trajectories: Sequence[str],
     arm: int | None,
     stop_requested: Callable[[], bool] = lambda: False,
+    paths: int = 0,
 ) -> pd.DataFrame | None:
     """One checkpoint's validation episodes, all in one batch of environments (up to
     :data:`VALIDATION_BATCH` at a time) with one call of ``act`` per control step when it
     accepts batches: ``episodes`` random-target episodes (episode k from seed
-    :data:`VALIDATION_SEED` + k) and one episode per trajectory of ``trajectories``.
+    :data:`VALIDATION_SEED` + k), ``paths`` held-out path episodes (target mode ``paths``,
+    path k from seed :data:`VALIDATION_PATH_SEED` + k, numbered ``episodes`` + k) and one
+    episode per trajectory of ``trajectories``.
 
-    Returns their metrics as :func:`held_out_rows` does, the random episodes' rows first, the
-    trajectories' rows with ``episode`` and ``seed`` 0; ``None`` if ``stop_requested`` turned
-    true between two batches. ``act`` must take batches: it is always called with
-    :data:`VALIDATION_BATCH` rows (:func:`_fixed_batch`)."""
+    Returns their metrics as :func:`held_out_rows` does, the random episodes' rows first, then
+    the paths', the trajectories' rows with ``episode`` and ``seed`` 0; ``None`` if
+    ``stop_requested`` turned true between two batches. ``act`` must take batches: it is
+    always called with :data:`VALIDATION_BATCH` rows (:func:`_fixed_batch`)."""
     act = _fixed_batch(act, VALIDATION_BATCH)
-    names = ["random"] * episodes + list(trajectories)
-    seeds = [VALIDATION_SEED + k for k in range(episodes)] + [0] * len(trajectories)
-    indices = list(range(episodes)) + [0] * len(trajectories)
+    names = ["random"] * episodes + ["paths"] * paths + list(trajectories)
+    seeds = (
+        [VALIDATION_SEED + k for k in range(episodes)]
+        + [VALIDATION_PATH_SEED + k for k in range(paths)]
+        + [0] * len(trajectories)
+    )
+    indices = list(range(episodes + paths)) + [0] * len(trajectories)
     parts: list[pd.DataFrame] = []
     for first in range(0, len(names), VALIDATION_BATCH):
         if stop_requested():
@@ -273,6 +287,7 @@ class Validator:
         self.clock = clock
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
+        self.paths = int(spec.training.validation_paths)
         if self.episodes < 1:
             raise ValueError(
                 f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
@@ -309,10 +324,11 @@ class Validator:
                 self.trajectories,
                 self.policy.arm,
                 self.stop_requested,
+                self.paths,
             )
         if rows is None:
             return None
-        tracked = rows[rows["trajectory"] != "random"] if self.trajectories else None
+        tracked = rows[~rows["trajectory"].isin(HELD_OUT_TARGETS)] if self.trajectories else None
         rows.insert(1, "global_step", step)
         if wall_time is not None:
             rows.insert(2, "wall_time", wall_time)
@@ -335,9 +351,10 @@ class Validator:
                 + " m"
             )
         what = "the sphere's 3-D RMSE (a drop counts 1 m after it)" if carried else "3-D RMSE"
+        scored = self.episodes + self.paths
         self.log(
-            f"{name} validation at {step:,} steps: {what} {score:.4f} m over {self.episodes} "
-            f"episode{'s' if self.episodes != 1 else ''} in {time.monotonic() - started:.0f} s"
+            f"{name} validation at {step:,} steps: {what} {score:.4f} m over {scored} "
+            f"episode{'s' if scored != 1 else ''} in {time.monotonic() - started:.0f} s"
             f"{' (new best)' if improved else ''}; "
             f"best {self.best.score:.4f} m at {self.best.step:,}{tracking}"
         )

@@ -218,6 +218,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "policy_kwargs", "log_std_init"): 0.0,
     ("training", "validation_episodes"): 0,
     ("training", "validation_trajectories"): False,
+    ("training", "validation_paths"): 0,
     ("training", "final_policy"): "last",
     ("training", "confirm_episodes"): 0,
     ("training", "randomisation_warmup_steps"): 0,

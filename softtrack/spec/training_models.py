@@ -78,6 +78,17 @@ class TrainingSpec(SpecModel):
         "episodes",
         ge=0,
     )
+    validation_paths: Int = unit_field(
+        0,
+        "held-out path episodes (eval_duration each) run on each validated checkpoint's "
+        "model beside the random-target ones: per episode one of the trajectories' shapes, "
+        "scaled by 0.8-1.2, its centre moved by up to 0.15 circle radii along each axis, "
+        "started at a random phase, run either way round (target mode 'paths'); they enter "
+        "the validation score with the random-target episodes, so models are selected on "
+        "paths like the evaluation's that are not the evaluation's; 0 = none",
+        "episodes",
+        ge=0,
+    )
     validation_trajectories: bool = unit_field(
         False,
         "also run each eval_trajectories episode on every validated checkpoint's model "
