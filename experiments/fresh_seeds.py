@@ -265,6 +265,26 @@ def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
     return "\n".join(lines)
 
 
+def parse_cores(text: str | None) -> list[int | None]:
+    """The cores of ``--cores`` ("1", "0,1"), each one this process may run on; ``[None]``
+    (no pinning) without it.
+
+    Raises:
+        ValueError: an entry is not a core number this process may use (naming those)."""
+    if not text:
+        return [None]
+    usable = sorted(os.sched_getaffinity(0))
+    cores: list[int | None] = []
+    for entry in text.split(","):
+        if not entry.strip().isdigit() or int(entry) not in usable:
+            raise ValueError(
+                f"--cores {text}: {entry.strip()!r} is not a core this machine lets it use; "
+                f"give a comma-separated list of core numbers among {', '.join(map(str, usable))}"
+            )
+        cores.append(int(entry))
+    return cores
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("spec", type=Path, help="the recipe's spec file")
@@ -284,12 +304,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         spec = load_spec(args.spec)
         seeds = parse_seeds(args.seeds) or []
         check_request(spec, seeds)
+        cores = parse_cores(args.cores)
     except (SpecError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     store = RunStore(resolve_runs_dir(args.runs_dir))
     if not args.no_train:
-        cores = [int(c) for c in args.cores.split(",")] if args.cores else [None]
         pending = list(seeds)
         lock = threading.Lock()
 

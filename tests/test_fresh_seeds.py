@@ -3,6 +3,7 @@ interval, and its summary of finished runs (no training here)."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -45,3 +46,16 @@ def test_a_summary_of_no_finished_seed_says_so(
     assert (
         "1 of 1" in text and "kept model at the study and a checkpoint at it within 5 min" in text
     )
+
+
+def test_a_core_this_machine_does_not_offer_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--cores 2`` on a two-core machine (cores 0 and 1) is one line and exit 2 before
+    anything is trained, not a traceback from the training thread."""
+    absent = str(max(os.sched_getaffinity(0)) + 1)
+    for cores in (absent, "0,x"):
+        code = fs.main([str(TTA), "--seeds", "100", "--cores", cores, "--runs-dir", str(tmp_path)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and "is not a core" in err[0]
+    assert not any(tmp_path.iterdir())
