@@ -7,8 +7,10 @@ Reads each run's ``validation`` table (recorded with ``training.validation_traje
 every validated checkpoint has its random-target rows and its circle, rectangle and figure-eight
 rows) and answers two questions without training anything:
 
-1. **Selection rules.** Each rule is a score computed from a checkpoint's random-target rows
-   only; the checkpoint a rule keeps is its lowest score. A run *passes* under a rule when that
+1. **Selection rules.** Each rule is a score computed from a checkpoint's held-out rows only:
+   the random targets, and where the run has them (``training.validation_paths``) the
+   held-out paths, and both together (the project's score for such a run); the checkpoint a
+   rule keeps is its lowest score. A run *passes* under a rule when that
    checkpoint's trajectory rows are at or below the study's 3-D RMSE in all six cells. The
    ``trajectories`` column is the bound no rule can beat: some checkpoint of the run passes.
    (A checkpoint's trajectory rows equal ``softtrack evaluate`` of its model on the same CPU:
@@ -37,9 +39,12 @@ from softtrack.report.reference import STUDY_RMSE_3D
 from softtrack.store.tables import read_table
 
 STUDY = STUDY_RMSE_3D["centralized"]
+TRAJECTORIES = tuple(STUDY)
+#: The held-out target sets a score may average (rows' ``trajectory``).
+TARGET_SETS = (("random",), ("paths",), ("random", "paths"))
 
-#: A rule maps the random-target rows' 3-D RMSE (index (global_step, episode), one column per
-#: arm, m) to one score per checkpoint (m); the lowest is kept.
+#: A rule maps the held-out rows' 3-D RMSE (index (global_step, trajectory, episode), one
+#: column per arm, m) to one score per checkpoint (m); the lowest is kept.
 Rule = Callable[[pd.DataFrame], pd.Series]
 
 RULES: dict[str, Rule] = {
@@ -67,7 +72,7 @@ def checkpoint_passes(validation: pd.DataFrame) -> pd.Series:
     Returns:
         bool per ``global_step`` with trajectory rows.
     """
-    tracked = validation[validation["trajectory"] != "random"]
+    tracked = validation[validation["trajectory"].isin(TRAJECTORIES)]
     cells = tracked.pivot_table(
         index="global_step", columns=["trajectory", "arm"], values="rmse_3d"
     )
@@ -75,24 +80,30 @@ def checkpoint_passes(validation: pd.DataFrame) -> pd.Series:
     return (cells <= limits).all(axis=1)
 
 
-def random_rows(validation: pd.DataFrame) -> pd.DataFrame:
-    """Random-target 3-D RMSE (m) per (global_step, episode), one column per arm."""
-    rows = validation[validation["trajectory"] == "random"]
-    return rows.groupby(["global_step", "episode", "arm"])["rmse_3d"].mean().unstack("arm")
+def held_out_rows(validation: pd.DataFrame, targets: Sequence[str] = ("random",)) -> pd.DataFrame:
+    """Held-out 3-D RMSE (m) of the ``targets`` rows per (global_step, trajectory, episode),
+    one column per arm (empty when the run has none of them)."""
+    rows = validation[validation["trajectory"].isin(targets)]
+    keys = ["global_step", "trajectory", "episode", "arm"]
+    return rows.groupby(keys)["rmse_3d"].mean().unstack("arm")
 
 
 def rule_outcomes(run_dirs: Sequence[Path]) -> pd.DataFrame:
-    """Pass (1) or miss (0) per run (rows: seeds) and rule (columns), plus the bound."""
+    """Pass (1) or miss (0) per run (rows: seeds) and rule on each held-out target set the
+    runs have (columns "rule [targets]"), plus the bound."""
     outcomes: dict[int, dict[str, int]] = {}
     for run_dir in run_dirs:
         seed = int(json.loads((run_dir / "run.json").read_text())["seed"])
         validation = read_table(run_dir / "tables" / "validation.parquet")
         passes = checkpoint_passes(validation)
-        arms = random_rows(validation)
         row = {}
-        for name, rule in RULES.items():
-            scores = rule(arms).reindex(passes.index).dropna()
-            row[name] = int(passes[scores.idxmin()])
+        for targets in TARGET_SETS:
+            arms = held_out_rows(validation, targets)
+            if arms.empty or set(targets) - set(arms.index.get_level_values("trajectory")):
+                continue
+            for name, rule in RULES.items():
+                scores = rule(arms).reindex(passes.index).dropna()
+                row[f"{name} [{' + '.join(targets)}]"] = int(passes[scores.idxmin()])
         row["trajectories (bound)"] = int(passes.any())
         outcomes[seed] = row
     return pd.DataFrame(outcomes).T.sort_index()
@@ -104,7 +115,7 @@ def population_outcomes(run_dirs: Sequence[Path], sizes: Sequence[int]) -> pd.Da
     for run_dir in run_dirs:
         validation = read_table(run_dir / "tables" / "validation.parquet")
         passes = checkpoint_passes(validation)
-        scores = RULES["mean (the project's)"](random_rows(validation)).reindex(passes.index)
+        scores = RULES["mean (the project's)"](held_out_rows(validation)).reindex(passes.index)
         kept = scores.idxmin()
         members.append((float(scores[kept]), bool(passes[kept])))
     single = np.mean([passed for _, passed in members])
@@ -131,8 +142,9 @@ def main() -> None:
     args = parser.parse_args()
     outcomes = rule_outcomes(args.runs)
     print("selection rules: 1 = the kept checkpoint is at the study in all six cells")
-    print(outcomes.to_string())
-    print("runs passing: " + ", ".join(f"{name} {total}" for name, total in outcomes.sum().items()))
+    table = outcomes.T
+    table["runs passing"] = table.sum(axis=1)
+    print(table.to_string())
     print()
     print("populations of K independent runs, the best-validated member kept")
     print(population_outcomes(args.runs, args.population).round(3).to_string())
