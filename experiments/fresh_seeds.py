@@ -15,7 +15,9 @@ bootstrap interval (``softtrack compare``'s statistics).
 
 Running it again continues: a seed with a completed run is read, not retrained (its timing from
 the first time); an interrupted run resumes (its minutes then cover the resumed session only,
-marked ``resumed``). Timings are kept in ``<runs dir>/.fresh-seeds/``.
+marked ``resumed``). Timings are kept in ``<runs dir>/.fresh-seeds/``; ``--record FILE``
+also writes the per-seed results as JSON (``docs/data/fresh-seeds/``: the frontier figure's
+input, ``experiments/diagnostics/fresh_seed_frontier.py``).
 
 Usage (one core, the others idle or busy with other work; say which in a claim)::
 
@@ -265,6 +267,35 @@ def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
     return "\n".join(lines)
 
 
+def write_record(path: Path, recipe: str, spec_path: Path, results: Sequence[SeedResult]) -> None:
+    """Write ``results`` as JSON: the recipe's name and spec file, the CPU, and per seed its
+    run, whether the kept model is at the study, the minutes to the first checkpoint at the
+    study (null: never) and of the whole command, and the kept cells (m)."""
+    try:
+        spec_file = str(spec_path.resolve().relative_to(ROOT))
+    except ValueError:
+        spec_file = spec_path.name
+    record = {
+        "recipe": recipe,
+        "spec": spec_file,
+        "cpu": cpu_kind(),
+        "seeds": [
+            {
+                "seed": r.seed,
+                "run_id": r.run_id,
+                "kept_at_study": r.reached,
+                "minutes_to_study": r.minutes_to_study,
+                "minutes_total": r.minutes_total,
+                "resumed": r.resumed,
+                "kept_cells_m": list(r.kept),
+            }
+            for r in results
+        ],
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+
+
 def parse_cores(text: str | None) -> list[int | None]:
     """The cores of ``--cores`` ("1", "0,1"), each one this process may run on; ``[None]``
     (no pinning) without it.
@@ -297,6 +328,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--no-train", action="store_true", help="only summarise what is there")
     parser.add_argument(
+        "--record",
+        type=Path,
+        default=None,
+        help="also write the per-seed results to this JSON file (for "
+        "experiments/diagnostics/fresh_seed_frontier.py)",
+    )
+    parser.add_argument(
         "--budget-minutes", type=float, default=5.0, help="the time target per seed, min [5]"
     )
     args = parser.parse_args(argv)
@@ -326,7 +364,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             thread.start()
         for thread in threads:
             thread.join()
-    print(summary(collect(args.spec, seeds, store), args.budget_minutes))
+    results = collect(args.spec, seeds, store)
+    print(summary(results, args.budget_minutes))
+    if args.record is not None:
+        write_record(args.record, load_spec(args.spec).name, args.spec, results)
     return 0
 
 

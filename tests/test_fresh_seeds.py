@@ -7,10 +7,12 @@ import os
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
+import fresh_seed_frontier as frontier  # noqa: E402
 import fresh_seeds as fs  # noqa: E402
 
 TTA = ROOT / "experiments" / "variants" / "td3-sbx-128-3e6-mirror-tta.yaml"
@@ -59,3 +61,33 @@ def test_a_core_this_machine_does_not_offer_is_refused(
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and "is not a core" in err[0]
     assert not any(tmp_path.iterdir())
+
+
+def test_the_frontier_reads_records_and_counts_seeds_by_minutes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    results = [
+        fs.SeedResult(120, "A", fs.study_cells(), 4.0, 6.0, False),
+        fs.SeedResult(121, "B", tuple(2 * v for v in fs.study_cells()), None, 7.0, False),
+        fs.SeedResult(122, "C", fs.study_cells(), 3.0, 4.5, False),
+    ]
+    path = tmp_path / "record.json"
+    fs.write_record(path, "recipe", TTA, results)
+    record = frontier.read_record(path)
+    assert record.seeds == "120–122"
+    assert frontier.share_by(np.array([4.0, 4.5, 6.0, 100.0]), record.kept_at).tolist() == [
+        0.0,
+        pytest.approx(1 / 3),
+        pytest.approx(2 / 3),
+        pytest.approx(2 / 3),
+    ]
+    text = frontier.summary([record])
+    assert "command ended 2 of 3" in text and "kept at the study within 5 min 1 of 3" in text
+    assert "a checkpoint at the study within 5 min 2 of 3" in text
+    figure = tmp_path / "frontier.png"
+    assert frontier.main([str(path), "--figure", str(figure)]) == 0
+    assert figure.stat().st_size > 0
+    (tmp_path / "bad.json").write_text('{"seeds": [{"seed": 1}]}')
+    assert frontier.main([str(tmp_path / "bad.json")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a record" in err[0]
