@@ -183,6 +183,8 @@ def classify(case, rc, out, err, hung, before, after, work) -> tuple[str, str]:
             return "degraded", f"exit {rc}"
     elif case.expect == "ok" and rc != 0:
         return "degraded", f"exit {rc} where success was expected"
+    elif rc < 0 and not (out.strip() or err.strip()):  # "any": it may refuse, not die mute
+        return "degraded", f"killed by signal {-rc} without a word"
     if case.check is not None:
         problem = case.check(work, out, err)
         if problem:
