@@ -25,6 +25,7 @@ environments together gives bit-for-bit the numbers of N single-environment inst
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -296,6 +297,13 @@ class HeldOutPaths:
         self.sign[i] = 1.0 if rng.uniform() < 0.5 else -1.0
 
 
+@functools.lru_cache(maxsize=16)
+def _shapes(config: TargetConfig) -> tuple[TargetConfig, ...]:
+    """``config`` as each of the :data:`EVAL_TRAJECTORIES` (built once per config: stepping
+    calls this every control step)."""
+    return tuple(dataclasses.replace(config, name=name) for name in EVAL_TRAJECTORIES)
+
+
 def held_out_state(
     config: TargetConfig, paths: HeldOutPaths, t: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -314,12 +322,12 @@ def held_out_state(
     t = np.asarray(t, dtype=float)
     pos = np.empty((len(t), 3))
     vel = np.zeros((len(t), 3))
-    for k, name in enumerate(EVAL_TRAJECTORIES):
+    for k, shaped in enumerate(_shapes(config)):
         members = np.flatnonzero(paths.shape == k)
         if members.size == 0:
             continue
         along = paths.phase[members] + paths.sign[members] * t[members]
-        planar_pos, planar_vel = _planar(dataclasses.replace(config, name=name), along)
+        planar_pos, planar_vel = _planar(shaped, along)
         scale = paths.scale[members, None]
         planar_pos *= scale
         planar_vel *= scale * paths.sign[members, None]

@@ -238,7 +238,7 @@ def run_episodes(
         planning = np.full(n_steps, np.nan)
     active = np.ones(n, dtype=bool)
     for k in range(n_steps):
-        started = time.thread_time()
+        started = time.thread_time() if planning is not None else 0.0
         if batched:
             action = np.asarray(policy(obs), dtype=np.float64).reshape(n, -1)
         else:  # one observation at a time: each episode's actions as when it runs alone
