@@ -308,6 +308,37 @@ def test_held_out_paths_enter_the_score_and_the_evaluation_trajectories_do_not(
     np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-6)
 
 
+def test_training_ends_early_at_the_stop_score_and_the_run_completes(tmp_path: Path) -> None:
+    """``training.stop_score``: the first validation at or below it ends training there; the
+    run is completed (not interrupted) with fewer steps than its budget, says so, and its
+    policy is the best-validated model; a score never reached trains the whole budget."""
+    spec = _spec(
+        tmp_path, total_timesteps=800, final_policy="best_validated", stop_score=100.0, **VALIDATED
+    )
+    result = runner.invoke(
+        app,
+        ["train", str(spec), "--runs-dir", str(tmp_path / "runs"), "--seed", "0"],
+        env={"CI": "1"},
+    )
+    assert result.exit_code == 0, result.output
+    record = RunStore(tmp_path / "runs").get_run(result.stdout.strip())
+    assert record.info.status == "completed" and record.info.global_step == 200
+    assert sorted(set(_validation(record)["global_step"])) == [200]
+    assert "training ends here" in result.stderr and "finished early: 200/800" in result.stderr
+    policy = PolicyDir.of_run(record.path)
+    assert model_paths(record, record.load_spec()) == [policy.best_model_path]
+    never = _train(
+        _spec(tmp_path, total_timesteps=800, stop_score=1e-9, **VALIDATED), tmp_path / "b"
+    )
+    assert never.info.status == "completed" and never.info.global_step == 800
+
+
+def test_the_stop_score_needs_validated_checkpoints(tmp_path: Path) -> None:
+    result = runner.invoke(app, ["validate", str(_spec(tmp_path, stop_score=0.04))])
+    assert result.exit_code == 2
+    assert "stop_score" in result.output and "validation_episodes" in result.output
+
+
 def test_interrupted_run_validates_every_checkpoint_once(tmp_path: Path) -> None:
     total = 2400
     spec = _spec(tmp_path, total_timesteps=total, n_envs=4, **VALIDATED)

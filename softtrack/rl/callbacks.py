@@ -61,6 +61,7 @@ __all__ = [
     "TrainingClock",
     "final_progress_line",
     "progress_line",
+    "reached",
     "save_checkpoint",
     "unfinished_episodes",
 ]
@@ -353,7 +354,8 @@ class GoalMotionWarmup(LinearWarmup):
 
 class Checkpointer(BaseCallback):
     """Save a checkpoint whenever ``num_timesteps`` crosses a multiple of ``interval``, then
-    call ``after_save(model)`` (if given) with the model just saved."""
+    call ``after_save(model)`` (if given) with the model just saved; when that returns a
+    score at or below ``stop_score`` (m), training stops there (:attr:`stopped_early`)."""
 
     def __init__(
         self,
@@ -364,8 +366,11 @@ class Checkpointer(BaseCallback):
         keep: int,
         save_replay_buffer: bool,
         after_save: Callable[[Any], Any] | None = None,
+        stop_score: float | None = None,
     ) -> None:
         super().__init__(verbose=0)
+        self.stop_score = stop_score
+        self.stopped_early = False
         self.policy = policy
         self.episodes = episodes
         self.clock = clock
@@ -386,7 +391,10 @@ class Checkpointer(BaseCallback):
         if self._last_bucket is not None and bucket > self._last_bucket:
             self._last_bucket = bucket
             if self.save() is not None and self.after_save is not None:
-                self.after_save(self.model)
+                score = self.after_save(self.model)
+                if reached(score, self.stop_score):
+                    self.stopped_early = True
+                    return False
         return True
 
     def save(self) -> Path | None:
@@ -399,6 +407,12 @@ class Checkpointer(BaseCallback):
             save_replay_buffer=self.save_replay_buffer,
             keep=self.keep,
         )
+
+
+def reached(score: float | None, stop_score: float | None) -> bool:
+    """Whether a validation ``score`` (m; ``None``: cut short) ends training early at
+    ``stop_score`` (m; ``None``: never)."""
+    return stop_score is not None and score is not None and score <= stop_score
 
 
 def _progress_enabled() -> bool:
@@ -441,11 +455,17 @@ def _elapsed(seconds: float) -> str:
 
 
 def final_progress_line(
-    name: str, step: int, total: int, seconds: float, steps_per_second: float | None
+    name: str,
+    step: int,
+    total: int,
+    seconds: float,
+    steps_per_second: float | None,
+    stopped_early: bool = False,
 ) -> str:
     """The last progress line of a training session, e.g. ``5JP1EEN4 finished: 100,000/100,000
-    steps (100.0%) in 5:49 min, 286 steps/s`` (``stopped`` before the budget is reached)."""
-    state = "finished" if step >= total else "stopped"
+    steps (100.0%) in 5:49 min, 286 steps/s`` (``stopped`` before the budget is reached,
+    ``finished early`` at ``training.stop_score``)."""
+    state = "finished" if step >= total else "finished early" if stopped_early else "stopped"
     line = (
         f"{name} {state}: {step:,}/{total:,} steps ({100.0 * step / max(total, 1):.1f}%) "
         f"in {_elapsed(seconds)}"
@@ -601,8 +621,9 @@ class ProgressMonitor(BaseCallback):
             )
         return not self.stop_requested()
 
-    def close(self) -> None:
-        """Close the progress bar (if shown), or print the final progress line (once)."""
+    def close(self, stopped_early: bool = False) -> None:
+        """Close the progress bar (if shown), or print the final progress line (once;
+        ``stopped_early``: training reached ``training.stop_score``)."""
         if self.print_lines and not self._final_printed:
             self._final_printed = True
             step = min(int(self.num_timesteps), self.total_timesteps)
@@ -612,6 +633,7 @@ class ProgressMonitor(BaseCallback):
                 self.total_timesteps,
                 time.monotonic() - self._start_time,
                 self.steps_per_second(),
+                stopped_early,
             )
             print(line, file=sys.stderr, flush=True)
         if self._bar is not None:

@@ -33,6 +33,7 @@ from softtrack.rl.callbacks import (
     ProgressMonitor,
     RandomisationWarmup,
     TrainingClock,
+    reached,
     save_checkpoint,
 )
 from softtrack.rl.factory import build_model, load_model, make_vec_env
@@ -294,6 +295,7 @@ class PolicyTrainer:
             training.keep_checkpoints,
             training.save_replay_buffer,
             after_save=None if validator is None else validator.validate,
+            stop_score=training.stop_score,
         )
         self.monitor = ProgressMonitor(
             self.store,
@@ -318,7 +320,9 @@ class PolicyTrainer:
                 step = int(self.model.num_timesteps)
                 callbacks.insert(0, curriculum(warmup_steps, self.model.get_env(), step))
         remaining = job.total_timesteps - int(self.model.num_timesteps)
-        if remaining > 0 and not self.stop_requested():
+        if validator is not None and validator.best is not None:  # resumed past the stop
+            checkpointer.stopped_early = reached(validator.best.score, training.stop_score)
+        if remaining > 0 and not self.stop_requested() and not checkpointer.stopped_early:
             self.model.learn(
                 total_timesteps=remaining if state is not None else job.total_timesteps,
                 callback=CallbackList(callbacks),
@@ -326,7 +330,7 @@ class PolicyTrainer:
                 tb_log_name=job.policy.label or "policy",
                 progress_bar=False,
             )
-        self.monitor.close()
+        self.monitor.close(checkpointer.stopped_early)
         sps = self.monitor.steps_per_second()
         if self.stop_requested():
             save_checkpoint(

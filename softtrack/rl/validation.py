@@ -66,7 +66,7 @@ from softtrack.evaluation import (
 )
 from softtrack.evaluation.episodes import EPISODE_BATCH
 from softtrack.evaluation.scores import HELD_OUT_TARGETS
-from softtrack.rl.callbacks import TrainingClock
+from softtrack.rl.callbacks import TrainingClock, reached
 from softtrack.rl.policy import deterministic_policy
 from softtrack.rl.target_actor import acting_with_target_actor
 from softtrack.spec import ExperimentSpec
@@ -288,6 +288,7 @@ class Validator:
         self.policy = policy
         self.episodes = int(spec.training.validation_episodes)
         self.paths = int(spec.training.validation_paths)
+        self.stop_score = spec.training.stop_score
         if self.episodes < 1:
             raise ValueError(
                 f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
@@ -357,6 +358,11 @@ class Validator:
             f"episode{'s' if scored != 1 else ''} in {time.monotonic() - started:.0f} s"
             f"{' (new best)' if improved else ''}; "
             f"best {self.best.score:.4f} m at {self.best.step:,}{tracking}"
+            + (
+                f"; at or below training.stop_score {self.stop_score:g} m: training ends here"
+                if reached(score, self.stop_score)
+                else ""
+            )
         )
         if self.on_score is not None:
             self.on_score(step, score)

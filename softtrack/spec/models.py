@@ -28,7 +28,11 @@ from softtrack.spec.fields import (
 )
 from softtrack.spec.mpc_models import MpcSpec
 from softtrack.spec.parsing import _convert, _sub_model, _suggest
-from softtrack.spec.training_models import TrainingSpec, check_validated_checkpoints
+from softtrack.spec.training_models import (
+    TrainingSpec,
+    check_validated_checkpoints,
+    check_validation_needs,
+)
 from softtrack.spec.tune_models import MAX_COMBINATIONS, TuneSpec, trial_data
 
 __all__ = ["ClusterSpec", "ExperimentSpec", "TrainingSpec"]
@@ -307,13 +311,7 @@ class ExperimentSpec(SpecModel):
                 "final_policy is 'last'; set final_policy: best_validated or confirm_episodes: 0",
                 "training.confirm_episodes",
             )
-        if t.validation_trajectories:
-            check_validated_checkpoints(
-                t,
-                "validation_trajectories",
-                "training.validation_trajectories",
-                or_else=" or validation_trajectories: false",
-            )
+        check_validation_needs(t)
         control_dt = self.env.control_dt
         if t.eval_duration < control_dt:
             raise custom_error(

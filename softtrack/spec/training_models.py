@@ -18,7 +18,7 @@ from softtrack.spec.fields import (
     unit_field,
 )
 
-__all__ = ["TrainingSpec", "check_validated_checkpoints"]
+__all__ = ["TrainingSpec", "check_validated_checkpoints", "check_validation_needs"]
 
 
 class TrainingSpec(SpecModel):
@@ -88,6 +88,16 @@ class TrainingSpec(SpecModel):
         "paths like the evaluation's that are not the evaluation's; 0 = none",
         "episodes",
         ge=0,
+    )
+    stop_score: Float | None = unit_field(
+        None,
+        "early stopping: training ends at the first validation whose score (the mean 3-D RMSE "
+        "over the random-target and held-out path episodes) is at or below this, with the "
+        "budget cut short; the run completes there and its policy is chosen as without it "
+        "(with final_policy best_validated: the best-validated model so far); total_timesteps "
+        "stays the cap; null = train the whole budget",
+        "m",
+        gt=0,
     )
     validation_trajectories: bool = unit_field(
         False,
@@ -181,3 +191,18 @@ def check_validated_checkpoints(
             f"{where}; set training.checkpoint_interval between 1 and total_timesteps",
             interval_field,
         )
+
+
+def check_validation_needs(t: TrainingSpec) -> None:
+    """Raise the spec error of the first setting of ``t`` that adds to, or acts on, each
+    checkpoint's validation (held-out paths, trajectories, early stopping) while ``t``
+    validates no checkpoint."""
+    for needed_by, off in (
+        ("validation_paths", "0"),
+        ("validation_trajectories", "false"),
+        ("stop_score", "null"),
+    ):
+        if getattr(t, needed_by) not in (0, False, None):
+            check_validated_checkpoints(
+                t, needed_by, f"training.{needed_by}", or_else=f" or {needed_by}: {off}"
+            )
