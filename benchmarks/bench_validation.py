@@ -19,7 +19,10 @@ and prints the medians, each validation's share of the training time of one inte
 call (the rounding of a batch's matrix products, amplified by the closed loop). Run on one core:
 
     taskset -c 0 .venv/bin/python benchmarks/bench_validation.py \\
-        models/td3-sbx-128-mirror-tta-3e6-seed0 [--repeats 3] [--train-steps 20000]
+        models/td3-sbx-128-mirror-tta-3e6-seed0 [--repeats 3] [--train-steps 20000] [--paths 16]
+
+``--paths 16`` also times the episodes with 16 held-out paths (``training.validation_paths``)
+in batches of 16 policy rows (until 2026-12-07: two batches) and of ``VALIDATION_BATCH`` (one).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ import pandas as pd
 from softtrack.evaluation import VALIDATION_SEED, metrics_table, run_episode
 from softtrack.rl.factory import model_class
 from softtrack.rl.policy import deterministic_policy, model_paths
-from softtrack.rl.validation import checkpoint_rows, held_out_rows
+from softtrack.rl.validation import VALIDATION_BATCH, checkpoint_rows, held_out_rows
 from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
 from softtrack.store.provenance import cpu_description
@@ -67,8 +70,9 @@ def before(model: Any, spec: ExperimentSpec) -> pd.DataFrame:
     return pd.concat([rows, *tracked], ignore_index=True)
 
 
-def after(model: Any, spec: ExperimentSpec) -> pd.DataFrame:
-    """Today's validation: every episode in one batch, one policy call per control step."""
+def batched(model: Any, spec: ExperimentSpec, paths: int, batch: int) -> pd.DataFrame:
+    """Batched validation: every episode (with ``paths`` held-out paths) in batches of
+    ``batch``, one policy call per batch and control step."""
     rows = checkpoint_rows(
         "x",
         deterministic_policy(model, batches=True),
@@ -77,9 +81,16 @@ def after(model: Any, spec: ExperimentSpec) -> pd.DataFrame:
         spec.training.validation_episodes,
         list(spec.training.eval_trajectories),
         None,
+        paths=paths,
+        batch=batch,
     )
     assert rows is not None
     return rows
+
+
+def after(model: Any, spec: ExperimentSpec) -> pd.DataFrame:
+    """Today's validation of the run's episodes: one batch, one policy call per control step."""
+    return batched(model, spec, 0, VALIDATION_BATCH)
 
 
 def timed(work: Callable[[], Any]) -> tuple[float, Any]:
@@ -93,6 +104,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("run", type=Path, help="a centralized run directory with a policy")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--train-steps", type=int, default=20_000)
+    parser.add_argument(
+        "--paths",
+        type=int,
+        default=0,
+        help="also time the run's episodes with this many held-out paths, in batches of 16 "
+        f"rows (until 2026-12-07) and of {VALIDATION_BATCH} (now)",
+    )
     args = parser.parse_args(argv)
     record = RunStore(args.run.parent).get_run(args.run.name)
     spec = record.load_spec()
@@ -102,17 +120,26 @@ def main(argv: Sequence[str] | None = None) -> None:
     interval = int(spec.training.checkpoint_interval)
     train_spec = throughput_spec(spec)
     after(model, spec)  # compile and warm up both paths once
-    times: dict[str, list[float]] = {"before": [], "after": [], "training": []}
+    variants: dict[str, Callable[[Any, ExperimentSpec], pd.DataFrame]] = {
+        "before": before,
+        "after": after,
+    }
+    if args.paths:
+        for batch in (16, VALIDATION_BATCH):
+            variants[f"with {args.paths} paths, {batch} rows"] = lambda m, s, b=batch: batched(
+                m, s, args.paths, b
+            )
+    times: dict[str, list[float]] = {name: [] for name in (*variants, "training")}
     results: dict[str, pd.DataFrame] = {}
     for round_ in range(args.repeats):
-        for name, work in (("before", before), ("after", after)):
+        for name, work in variants.items():
             seconds, results[name] = timed(lambda w=work: w(model, spec))
             times[name].append(seconds)
         seconds = time_learning(train_spec, args.train_steps) * interval / args.train_steps
         times["training"].append(seconds)
+        timings = ", ".join(f"{name} {times[name][-1]:.2f} s" for name in variants)
         print(
-            f"round {round_ + 1}/{args.repeats}: before {times['before'][-1]:.2f} s, after "
-            f"{times['after'][-1]:.2f} s, training of {interval:,} env steps "
+            f"round {round_ + 1}/{args.repeats}: {timings}, training of {interval:,} env steps "
             f"{times['training'][-1]:.1f} s",
             flush=True,
         )
@@ -125,7 +152,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     )
     print("| validation | seconds per checkpoint | share of training time |")
     print("|---|---|---|")
-    for name in ("before", "after"):
+    for name in variants:
         print(f"| {name} | {median[name]:.2f} | {median[name] / median['training']:.1%} |")
     print(
         f"training of {interval:,} env steps: {median['training']:.1f} s; after/before = "

@@ -191,9 +191,11 @@ def _episode_rows(
     return metrics
 
 
-#: Validation episodes run as one batch (random-target episodes and trajectories together):
-#: up to this many at a time, the policy always called with this many rows.
-VALIDATION_BATCH = 16
+#: Validation episodes run as one batch (random-target episodes, held-out paths and
+#: trajectories together): up to this many at a time, the policy always called with this many
+#: rows (16 until 2026-12-07: 10 random targets, 16 paths and 3 trajectories took two batches,
+#: one policy call per batch and control step; benchmarks/bench_validation.py).
+VALIDATION_BATCH = 32
 
 
 def _fixed_batch(act: Policy, rows: int) -> Policy:
@@ -223,10 +225,11 @@ def checkpoint_rows(
     arm: int | None,
     stop_requested: Callable[[], bool] = lambda: False,
     paths: int = 0,
+    batch: int = VALIDATION_BATCH,
 ) -> pd.DataFrame | None:
     """One checkpoint's validation episodes, all in one batch of environments (up to
-    :data:`VALIDATION_BATCH` at a time) with one call of ``act`` per control step when it
-    accepts batches: ``episodes`` random-target episodes (episode k from seed
+    ``batch``, default :data:`VALIDATION_BATCH`, at a time) with one call of ``act`` per
+    control step when it accepts batches: ``episodes`` random-target episodes (episode k from seed
     :data:`VALIDATION_SEED` + k), ``paths`` held-out path episodes (target mode ``paths``,
     path k from seed :data:`VALIDATION_PATH_SEED` + k, numbered ``episodes`` + k) and one
     episode per trajectory of ``trajectories``.
@@ -234,8 +237,8 @@ def checkpoint_rows(
     Returns their metrics as :func:`held_out_rows` does, the random episodes' rows first, then
     the paths', the trajectories' rows with ``episode`` and ``seed`` 0; ``None`` if
     ``stop_requested`` turned true between two batches. ``act`` must take batches: it is
-    always called with :data:`VALIDATION_BATCH` rows (:func:`_fixed_batch`)."""
-    act = _fixed_batch(act, VALIDATION_BATCH)
+    always called with ``batch`` rows (:func:`_fixed_batch`)."""
+    act = _fixed_batch(act, batch)
     names = ["random"] * episodes + ["paths"] * paths + list(trajectories)
     seeds = (
         [VALIDATION_SEED + k for k in range(episodes)]
@@ -244,10 +247,10 @@ def checkpoint_rows(
     )
     indices = list(range(episodes + paths)) + [0] * len(trajectories)
     parts: list[pd.DataFrame] = []
-    for first in range(0, len(names), VALIDATION_BATCH):
+    for first in range(0, len(names), batch):
         if stop_requested():
             return None
-        chunk = slice(first, first + VALIDATION_BATCH)
+        chunk = slice(first, first + batch)
         batch = run_episodes(act, config, names[chunk], duration, seeds[chunk])
         parts.extend(
             _episode_rows(run_id, episode, index, seed, arm)
