@@ -27,6 +27,7 @@ from softtrack.rl.validation import (
     truncate_validation,
     validation_score,
 )
+from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore
@@ -266,6 +267,24 @@ def test_validation_trajectories_track_each_checkpoint_without_entering_the_scor
     rows = extra[(extra["global_step"] == _best_of(scores)) & (extra["trajectory"] == "figure8")]
     again = _episode_metrics(best.best_model_path, tracked.load_spec(), None, "figure8")
     np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-6)
+
+
+def test_a_checkpoint_split_over_several_batches_gives_the_same_rows(tmp_path: Path) -> None:
+    """``checkpoint_rows`` in batches of 3 environments (random targets, held-out paths and a
+    trajectory spread over three batches) returns the rows of one batch of all of them."""
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        return np.tanh(0.1 * np.atleast_2d(observation)[:, :24])
+
+    act.accepts_batches = True  # type: ignore[attr-defined]
+    config = env_config(ExperimentSpec(name="x"), None)
+    one, split = (
+        checkpoint_rows("x", act, config, 0.1, 3, ["circle"], None, paths=3, batch=batch)
+        for batch in (32, 3)
+    )
+    assert one is not None and split is not None and len(one) == 2 * 7
+    assert one["trajectory"].tolist() == split["trajectory"].tolist()
+    pd.testing.assert_frame_equal(one, split, check_exact=True)
 
 
 def test_held_out_paths_enter_the_score_and_the_evaluation_trajectories_do_not(

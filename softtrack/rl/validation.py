@@ -251,10 +251,10 @@ def checkpoint_rows(
         if stop_requested():
             return None
         chunk = slice(first, first + batch)
-        batch = run_episodes(act, config, names[chunk], duration, seeds[chunk])
+        ran = run_episodes(act, config, names[chunk], duration, seeds[chunk])
         parts.extend(
             _episode_rows(run_id, episode, index, seed, arm)
-            for episode, index, seed in zip(batch, indices[chunk], seeds[chunk], strict=True)
+            for episode, index, seed in zip(ran, indices[chunk], seeds[chunk], strict=True)
         )
     return pd.concat(parts, ignore_index=True)
 
