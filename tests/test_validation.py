@@ -327,6 +327,31 @@ def test_held_out_paths_enter_the_score_and_the_evaluation_trajectories_do_not(
     np.testing.assert_allclose(again["rmse_3d"], rows["rmse_3d"], rtol=1e-6)
 
 
+def test_a_score_on_the_held_out_paths_alone(tmp_path: Path) -> None:
+    """``training.validation_score: paths``: the score, the kept model and the report's
+    scores average the held-out path rows only; without paths the spec is refused."""
+    spec = _spec(
+        tmp_path,
+        total_timesteps=400,
+        final_policy="best_validated",
+        validation_paths=2,
+        validation_score="paths",
+        **VALIDATED,
+    )
+    record = _train(spec, tmp_path / "runs")
+    table = _validation(record)
+    paths = table[table["trajectory"] == "paths"]
+    scores = {s: float(rows["rmse_3d"].mean()) for s, rows in paths.groupby("global_step")}
+    reported = validation_scores(load_run(record))
+    assert dict(zip(reported["global_step"], reported["score"], strict=True)) == scores
+    best = PolicyDir.of_run(record.path)
+    assert [p.name for p in best.list_best()] == [f"step-{_best_of(scores):012d}"]
+    refused = runner.invoke(
+        app, ["validate", str(_spec(tmp_path, validation_score="paths", **VALIDATED))]
+    )
+    assert refused.exit_code == 2 and "validation_paths" in refused.output
+
+
 def test_training_ends_early_at_the_stop_score_and_the_run_completes(tmp_path: Path) -> None:
     """``training.stop_score``: the first validation at or below it ends training there; the
     run is completed (not interrupted) with fewer steps than its budget, says so, and its

@@ -48,14 +48,15 @@ class RunTrace:
     total_minutes: float
 
 
-def read_traces(runs_dir: Path) -> list[RunTrace]:
-    """The traces of the completed runs that have a timing in ``runs_dir/.fresh-seeds/``."""
+def read_traces(runs_dir: Path, targets: Sequence[str] = HELD_OUT_TARGETS) -> list[RunTrace]:
+    """The traces of the completed runs that have a timing in ``runs_dir/.fresh-seeds/``, each
+    checkpoint scored on its ``targets`` rows."""
     traces = []
     for timing_file in sorted((runs_dir / ".fresh-seeds").glob("*.json")):
         timing = json.loads(timing_file.read_text(encoding="utf-8"))
         run_dir = runs_dir / timing["run_id"]
         validation = read_table(run_dir / "tables" / "validation.parquet")
-        held = validation[validation["trajectory"].isin(HELD_OUT_TARGETS)]
+        held = validation[validation["trajectory"].isin(targets)]
         scores = held.groupby("global_step")["rmse_3d"].mean()
         passes = checkpoint_passes(validation).reindex(scores.index).fillna(False)
         stamps = np.asarray(timing["validation_seconds"], dtype=float)[: len(scores)] / 60.0
@@ -118,8 +119,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=[0.040, 0.060, 0.002],
         metavar=("LOW", "HIGH", "STEP"),
     )
+    parser.add_argument(
+        "--score",
+        choices=["random+paths", "paths", "random"],
+        default="random+paths",
+        help="the episodes a checkpoint's score averages [random+paths]",
+    )
     args = parser.parse_args(argv)
-    traces = read_traces(args.runs_dir)
+    traces = read_traces(args.runs_dir, args.score.split("+"))
     if not traces:
         print(f"error: {args.runs_dir} has no completed fresh-seed run", file=sys.stderr)
         return 2

@@ -5,6 +5,7 @@ read runs without loading the simulator (:mod:`softtrack.evaluation.episode_tabl
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
@@ -13,8 +14,10 @@ __all__ = [
     "CARRY_SCORE",
     "HELD_OUT_TARGETS",
     "LOST_OBJECT_ERROR",
+    "SCORED_TARGETS",
     "VALIDATION_SCORED_COLUMNS",
     "carry_errors",
+    "scored_targets",
     "validation_score",
     "with_carry_score",
 ]
@@ -27,6 +30,15 @@ LOST_OBJECT_ERROR = 1.0
 #: The ``trajectory`` values of the validation rows that enter a checkpoint's score: the
 #: held-out random targets and the held-out paths (target modes).
 HELD_OUT_TARGETS = ("random", "paths")
+#: The rows each ``training.validation_score`` setting averages.
+SCORED_TARGETS = {"random_and_paths": HELD_OUT_TARGETS, "paths": ("paths",)}
+
+
+def scored_targets(setting: object) -> tuple[str, ...]:
+    """The ``trajectory`` values a ``training.validation_score`` setting scores (plain data
+    from a spec file: anything else, or absent, is the default's)."""
+    return SCORED_TARGETS.get(str(setting), HELD_OUT_TARGETS)
+
 
 #: The columns of ``tables/validation.parquet`` that :func:`validation_score` and the report's
 #: validation section read; a shipped run may keep only these (experiments/reproduce_study.py).
@@ -43,12 +55,18 @@ VALIDATION_SCORED_COLUMNS = (
 )
 
 
-def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) -> float:
+def validation_score(
+    rows: pd.DataFrame,
+    episode_duration: float | None = None,
+    targets: Sequence[str] = HELD_OUT_TARGETS,
+) -> float:
     """The validation score of one checkpoint from its rows of ``tables/validation.parquet``
     (one per episode and arm), m: the mean ``rmse_3d`` of its random-target and held-out
     path episodes (``training.validation_paths``), or ∞ if one terminated (went
     non-finite). Rows of the evaluation trajectories (``training.validation_trajectories``)
     are left out: models are never selected on the evaluation's own trajectories.
+    ``targets``: the rows' ``trajectory`` values that count (``training.validation_score``:
+    :func:`scored_targets`).
 
     In the transport task (``object_rmse_3d`` rows) with ``episode_duration`` (s, the
     validation episodes' planned length), a drop ends an episode early: each episode scores
@@ -58,7 +76,7 @@ def validation_score(rows: pd.DataFrame, episode_duration: float | None = None) 
     lower, and one that carries it through scores its mean error, as before. Without
     ``episode_duration`` any drop scores ∞."""
     if "trajectory" in rows:
-        rows = rows[rows["trajectory"].isin(HELD_OUT_TARGETS)]
+        rows = rows[rows["trajectory"].isin(list(targets))]
     if len(rows) == 0:
         return math.inf
     carried = "object_rmse_3d" in rows and rows["object_rmse_3d"].notna().all()

@@ -17,9 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from softtrack.evaluation.scores import VALIDATION_SCORED_COLUMNS
+from softtrack.evaluation.scores import VALIDATION_SCORED_COLUMNS, scored_targets
 from softtrack.store.runs import RunRecord
-from softtrack.store.status import episodes_by_arm, eval_duration, final_stage_fraction
+from softtrack.store.status import (
+    episodes_by_arm,
+    eval_duration,
+    final_stage_fraction,
+    validation_score_setting,
+)
 from softtrack.store.tables import TableError, read_table
 from softtrack.trajectories import EVAL_TRAJECTORIES
 
@@ -98,6 +103,8 @@ class RunData:
         final_stage_fraction: ``training.final_stage_fraction`` of its spec (default 0.1).
         eval_duration: ``training.eval_duration`` of its spec (s; ``None`` where absent), the
             validation episodes' planned length.
+        scored_targets: the validation rows' ``trajectory`` values its score averages
+            (``training.validation_score``).
         train: ``train_episodes`` (episode, global_step, return, …, optionally arm).
         trajectories: ``eval_trajectories`` (tip and target positions per step and arm, m).
         metrics: ``eval_metrics`` (one row per trajectory and arm, m; the action statistics
@@ -119,6 +126,7 @@ class RunData:
     record: RunRecord
     final_stage_fraction: float
     eval_duration: float | None
+    scored_targets: tuple[str, ...]
     train: pd.DataFrame | None
     trajectories: pd.DataFrame | None
     metrics: pd.DataFrame | None
@@ -259,6 +267,7 @@ def load_run(record: RunRecord, fields: Collection[str] | None = None) -> RunDat
         record=record,
         final_stage_fraction=final_stage_fraction(raw_spec),
         eval_duration=eval_duration(raw_spec),
+        scored_targets=scored_targets(validation_score_setting(raw_spec)),
         peaks=peaks,
         problems=tuple(problems),
         **tables,

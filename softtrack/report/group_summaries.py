@@ -207,7 +207,7 @@ def validation_scores(run: RunData) -> pd.DataFrame:
         {
             "policy": int(k),
             "global_step": int(step),
-            "score": validation_score(part, run.eval_duration),
+            "score": validation_score(part, run.eval_duration, run.scored_targets),
         }
         for (k, step), part in df.groupby([policy, df["global_step"]], sort=True)
     ]

@@ -65,7 +65,7 @@ from softtrack.evaluation import (
     validation_score,
 )
 from softtrack.evaluation.episodes import EPISODE_BATCH
-from softtrack.evaluation.scores import HELD_OUT_TARGETS
+from softtrack.evaluation.scores import HELD_OUT_TARGETS, scored_targets
 from softtrack.rl.callbacks import TrainingClock, reached
 from softtrack.rl.policy import deterministic_policy
 from softtrack.rl.target_actor import acting_with_target_actor
@@ -292,6 +292,7 @@ class Validator:
         self.episodes = int(spec.training.validation_episodes)
         self.paths = int(spec.training.validation_paths)
         self.stop_score = spec.training.stop_score
+        self.scored = scored_targets(spec.training.validation_score)
         if self.episodes < 1:
             raise ValueError(
                 f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
@@ -336,7 +337,7 @@ class Validator:
         rows.insert(1, "global_step", step)
         if wall_time is not None:
             rows.insert(2, "wall_time", wall_time)
-        score = validation_score(rows, self.duration)
+        score = validation_score(rows, self.duration, self.scored)
         improved = self.best is None or score < self.best.score
         if improved:  # before the rows: a kill in between leaves the step to validate again
             self._save_best(model, normalizer, step, score)
@@ -355,7 +356,7 @@ class Validator:
                 + " m"
             )
         what = "the sphere's 3-D RMSE (a drop counts 1 m after it)" if carried else "3-D RMSE"
-        scored = self.episodes + self.paths
+        scored = (self.episodes if "random" in self.scored else 0) + self.paths
         self.log(
             f"{name} validation at {step:,} steps: {what} {score:.4f} m over {scored} "
             f"episode{'s' if scored != 1 else ''} in {time.monotonic() - started:.0f} s"

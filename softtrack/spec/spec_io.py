@@ -220,6 +220,7 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("training", "validation_trajectories"): False,
     ("training", "validation_paths"): 0,
     ("training", "stop_score"): None,
+    ("training", "validation_score"): "random_and_paths",
     ("training", "final_policy"): "last",
     ("training", "confirm_episodes"): 0,
     ("training", "randomisation_warmup_steps"): 0,

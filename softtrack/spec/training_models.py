@@ -89,6 +89,13 @@ class TrainingSpec(SpecModel):
         "episodes",
         ge=0,
     )
+    validation_score: Literal["random_and_paths", "paths"] = unit_field(
+        "random_and_paths",
+        "the episodes a checkpoint's validation score averages (the kept model has the "
+        "lowest, stop_score compares it): 'random_and_paths' the random targets and the "
+        "held-out paths, 'paths' the held-out paths only (needs validation_paths >= 1)",
+        "-",
+    )
     stop_score: Float | None = unit_field(
         None,
         "early stopping: training ends at the first validation whose score (the mean 3-D RMSE "
@@ -206,3 +213,10 @@ def check_validation_needs(t: TrainingSpec) -> None:
             check_validated_checkpoints(
                 t, needed_by, f"training.{needed_by}", or_else=f" or {needed_by}: {off}"
             )
+    if t.validation_score == "paths" and t.validation_paths < 1:
+        raise custom_error(
+            "validation_score 'paths' scores checkpoints on their held-out paths, but "
+            "training.validation_paths is 0; set validation_paths to at least 1 (e.g. 16) or "
+            "validation_score: random_and_paths",
+            "training.validation_score",
+        )

@@ -57,6 +57,14 @@ def final_stage_fraction(raw_spec: dict[str, Any]) -> float:
     return value if 0 < value <= 1 else DEFAULT_FINAL_STAGE_FRACTION
 
 
+def validation_score_setting(raw_spec: dict[str, Any]) -> str:
+    """``training.validation_score`` of a run's spec as plain data (``""`` where absent: the
+    default's episodes)."""
+    training = raw_spec.get("training")
+    value = training.get("validation_score") if isinstance(training, dict) else None
+    return value if isinstance(value, str) else ""
+
+
 def eval_duration(raw_spec: dict[str, Any]) -> float | None:
     """``training.eval_duration`` of a run's spec as plain data (s), or ``None`` where it is
     absent or not positive."""

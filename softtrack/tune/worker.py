@@ -32,6 +32,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from softtrack.env.tasks import N_ARMS
+from softtrack.evaluation.scores import scored_targets
 from softtrack.evaluation.seed_statistics import interquartile_mean
 from softtrack.executors.base import failed_by_signal
 from softtrack.rl.factory import check_supported
@@ -118,13 +119,16 @@ def _replay_scores(trial: Any, record: RunRecord, spec: ExperimentSpec) -> None:
         return
     df = read_table(path)
     duration = float(spec.training.eval_duration)
+    targets = scored_targets(spec.training.validation_score)
     if spec.controller == "centralized":
         for step, rows in df.groupby("global_step"):
-            trial.report(float(validation_score(rows, duration)), _report_step(spec, int(step)))
+            score = validation_score(rows, duration, targets)
+            trial.report(float(score), _report_step(spec, int(step)))
         return
     budget = int(spec.training.total_timesteps)
     for (arm, step), rows in df.groupby(["arm", "global_step"]):
-        trial.report(float(validation_score(rows, duration)), int(arm) * budget + int(step))
+        score = validation_score(rows, duration, targets)
+        trial.report(float(score), int(arm) * budget + int(step))
 
 
 def _note_trial(store: RunStore, record: RunRecord, ts: TuneStudy, number: int) -> RunRecord:
