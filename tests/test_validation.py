@@ -31,6 +31,7 @@ from softtrack.spec import ExperimentSpec
 from softtrack.spec.env_config import env_config
 from softtrack.store.layout import PolicyDir
 from softtrack.store.runs import RunRecord, RunStore
+from softtrack.store.status import final_stage_return
 from softtrack.store.tables import read_table, write_table
 
 runner = CliRunner()
@@ -371,6 +372,9 @@ def test_training_ends_early_at_the_stop_score_and_the_run_completes(tmp_path: P
     assert "training ends here" in result.stderr and "finished early: 200/800" in result.stderr
     policy = PolicyDir.of_run(record.path)
     assert model_paths(record, record.load_spec()) == [policy.best_model_path]
+    # its final stage is the last tenth of the steps it trained, not of the budget
+    mean, episodes, _ = final_stage_return(record)
+    assert mean is not None and episodes > 0
     never = _train(
         _spec(tmp_path, total_timesteps=800, stop_score=1e-9, **VALIDATED), tmp_path / "b"
     )

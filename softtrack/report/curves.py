@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from softtrack.report.data import Group, RunData, episodes_by_arm
-from softtrack.store.status import final_stage_returns
+from softtrack.store.status import final_stage_budget, final_stage_returns
 
 __all__ = [
     "Curve",
@@ -183,8 +183,9 @@ def training_curves(
 def run_final_stage_returns(run: RunData) -> dict[int | None, tuple[float | None, int]]:
     """docs/environment.md for one run: mean return of the episodes that ended after
     ``(1 − final_stage_fraction) · budget`` env steps, per arm policy. The budget is the run's
-    ``total_timesteps``; for an arm policy of an independent run (``arm`` column ≥ 0, whose
-    ``global_step`` counts that arm's own steps) it is the arm's budget (:attr:`RunData.arm_budget`).
+    ``total_timesteps`` (the steps it trained if it stopped early); for an arm policy of an
+    independent run (``arm`` column ≥ 0, whose ``global_step`` counts that arm's own steps) it
+    is the arm's budget (:attr:`RunData.arm_budget`).
 
     Returns ``{arm or None: (mean return or None if no episode qualifies, episode count)}``
     (:func:`softtrack.store.status.final_stage_returns`).
@@ -192,7 +193,7 @@ def run_final_stage_returns(run: RunData) -> dict[int | None, tuple[float | None
     if run.train is None:
         return {}
     return final_stage_returns(
-        run.train, run.final_stage_fraction, run.total_timesteps, run.arm_budget
+        run.train, run.final_stage_fraction, final_stage_budget(run.record.info), run.arm_budget
     )
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from softtrack.store.liveness import heartbeat_stale, is_lost_process, stale_after_s
-from softtrack.store.run_records import RunRecord
+from softtrack.store.run_records import RunInfo, RunRecord
 from softtrack.store.table_reading import read_table
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "effective_status",
     "episodes_by_arm",
     "eval_duration",
+    "final_stage_budget",
     "final_stage_fraction",
     "final_stage_return",
     "final_stage_returns",
@@ -33,6 +34,7 @@ __all__ = [
     "is_lost",
     "stale_after_s",
     "training_seconds",
+    "validation_score_setting",
 ]
 
 #: ``training.final_stage_fraction`` of a spec that does not set it.
@@ -125,6 +127,15 @@ def final_stage_returns(
     return out
 
 
+def final_stage_budget(info: RunInfo) -> int:
+    """The env steps whose last fraction is a centralized run's final stage: its
+    ``total_timesteps``, or the steps it trained when it completed early
+    (``training.stop_score``)."""
+    if info.status == "completed" and 0 < info.global_step < info.total_timesteps:
+        return int(info.global_step)
+    return int(info.total_timesteps)
+
+
 def training_seconds(train: pd.DataFrame | None) -> float | None:
     """A run's training wall time, s: its training clock at the last logged episode (the
     largest ``wall_time`` of ``train_episodes``; the clock carries on across resumed sessions
@@ -142,7 +153,8 @@ def final_stage_return(
     """Mean training-episode return over the last ``fraction`` of the run's budget (docs/environment.md).
 
     Episodes count when their ``global_step`` (at the episode's end) exceeds
-    ``(1 - fraction) · total_timesteps`` (:func:`final_stage_returns`). ``fraction`` defaults
+    ``(1 - fraction) · total_timesteps`` (:func:`final_stage_returns`; the steps trained for a
+    run that stopped early, :func:`final_stage_budget`). ``fraction`` defaults
     to the run's ``training.final_stage_fraction`` (0.1).
 
     An independent run's table has an ``arm`` column (0, 1) and counts ``global_step`` per arm:
@@ -165,7 +177,7 @@ def final_stage_return(
     if df.empty or not {"global_step", "return"} <= set(df.columns):
         return None, 0, 0
     info = record.info
-    results = final_stage_returns(df, fraction, info.total_timesteps, info.policy_budget)
+    results = final_stage_returns(df, fraction, final_stage_budget(info), info.policy_budget)
     arms = [arm for arm in results if arm is not None]
     if not arms:
         mean, count = results[None]
