@@ -22,7 +22,7 @@ from softtrack.evaluation.episode_tables import VALIDATION_SCORED_COLUMNS, valid
 from softtrack.report.data import Group, episode_rmse, load_runs, representative_run  # noqa: E402
 from softtrack.store.runs import RunStore  # noqa: E402
 from softtrack.store.selection import select_one_run  # noqa: E402
-from softtrack.store.tables import read_table  # noqa: E402
+from softtrack.store.tables import read_table, write_table  # noqa: E402
 
 MODELS_BUDGET = 60 * 1000 * 1000  # bytes of models/ in the tree
 PER_STEP_TABLES = ("eval_trajectories", "eval_moments")
@@ -72,18 +72,38 @@ def test_lean_drops_the_per_step_tables_of_undrawn_experiments(tmp_path: Path) -
         assert left == expected
 
 
+LEAN_VALIDATION_COLUMNS = {"run_id", "seed", "wall_time", *VALIDATION_SCORED_COLUMNS}
+
+
+def test_shipped_validation_tables_are_lean() -> None:
+    """Every shipped validation table holds only what scores and the report read (the full
+    per-axis, action and contact columns stay in the run under ``runs/``)."""
+    for run in _shipped_runs():
+        path = run / "tables" / "validation.parquet"
+        if path.is_file():
+            extra = set(read_table(path).columns) - LEAN_VALIDATION_COLUMNS
+            assert not extra, f"{run.name}: {sorted(extra)} (run `lean_validation` on it)"
+
+
 def test_lean_validation_keeps_what_scores_and_the_report_read(tmp_path: Path) -> None:
-    """A shipped transport run's validation table, trimmed to the scored columns: the same
-    validation score at every checkpoint and the same report rows, in a fraction of the bytes."""
+    """A shipped transport run's validation table with the per-axis and contact columns a
+    training writes, trimmed to the scored columns: the same validation score at every
+    checkpoint and the same report rows, in a fraction of the bytes."""
     source = ROOT / "models" / "td3-sbx-128-mirror-fast-transport-fine-10ms-long-gravity-3e6-seed2"
     run = tmp_path / source.name
     shutil.copytree(source, run)
     path = run / "tables" / "validation.parquet"
-    full = read_table(path)
+    shipped = read_table(path)
+    rng = np.random.default_rng(0)
+    extra = ("rmse_x", "rmse_y", "rmse_z", "mae_x", "mae_y", "mae_z", "max_contact_force")
+    full = shipped.assign(**{c: rng.random(len(shipped)) for c in extra})
+    write_table(path, full)
+    full_bytes = path.stat().st_size
     lean_validation(run)
     trimmed = read_table(path)
-    assert set(trimmed.columns) == {"run_id", "seed", "wall_time", *VALIDATION_SCORED_COLUMNS}
-    assert path.stat().st_size < (source / "tables" / "validation.parquet").stat().st_size / 4
+    assert set(trimmed.columns) == LEAN_VALIDATION_COLUMNS
+    assert path.stat().st_size < full_bytes / 2
+    pd.testing.assert_frame_equal(trimmed, shipped[list(trimmed.columns)])
     for step, rows in full.groupby("global_step"):
         kept = trimmed[trimmed["global_step"] == step]
         assert validation_score(kept, 12.0) == validation_score(rows, 12.0)
