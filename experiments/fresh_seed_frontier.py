@@ -36,12 +36,14 @@ TARGET_MINUTES = 5.0
 class RecipeRecord:
     """One recipe's fresh seeds: its name, the seeds' range as text, the minutes at which
     each seed's command ended with its kept model at the study (``inf``: it is not), and the
-    minutes to each seed's first checkpoint at the study (``inf``: none)."""
+    minutes to each seed's first checkpoint at the study (``inf``: none); ``criterion``: the
+    target its record judged (``fresh_seeds.py --criterion``; only ``study`` is drawn)."""
 
     recipe: str
     seeds: str
     kept_at: np.ndarray
     checkpoint_at: np.ndarray
+    criterion: str = "study"
 
 
 def read_record(path: Path) -> RecipeRecord:
@@ -52,10 +54,11 @@ def read_record(path: Path) -> RecipeRecord:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
         rows = data["seeds"]
-        kept = [r["minutes_total"] if r["kept_at_study"] else np.inf for r in rows]
-        first = [np.inf if r["minutes_to_study"] is None else r["minutes_to_study"] for r in rows]
+        kept = [r["minutes_total"] if _passes(r) else np.inf for r in rows]
+        first = [_minutes_to_target(r) for r in rows]
         seeds = [int(r["seed"]) for r in rows]
         recipe = str(data["recipe"])
+        criterion = str(data.get("criterion", "study"))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(
             f"{path}: not a record of experiments/fresh_seeds.py --record ({exc})"
@@ -63,8 +66,23 @@ def read_record(path: Path) -> RecipeRecord:
     if not rows:
         raise ValueError(f"{path}: the record has no seeds")
     return RecipeRecord(
-        recipe, f"{min(seeds)}–{max(seeds)}", np.array(kept, float), np.array(first, float)
+        recipe,
+        f"{min(seeds)}–{max(seeds)}",
+        np.array(kept, float),
+        np.array(first, float),
+        criterion,
     )
+
+
+def _passes(row: dict[str, object]) -> bool:
+    """A seed's kept model meets its record's target (records before the criteria: the study)."""
+    return bool(row.get("kept_passes", row["kept_at_study"]))
+
+
+def _minutes_to_target(row: dict[str, object]) -> float:
+    """Minutes to a seed's first checkpoint at its target (``inf``: never)."""
+    value = row["minutes_to_target"] if "minutes_to_target" in row else row["minutes_to_study"]
+    return np.inf if value is None else float(value)  # type: ignore[arg-type]
 
 
 def share_by(minutes: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -145,6 +163,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         records = [read_record(path) for path in args.records]
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for path, record in zip(args.records, records, strict=True):
+        if record.criterion != "study":
+            print(f"note: leaving out {path}: its target is {record.criterion!r}, not the study's")
+    records = [r for r in records if r.criterion == "study"]
+    if not records:
+        print("error: no record of the study's target to draw", file=sys.stderr)
         return 2
     print(summary(records))
     if args.figure is not None:

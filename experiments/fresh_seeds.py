@@ -7,11 +7,13 @@ recipe ("reaches the study", "minutes to accuracy", "final accuracy") is measure
 core of ``--cores``), stamps every validation line the training prints with the seconds since
 that command started (start-up, compilation, warm-up, training and the validations before it
 all count), then evaluates the run's kept model on the circle, rectangle and figure-eight.
-It prints per seed whether the kept model is at or below the study's 3-D RMSE in all six
-trajectory × arm cells, the minutes from the command's start to the first validated checkpoint
-at the study, the whole command's minutes and the kept cells; then the pass rate with its 95 %
-Wilson interval and the interquartile mean of the kept models' cells with its 95 % stratified
-bootstrap interval (``softtrack compare``'s statistics).
+It prints per seed whether the kept model meets the task's target (``--criterion``,
+:mod:`fresh_seed_criteria`: by default at or below the study's 3-D RMSE in all six trajectory ×
+arm cells; ``contact``: the arms' quadratic mean at or below 0.055 m; ``viewpoints``: the six
+cells and the arms' overlap at or below 5 mm), the minutes from the command's start to the first
+validated checkpoint that meets it, the whole command's minutes and the kept cells; then the
+pass rate with its 95 % Wilson interval and the interquartile mean of the kept models' cells
+with its 95 % stratified bootstrap interval (``softtrack compare``'s statistics).
 
 Running it again continues: a seed with a completed run is read, not retrained (its timing from
 the first time); an interrupted run resumes (its minutes then cover the resumed session only,
@@ -40,11 +42,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
+from fresh_seed_criteria import (
+    CELLS,
+    CRITERIA,
+    TRAJECTORIES,
+    at_study,
+    quadratic_means,
+    study_cells,
+)
 
 from softtrack.evaluation.seed_statistics import stratified_bootstrap
 from softtrack.evaluation.statistics import wilson_interval
 from softtrack.executors.sweep import parse_seeds
-from softtrack.report.reference import STUDY_RMSE_3D
 from softtrack.spec import ExperimentSpec, SpecError, load_spec, spec_hash
 from softtrack.store.provenance import cpu_kind
 from softtrack.store.runs import RunRecord, RunStore, resolve_runs_dir
@@ -53,8 +63,6 @@ from softtrack.store.tables import read_table
 ROOT = Path(__file__).resolve().parent.parent
 #: The seeds recipes are chosen on; a fresh seed is none of them.
 CHOSEN_SEEDS = range(0, 10)
-TRAJECTORIES = ("circle", "rectangle", "figure8")
-CELLS = tuple((t, arm) for t in TRAJECTORIES for arm in (0, 1))
 VALIDATION_LINE = re.compile(r"validation at ([\d,]+) steps")
 TIMINGS_DIR = ".fresh-seeds"
 
@@ -62,24 +70,28 @@ TIMINGS_DIR = ".fresh-seeds"
 @dataclass(frozen=True)
 class SeedResult:
     """One fresh seed: its run, the kept model's cells (m, in :data:`CELLS` order), the
-    minutes from the command's start to the first checkpoint at the study (``None``: never),
-    the whole command's minutes, and whether its clock covers a resumed session only."""
+    minutes from the command's start to the first checkpoint that meets ``criterion``
+    (``None``: never), the whole command's minutes, whether its clock covers a resumed session
+    only, and the kept model's deepest overlap of the arms' surfaces (m; ``None``: not
+    recorded)."""
 
     seed: int
     run_id: str
     kept: tuple[float, ...]
-    minutes_to_study: float | None
+    minutes_to_target: float | None
     minutes_total: float
     resumed: bool
+    overlap: float | None = None
+    criterion: str = "study"
+
+    @property
+    def cells(self) -> dict[tuple[str, int], float]:
+        return dict(zip(CELLS, self.kept, strict=True))
 
     @property
     def reached(self) -> bool:
-        return all(v <= study for v, study in zip(self.kept, study_cells(), strict=True))
-
-
-def study_cells() -> tuple[float, ...]:
-    """The study's centralized TD3 3-D RMSE per cell (m), in :data:`CELLS` order."""
-    return tuple(STUDY_RMSE_3D["centralized"][t][arm] for t, arm in CELLS)
+        """Whether the kept model meets the criterion's target."""
+        return CRITERIA[self.criterion].passes(self.cells, self.overlap)
 
 
 def check_request(spec: ExperimentSpec, seeds: Sequence[int]) -> None:
@@ -171,7 +183,17 @@ def train_seed(spec_path: Path, seed: int, store: RunStore, core: int | None) ->
     (timing_dir / f"{spec.name}-seed{seed}.json").write_text(json.dumps(timing, indent=1))
 
 
-def _kept_cells(record: RunRecord, store: RunStore) -> tuple[float, ...]:
+def _deepest_overlap(rows: pd.DataFrame) -> float | None:
+    """The deepest ``max_penetration`` of ``rows`` (m; ``None`` without the column)."""
+    if "max_penetration" not in rows:
+        return None
+    depth = pd.to_numeric(rows["max_penetration"], errors="coerce")
+    return float(depth.max()) if depth.notna().any() else None
+
+
+def _kept_model(record: RunRecord, store: RunStore) -> tuple[tuple[float, ...], float | None]:
+    """The kept model's six cells (m, :data:`CELLS` order) and deepest overlap (m or ``None``),
+    evaluating it first where it has no evaluation."""
     path = record.table_path("eval_metrics")
     if not path.is_file():
         subprocess.run(
@@ -184,29 +206,36 @@ def _kept_cells(record: RunRecord, store: RunStore) -> tuple[float, ...]:
             stdout=subprocess.DEVNULL,
             env={**os.environ, "CI": "1"},
         )
-    metrics = read_table(path, ["trajectory", "arm", "rmse_3d"])
-    value = {(str(t), int(a)): float(v) for t, a, v in metrics.itertuples(index=False)}
-    return tuple(value[cell] for cell in CELLS)
+    metrics = read_table(path)
+    value = _cells_of(metrics)
+    return tuple(value[cell] for cell in CELLS), _deepest_overlap(metrics)
 
 
-def _minutes_to_study(record: RunRecord, stamps: Sequence[float]) -> float | None:
-    """Minutes from the command's start to the first checkpoint whose six cells are all at or
-    below the study (the k-th validated checkpoint is the k-th validation line)."""
-    table = read_table(
-        record.table_path("validation"), ["global_step", "trajectory", "arm", "rmse_3d"]
-    )
+def _cells_of(rows: pd.DataFrame) -> dict[tuple[str, int], float]:
+    return {
+        (str(t), int(a)): float(v)
+        for t, a, v in rows[["trajectory", "arm", "rmse_3d"]].itertuples(index=False)
+    }
+
+
+def _minutes_to_target(record: RunRecord, stamps: Sequence[float], criterion: str) -> float | None:
+    """Minutes from the command's start to the first checkpoint whose trajectory rows meet
+    ``criterion`` (the k-th validated checkpoint is the k-th validation line)."""
+    table = read_table(record.table_path("validation"))
     steps = sorted(set(int(s) for s in table["global_step"]))
-    study = dict(zip(CELLS, study_cells(), strict=True))
     for k, step in enumerate(steps[: len(stamps)]):
         rows = table[(table["global_step"] == step) & table["trajectory"].isin(TRAJECTORIES)]
-        cells = {(str(t), int(a)): float(v) for _, t, a, v in rows.itertuples(index=False)}
-        if len(cells) == len(CELLS) and all(cells[c] <= study[c] for c in CELLS):
+        cells = _cells_of(rows)
+        if len(cells) == len(CELLS) and CRITERIA[criterion].passes(cells, _deepest_overlap(rows)):
             return stamps[k] / 60.0
     return None
 
 
-def collect(spec_path: Path, seeds: Sequence[int], store: RunStore) -> list[SeedResult]:
-    """The results of the seeds that have a completed run and a timing."""
+def collect(
+    spec_path: Path, seeds: Sequence[int], store: RunStore, criterion: str = "study"
+) -> list[SeedResult]:
+    """The results of the seeds that have a completed run and a timing, judged by
+    ``criterion`` (a key of :data:`CRITERIA`)."""
     spec = load_spec(spec_path)
     runs = _runs_of(store, spec)
     results = []
@@ -216,31 +245,44 @@ def collect(spec_path: Path, seeds: Sequence[int], store: RunStore) -> list[Seed
         if record is None or record.info.status != "completed" or not timing_path.is_file():
             continue
         timing = json.loads(timing_path.read_text())
+        kept, overlap = _kept_model(record, store)
         results.append(
             SeedResult(
                 seed=seed,
                 run_id=record.run_id,
-                kept=_kept_cells(record, store),
-                minutes_to_study=_minutes_to_study(record, timing["validation_seconds"]),
+                kept=kept,
+                minutes_to_target=_minutes_to_target(
+                    record, timing["validation_seconds"], criterion
+                ),
                 minutes_total=float(timing["seconds"]) / 60.0,
                 resumed=bool(timing["resumed"]),
+                overlap=overlap,
+                criterion=criterion,
             )
         )
     return results
 
 
 def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
-    """The per-seed table, the pass rate with its Wilson interval, the IQM with its interval."""
+    """The per-seed table, the pass rate with its Wilson interval, the IQM with its interval
+    (and, for the ``contact`` criterion, of the arms' quadratic means per trajectory)."""
+    criterion = CRITERIA[results[0].criterion if results else "study"]
+    extra = {
+        "contact": "  quadratic mean (m)",
+        "viewpoints": "  overlap (mm)",
+    }.get(criterion.name, "")
     lines = [
-        "seed  run                         kept at study  min to study  min in all  "
-        "kept 3-D RMSE (m): circle 1/2, rectangle 1/2, figure-eight 1/2"
+        f"target ({criterion.name}): {criterion.target}",
+        "seed  run                         kept passes  min to target  min in all"
+        f"{extra}  kept 3-D RMSE (m): circle 1/2, rectangle 1/2, figure-eight 1/2",
     ]
     for r in results:
-        to_study = "never" if r.minutes_to_study is None else f"{r.minutes_to_study:.1f}"
+        to_target = "never" if r.minutes_to_target is None else f"{r.minutes_to_target:.1f}"
         note = " (resumed)" if r.resumed else ""
         lines.append(
-            f"{r.seed:4d}  {r.run_id:26s}  {'yes' if r.reached else 'no':13s}  {to_study:>12s}  "
-            f"{r.minutes_total:10.1f}  {' '.join(f'{v:.4f}' for v in r.kept)}{note}"
+            f"{r.seed:4d}  {r.run_id:26s}  {'yes' if r.reached else 'no':11s}  {to_target:>13s}  "
+            f"{r.minutes_total:10.1f}{_extra_column(r)}  {' '.join(f'{v:.4f}' for v in r.kept)}"
+            f"{note}"
         )
     n = len(results)
     if not n:
@@ -248,12 +290,12 @@ def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
     passed = [
         r
         for r in results
-        if r.reached and r.minutes_to_study is not None and r.minutes_to_study <= budget_minutes
+        if r.reached and r.minutes_to_target is not None and r.minutes_to_target <= budget_minutes
     ]
     reached = [r for r in results if r.reached]
     for label, group in (
-        ("kept model at the study", reached),
-        (f"kept model at the study and a checkpoint at it within {budget_minutes:g} min", passed),
+        ("kept model passes", reached),
+        (f"kept model passes and a checkpoint passed within {budget_minutes:g} min", passed),
     ):
         low, high = wilson_interval(len(group), n)
         lines.append(f"{label}: {len(group)} of {n} [95 % Wilson {low:.2f}, {high:.2f}]")
@@ -264,13 +306,31 @@ def summary(results: Sequence[SeedResult], budget_minutes: float) -> str:
         f"= {iqm.value / mean_study:.2f}x the study's mean cell ({mean_study:.4f} m); CPU here: "
         f"{cpu_kind()}"
     )
+    if criterion.name == "contact":
+        means = stratified_bootstrap(np.array([quadratic_means(r.cells) for r in results]))
+        lines.append(
+            f"kept models' quadratic mean of the arms, IQM over runs and trajectories: "
+            f"{means.value:.4f} m [{means.low:.4f}, {means.high:.4f}] (floor 0.05 m)"
+        )
     return "\n".join(lines)
 
 
+def _extra_column(result: SeedResult) -> str:
+    """The criterion's own column of :func:`summary`'s per-seed line."""
+    if result.criterion == "contact":
+        return f"  {float(np.mean(quadratic_means(result.cells))):18.4f}"
+    if result.criterion == "viewpoints":
+        depth = "n/a" if result.overlap is None else f"{1000 * result.overlap:.1f}"
+        return f"  {depth:>12s}"
+    return ""
+
+
 def write_record(path: Path, recipe: str, spec_path: Path, results: Sequence[SeedResult]) -> None:
-    """Write ``results`` as JSON: the recipe's name and spec file, the CPU, and per seed its
-    run, whether the kept model is at the study, the minutes to the first checkpoint at the
-    study (null: never) and of the whole command, and the kept cells (m)."""
+    """Write ``results`` as JSON: the recipe's name and spec file, the criterion, the CPU, and
+    per seed its run, whether the kept model passes (and, whatever the criterion, whether it is
+    at the study in all six cells), the minutes to the first checkpoint that passes (null:
+    never) and of the whole command, the kept cells (m), the arms' quadratic mean per
+    trajectory (m) and the deepest overlap (mm; null: not recorded)."""
     try:
         spec_file = str(spec_path.resolve().relative_to(ROOT))
     except ValueError:
@@ -278,16 +338,20 @@ def write_record(path: Path, recipe: str, spec_path: Path, results: Sequence[See
     record = {
         "recipe": recipe,
         "spec": spec_file,
+        "criterion": results[0].criterion if results else "study",
         "cpu": cpu_kind(),
         "seeds": [
             {
                 "seed": r.seed,
                 "run_id": r.run_id,
-                "kept_at_study": r.reached,
-                "minutes_to_study": r.minutes_to_study,
+                "kept_passes": r.reached,
+                "kept_at_study": at_study(r.cells),
+                "minutes_to_target": r.minutes_to_target,
                 "minutes_total": r.minutes_total,
                 "resumed": r.resumed,
                 "kept_cells_m": list(r.kept),
+                "quadratic_means_m": list(quadratic_means(r.cells)),
+                "deepest_overlap_mm": None if r.overlap is None else 1000 * r.overlap,
             }
             for r in results
         ],
@@ -335,6 +399,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "experiments/diagnostics/fresh_seed_frontier.py)",
     )
     parser.add_argument(
+        "--criterion",
+        choices=sorted(CRITERIA),
+        default="study",
+        help="what a seed must reach: study (the six cells), contact (the arms' quadratic "
+        "mean <= 0.055 m), viewpoints (the six cells, overlap <= 5 mm) [study]",
+    )
+    parser.add_argument(
         "--budget-minutes", type=float, default=5.0, help="the time target per seed, min [5]"
     )
     args = parser.parse_args(argv)
@@ -364,7 +435,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             thread.start()
         for thread in threads:
             thread.join()
-    results = collect(args.spec, seeds, store)
+    results = collect(args.spec, seeds, store, args.criterion)
     print(summary(results, args.budget_minutes))
     if args.record is not None:
         write_record(args.record, load_spec(args.spec).name, args.spec, results)

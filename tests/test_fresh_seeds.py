@@ -3,6 +3,7 @@ interval, and its summary of finished runs (no training here)."""
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "experiments"))
+import fresh_seed_criteria as fc  # noqa: E402
 import fresh_seed_frontier as frontier  # noqa: E402
 import fresh_seeds as fs  # noqa: E402
 
@@ -45,9 +47,53 @@ def test_a_summary_of_no_finished_seed_says_so(
     assert capsys.readouterr().out.strip() == "no fresh seed has a completed run yet"
     results = [fs.SeedResult(100, "A", fs.study_cells(), 4.0, 9.0, False)]
     text = fs.summary(results, 5.0)
-    assert (
-        "1 of 1" in text and "kept model at the study and a checkpoint at it within 5 min" in text
+    assert "1 of 1" in text and "kept model passes and a checkpoint passed within 5 min" in text
+    assert text.startswith("target (study): all six cells at or below the study's 3-D RMSE")
+
+
+def test_the_contact_target_is_the_arms_quadratic_mean_against_0055() -> None:
+    """Per trajectory sqrt((RMSE1² + RMSE2²)/2), averaged over the three: 0.05 and 0.06 m
+    give 0.0552 m (misses 0.055); 0.05 and 0.058 m give 0.0542 m (passes)."""
+    miss = tuple(v for _ in fc.TRAJECTORIES for v in (0.05, 0.06))
+    near = tuple(v for _ in fc.TRAJECTORIES for v in (0.05, 0.058))
+    results = [
+        fs.SeedResult(140, "A", miss, None, 9.0, False, 0.004, "contact"),
+        fs.SeedResult(141, "B", near, 6.0, 9.0, False, 0.004, "contact"),
+    ]
+    assert not results[0].reached and results[1].reached
+    assert fc.quadratic_means(results[0].cells)[0] == pytest.approx(0.05523, abs=1e-5)
+    text = fs.summary(results, 5.0)
+    assert "target (contact)" in text and "kept model passes: 1 of 2" in text
+    assert "quadratic mean of the arms, IQM over runs and trajectories" in text
+    assert "0.0552" in text.splitlines()[2]  # seed 140's own column
+
+
+def test_the_viewpoints_target_needs_the_overlap_under_5_mm(tmp_path: Path) -> None:
+    study = fs.study_cells()
+    deep = fs.SeedResult(140, "A", study, 4.0, 9.0, False, 0.006, "viewpoints")
+    shallow = fs.SeedResult(141, "B", study, 4.0, 9.0, False, 0.002, "viewpoints")
+    unknown = fs.SeedResult(142, "C", study, 4.0, 9.0, False, None, "viewpoints")
+    assert [r.reached for r in (deep, shallow, unknown)] == [False, True, False]
+    assert fs.SeedResult(143, "D", study, 4.0, 9.0, False, 0.006).reached  # the study's
+    path = tmp_path / "viewpoints.json"
+    fs.write_record(path, "recipe", TTA, [deep, shallow])
+    rows = json.loads(path.read_text())["seeds"]
+    assert [r["kept_passes"] for r in rows] == [False, True]
+    assert [r["kept_at_study"] for r in rows] == [True, True]
+    assert rows[0]["deepest_overlap_mm"] == pytest.approx(6.0)
+
+
+def test_the_frontier_draws_records_of_the_study_target_only(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "contact.json"
+    cells = tuple(0.06 for _ in fs.study_cells())
+    fs.write_record(
+        path, "r", TTA, [fs.SeedResult(140, "A", cells, None, 9.0, False, 0.0, "contact")]
     )
+    assert frontier.main([str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert "leaving out" in out and "no record of the study's target" in err
 
 
 def test_a_core_this_machine_does_not_offer_is_refused(
