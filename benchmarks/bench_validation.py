@@ -22,7 +22,10 @@ call (the rounding of a batch's matrix products, amplified by the closed loop). 
         models/td3-sbx-128-mirror-tta-3e6-seed0 [--repeats 3] [--train-steps 20000] [--paths 16]
 
 ``--paths 16`` also times the episodes with 16 held-out paths (``training.validation_paths``)
-in batches of 16 policy rows (until 2026-12-07: two batches) and of ``VALIDATION_BATCH`` (one).
+in one batch of ``VALIDATION_BATCH`` policy rows: through the model's own ``predict`` (sbx, as
+until 2026-12-07), through the NumPy actor (:mod:`softtrack.rl.numpy_actor`, validation's
+policy since), and the paths alone through the NumPy actor (``validation_episodes: 0``, what a
+recipe scoring the paths alone needs).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import pandas as pd
 
 from softtrack.evaluation import VALIDATION_SEED, metrics_table, run_episode
 from softtrack.rl.factory import model_class
+from softtrack.rl.numpy_actor import numpy_actor
 from softtrack.rl.policy import deterministic_policy, model_paths
 from softtrack.rl.validation import VALIDATION_BATCH, checkpoint_rows, held_out_rows
 from softtrack.spec import ExperimentSpec
@@ -70,15 +74,25 @@ def before(model: Any, spec: ExperimentSpec) -> pd.DataFrame:
     return pd.concat([rows, *tracked], ignore_index=True)
 
 
-def batched(model: Any, spec: ExperimentSpec, paths: int, batch: int) -> pd.DataFrame:
-    """Batched validation: every episode (with ``paths`` held-out paths) in batches of
-    ``batch``, one policy call per batch and control step."""
+def batched(
+    model: Any,
+    spec: ExperimentSpec,
+    paths: int,
+    batch: int,
+    random: bool = True,
+    numpy: bool = False,
+) -> pd.DataFrame:
+    """Batched validation: every episode (with ``paths`` held-out paths; without the random
+    targets unless ``random``) in batches of ``batch``, one policy call per batch and control
+    step, through the NumPy actor if ``numpy`` else the model's ``predict``."""
+    act = numpy_actor(model) if numpy else deterministic_policy(model, batches=True)
+    assert act is not None, "the NumPy actor runs sbx TD3 actors only"
     rows = checkpoint_rows(
         "x",
-        deterministic_policy(model, batches=True),
+        act,
         env_config(spec, None),
         float(spec.training.eval_duration),
-        spec.training.validation_episodes,
+        spec.training.validation_episodes if random else 0,
         list(spec.training.eval_trajectories),
         None,
         paths=paths,
@@ -108,8 +122,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         "--paths",
         type=int,
         default=0,
-        help="also time the run's episodes with this many held-out paths, in batches of 16 "
-        f"rows (until 2026-12-07) and of {VALIDATION_BATCH} (now)",
+        help="also time the run's episodes with this many held-out paths in one batch of "
+        f"{VALIDATION_BATCH} rows: through sbx, through the NumPy actor, and the paths alone",
     )
     args = parser.parse_args(argv)
     record = RunStore(args.run.parent).get_run(args.run.name)
@@ -125,10 +139,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         "after": after,
     }
     if args.paths:
-        for batch in (16, VALIDATION_BATCH):
-            variants[f"with {args.paths} paths, {batch} rows"] = lambda m, s, b=batch: batched(
-                m, s, args.paths, b
-            )
+        p, rows = args.paths, VALIDATION_BATCH
+        variants[f"with {p} paths, sbx predict"] = lambda m, s: batched(m, s, p, rows)
+        variants[f"with {p} paths, NumPy actor"] = lambda m, s: batched(m, s, p, rows, numpy=True)
+        variants[f"{p} paths alone, NumPy actor"] = lambda m, s: batched(
+            m, s, p, rows, random=False, numpy=True
+        )
     times: dict[str, list[float]] = {name: [] for name in (*variants, "training")}
     results: dict[str, pd.DataFrame] = {}
     for round_ in range(args.repeats):

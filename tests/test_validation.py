@@ -353,6 +353,47 @@ def test_a_score_on_the_held_out_paths_alone(tmp_path: Path) -> None:
     assert refused.exit_code == 2 and "validation_paths" in refused.output
 
 
+def test_held_out_paths_alone_validate_without_random_episodes(tmp_path: Path) -> None:
+    """``validation_episodes: 0`` with ``validation_paths``: each checkpoint runs the paths
+    alone (numbered from 0), scored, kept and stopped on as with random episodes beside them;
+    the path episodes are those of a run that also has random ones (training is the same)."""
+    settings = {"total_timesteps": 400, "final_policy": "best_validated", "eval_duration": 0.1}
+    alone = _train(
+        _spec(
+            tmp_path,
+            "td3",
+            "sbx",  # validated through the NumPy actor
+            validation_paths=2,
+            validation_episodes=0,
+            stop_score=1e-9,
+            **settings,
+        ),
+        tmp_path / "alone",
+    )
+    beside = _train(
+        _spec(tmp_path, "td3", "sbx", validation_paths=2, validation_episodes=EPISODES, **settings),
+        tmp_path / "beside",
+    )
+    table = _validation(alone)
+    assert set(table["trajectory"]) == {"paths"}
+    assert sorted(set(zip(table["episode"], table["seed"], strict=True))) == [
+        (k, VALIDATION_PATH_SEED + k) for k in range(2)
+    ]
+    paths = _validation(beside).query("trajectory == 'paths'")
+    np.testing.assert_allclose(
+        table.sort_values(["global_step", "seed", "arm"])["rmse_3d"].to_numpy(),
+        paths.sort_values(["global_step", "seed", "arm"])["rmse_3d"].to_numpy(),
+        rtol=1e-5,
+    )
+    scores = {s: float(rows["rmse_3d"].mean()) for s, rows in table.groupby("global_step")}
+    best = PolicyDir.of_run(alone.path)
+    assert [p.name for p in best.list_best()] == [f"step-{_best_of(scores):012d}"]
+    neither = runner.invoke(
+        app, ["validate", str(_spec(tmp_path, validation_episodes=0, stop_score=0.04))]
+    )
+    assert neither.exit_code == 2 and "validation_paths" in neither.output
+
+
 def test_training_ends_early_at_the_stop_score_and_the_run_completes(tmp_path: Path) -> None:
     """``training.stop_score``: the first validation at or below it ends training there; the
     run is completed (not interrupted) with fewer steps than its budget, says so, and its

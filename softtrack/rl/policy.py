@@ -71,10 +71,11 @@ def require_model(
             f"run {record.run_id} is an MPC controller: it has no last or "
             "best model; evaluate it without --model"
         )
-    if model == "best" and spec.training.validation_episodes < 1:
+    if model == "best" and not spec.training.validates:
         raise RunStoreError(
             f"run {record.run_id} was trained without validation "
-            "(training.validation_episodes: 0), so it has no best-validated model; "
+            "(training.validation_episodes and validation_paths: 0), so it has no "
+            "best-validated model; "
             "evaluate its last model with --model last"
         )
     paths = model_paths(record, spec, model)

@@ -351,14 +351,15 @@ class PolicyTrainer:
         )
 
     def _validator(self, state: dict[str, Any] | None, clock: TrainingClock) -> Validator | None:
-        """The policy's :class:`Validator` (``None`` without ``training.validation_episodes``),
+        """The policy's :class:`Validator` (``None`` without validation episodes,
+        :attr:`~softtrack.spec.TrainingSpec.validates`),
         after matching its table and best models to where training (re)starts. When the
         restored checkpoint lies in a checkpoint interval that has no validation yet (a
         validation cut short by a stop or a kill), it is validated now."""
         training, job = self.spec.training, self.job
         step = int(self.model.num_timesteps)
         truncate_validation(self.record, job.policy, None if state is None else step)
-        if training.validation_episodes < 1:
+        if not training.validates:
             return None
         validator = Validator(
             self.record,

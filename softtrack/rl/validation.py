@@ -1,6 +1,7 @@
 """Validation during training: held-out random-target episodes on each checkpoint's model.
 
-With ``training.validation_episodes: K`` (K ≥ 1), every periodic checkpoint of a policy
+With ``training.validation_episodes: K`` (or, with K = 0, ``training.validation_paths`` ≥ 1),
+every periodic checkpoint of a policy
 (each ``training.checkpoint_interval`` env steps) is followed by K deterministic episodes of
 ``training.eval_duration`` on the policy's own random training target, from seeds
 :data:`VALIDATION_SEED` + k. Training seeds its environments with the run seed + env index and
@@ -67,6 +68,7 @@ from softtrack.evaluation import (
 from softtrack.evaluation.episodes import EPISODE_BATCH
 from softtrack.evaluation.scores import HELD_OUT_TARGETS, scored_targets
 from softtrack.rl.callbacks import TrainingClock, reached
+from softtrack.rl.numpy_actor import numpy_actor
 from softtrack.rl.policy import deterministic_policy
 from softtrack.rl.target_actor import acting_with_target_actor
 from softtrack.spec import ExperimentSpec
@@ -263,7 +265,8 @@ class Validator:
     """Validate one policy of a run after its checkpoints (module docstring).
 
     Args:
-        record, spec: the run and its spec (``training.validation_episodes`` ≥ 1).
+        record, spec: the run and its spec (``training.validates``: random-target or held-out
+            path episodes).
         policy: the policy's directory (its arm selects the scene).
         stop_requested: a callable; when it turns true, validation stops between episodes
             and writes nothing (the checkpoint is validated when training resumes).
@@ -293,9 +296,10 @@ class Validator:
         self.paths = int(spec.training.validation_paths)
         self.stop_score = spec.training.stop_score
         self.scored = scored_targets(spec.training.validation_score)
-        if self.episodes < 1:
+        if not spec.training.validates:
             raise ValueError(
-                f"training.validation_episodes is {self.episodes}; a Validator needs at least 1"
+                "training.validation_episodes and validation_paths are 0; a Validator needs "
+                "at least one episode"
             )
         self.duration = float(spec.training.eval_duration)
         self.act_with_target_actor = spec.algo.act_with_target_actor
@@ -315,11 +319,13 @@ class Validator:
         started = time.monotonic()
         normalizer = model.get_vec_normalize_env()
         wall_time = None if self.clock is None else self.clock.elapsed()
-        act = deterministic_policy(model, normalizer, batches=True)
         with (
             self.clock.paused() if self.clock is not None else contextlib.nullcontext(),
             acting_with_target_actor(model, self.act_with_target_actor),
         ):
+            act = numpy_actor(model, normalizer) or deterministic_policy(
+                model, normalizer, batches=True
+            )
             rows = checkpoint_rows(
                 self.record.run_id,
                 act,

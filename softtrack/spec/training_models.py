@@ -74,14 +74,15 @@ class TrainingSpec(SpecModel):
         0,
         "held-out random-target episodes (eval_duration each) run on each periodic "
         "checkpoint's model; their metrics go to tables/validation.parquet and the model with "
-        "the lowest mean 3-D RMSE so far to best/; 0 = no validation",
+        "the lowest mean 3-D RMSE so far to best/; 0 = none (no validation unless "
+        "validation_paths >= 1)",
         "episodes",
         ge=0,
     )
     validation_paths: Int = unit_field(
         0,
-        "held-out path episodes (eval_duration each) run on each validated checkpoint's "
-        "model beside the random-target ones: per episode one of the trajectories' shapes, "
+        "held-out path episodes (eval_duration each) run on each periodic checkpoint's "
+        "model beside the random-target ones (or alone, with validation_episodes 0): per episode one of the trajectories' shapes, "
         "scaled by 0.8-1.2, its centre moved by up to 0.15 circle radii along each axis, "
         "started at a random phase, run either way round (target mode 'paths'); they enter "
         "the validation score with the random-target episodes, so models are selected on "
@@ -158,6 +159,12 @@ class TrainingSpec(SpecModel):
         le=1,
     )
 
+    @property
+    def validates(self) -> bool:
+        """Whether each periodic checkpoint is validated: some random-target or held-out path
+        episodes (``validation_episodes`` + ``validation_paths`` ≥ 1)."""
+        return self.validation_episodes + self.validation_paths >= 1
+
     @field_validator("eval_trajectories")
     @classmethod
     def _unique_trajectories(cls, value: list[str]) -> list[str]:
@@ -184,11 +191,11 @@ def check_validated_checkpoints(
         where: appended to the problem, e.g. ``" when the trial sets ..."``.
         or_else: the alternative fix, e.g. ``" or final_policy: last"``.
     """
-    if t.validation_episodes < 1:
+    if not t.validates:
         raise custom_error(
             f"{needed_by} picks or scores checkpoints by their validation episodes, but "
             f"training.validation_episodes is 0{where}; set training.validation_episodes to at "
-            f"least 1 (e.g. 10){or_else}",
+            f"least 1 (e.g. 10) or training.validation_paths (e.g. 16){or_else}",
             field,
         )
     if not 0 < t.checkpoint_interval <= t.total_timesteps:

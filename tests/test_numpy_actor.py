@@ -1,0 +1,63 @@
+"""``softtrack.rl.numpy_actor``: validation's NumPy copy of a trained sbx TD3/DDPG actor acts as
+the model's own ``predict`` does, to float32 rounding, and declines every other actor."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from softtrack.rl.factory import model_class
+from softtrack.rl.numpy_actor import numpy_actor
+from softtrack.rl.policy import deterministic_policy, model_paths
+from softtrack.rl.target_actor import acting_with_target_actor
+from softtrack.store.runs import RunStore
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+def _model(run: str) -> object:
+    record = RunStore(MODELS).get_run(run)
+    spec = record.load_spec()
+    return model_class(spec).load(str(model_paths(record, spec)[0]), device="cpu")
+
+
+@pytest.mark.parametrize(
+    "run", ["td3-sbx-128-mirror-tta-3e6-seed0", "ddpg-sbx-1e6-seed0", "td3-sbx-1e7-seed0"]
+)
+def test_the_numpy_actor_acts_as_the_model_does(run: str) -> None:
+    model = _model(run)
+    act = numpy_actor(model)
+    assert act is not None and getattr(act, "accepts_batches", False)
+    reference = deterministic_policy(model, batches=True)
+    observations = np.random.default_rng(0).normal(size=(32, 81))
+    batch = act(observations)
+    assert batch.shape == (32, 24) and batch.dtype == np.float64
+    np.testing.assert_allclose(batch, reference(observations), rtol=0, atol=2e-5)
+    np.testing.assert_allclose(act(observations[3]), batch[3], rtol=0, atol=1e-6)
+    assert np.abs(batch).max() <= 1.0  # the action space's bounds
+
+
+def test_the_numpy_actor_takes_the_weights_the_model_acts_with_now() -> None:
+    """Inside ``acting_with_target_actor`` (validation's context) a training model's copy is
+    its target actor's; outside, its own actor's."""
+    model = _model("td3-sbx-128-mirror-tta-3e6-seed0")
+    policy = model.policy  # type: ignore[attr-defined]
+    params = policy.actor_state.params
+    shifted = {"params": {k: {**v, "bias": v["bias"] + 0.5} for k, v in params["params"].items()}}
+    policy.actor_state = policy.actor_state.replace(target_params=shifted)
+    x = np.random.default_rng(1).normal(size=(4, 81))
+    own = numpy_actor(model)
+    with acting_with_target_actor(model):
+        target = numpy_actor(model)
+        reference = deterministic_policy(model, batches=True)(x)
+    assert own is not None and target is not None
+    np.testing.assert_allclose(target(x), reference, atol=2e-5)
+    assert np.abs(own(x) - target(x)).max() > 1e-2
+
+
+@pytest.mark.parametrize("run", ["sac-sbx-128-mirror-fast-1e6-seed0", "ppo-sbx-4e6-seed0"])
+def test_other_actors_are_declined(run: str) -> None:
+    assert numpy_actor(_model(run)) is None
+    assert numpy_actor(object()) is None
