@@ -82,10 +82,11 @@ class TrainingSpec(SpecModel):
     validation_paths: Int = unit_field(
         0,
         "held-out path episodes (eval_duration each) run on each periodic checkpoint's "
-        "model beside the random-target ones (or alone, with validation_episodes 0): per episode one of the trajectories' shapes, "
-        "scaled by 0.8-1.2, its centre moved by up to 0.15 circle radii along each axis, "
-        "started at a random phase, run either way round (target mode 'paths'); they enter "
-        "the validation score with the random-target episodes, so models are selected on "
+        "model beside the random-target ones (or alone, with validation_episodes 0): per "
+        "episode one of the trajectories' shapes, scaled by 0.8-1.2, its centre moved by up "
+        "to 0.15 circle radii along each axis, started at a random phase, run either way "
+        "round (target mode 'paths'); they enter the validation score with the random-target "
+        "episodes, so models are selected on "
         "paths like the evaluation's that are not the evaluation's; 0 = none",
         "episodes",
         ge=0,
