@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from softtrack.env.target_tables import AheadTable
 from softtrack.env.targets import (
     EVAL_TRAJECTORIES,
     HELD_OUT_SCALE,
@@ -468,3 +469,43 @@ def test_held_out_paths_need_generators_and_have_no_closed_form() -> None:
         BatchedTargets(TargetConfig(name="paths"), 2).reset([0, 1])
     with pytest.raises(ValueError, match="paths target has no closed-form"):
         trajectory_position(TargetConfig(name="paths"), np.zeros(3))
+
+
+@pytest.mark.parametrize("name", ["circle", "rectangle", "figure8", "fixed", "paths"])
+def test_targets_from_a_table_ahead_equal_stepping_bit_for_bit(name: str) -> None:
+    """``BatchedTargets`` computes closed-form and held-out path states many steps ahead in
+    one call (:mod:`softtrack.env.target_tables`); each step's state equals the closed form at
+    the stepped time bit for bit, through a reset of some environments, a step of some of
+    them, a change of ``dt`` and several tables."""
+    config = dataclasses.replace(TargetConfig(), name=name)
+    targets = BatchedTargets(config, 5)
+    rngs = [np.random.default_rng(5_000_000 + i) for i in range(5)]
+    targets.reset(range(5), rngs)
+    for k in range(700):
+        if k == 300:
+            targets.reset([1, 3], [np.random.default_rng(7), np.random.default_rng(8)])
+        active = np.array([True, False, True, True, False]) if k == 400 else None
+        targets.step(0.004 if k > 500 else 0.002, active)
+        position, velocity = targets._state(targets.time.copy())
+        assert np.array_equal(targets.position, position), k
+        assert np.array_equal(targets.velocity, velocity), k
+    assert targets._ahead.exact
+
+
+def test_a_table_that_is_not_exact_falls_back_to_one_step_at_a_time() -> None:
+    """A state function whose values depend on how many times it is given at once (what a
+    CPU's vector code could do to the last bit) is caught on the table's last row: from then
+    on each step is computed alone."""
+
+    def state_at(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        drift = 1e-12 * times.shape[0]
+        position = np.repeat((times + drift)[..., None], 3, axis=-1)
+        return position, np.zeros_like(position)
+
+    table = AheadTable(state_at)
+    time = np.zeros(2)
+    for _ in range(40):
+        time = time + 0.002
+        position, _ = table.state(time, 0.002)
+        np.testing.assert_array_equal(position, state_at(time[None])[0][0])
+    assert not table.exact

@@ -33,6 +33,7 @@ from typing import Literal, get_args
 
 import numpy as np
 
+from softtrack.env.target_tables import AheadTable
 from softtrack.numbers import is_finite_number, out_of_range, setting
 from softtrack.trajectories import EVAL_TRAJECTORIES, TrajectoryName
 
@@ -281,6 +282,16 @@ class HeldOutPaths:
     phase: np.ndarray
     sign: np.ndarray
 
+    def tiled(self, k: int) -> HeldOutPaths:
+        """These n paths repeated ``k`` times (k·n paths: row j·n + i is path i)."""
+        return HeldOutPaths(
+            np.tile(self.shape, k),
+            np.tile(self.scale, k),
+            np.tile(self.shift, (k, 1)),
+            np.tile(self.phase, k),
+            np.tile(self.sign, k),
+        )
+
     @classmethod
     def unit(cls, n: int) -> HeldOutPaths:
         """``n`` paths equal to the first trajectory (before any draw)."""
@@ -376,6 +387,7 @@ class BatchedTargets:
         self._rngs: list[np.random.Generator | None] = [None] * self.n_envs
         self._since_redirect = np.zeros(self.n_envs)
         self._all_reset = False  # random mode: has every environment got its generator?
+        self._ahead = AheadTable(self._states_at)
         if self._random:
             self.position[:] = 0.5 * (self._low + self._high)
         else:
@@ -386,6 +398,14 @@ class BatchedTargets:
         if self._paths is not None:
             return held_out_state(self.config, self._paths, t)
         return _closed_form(self.config, t)
+
+    def _states_at(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_state` at times (k, n): positions and velocities (k, n, 3)."""
+        if self._paths is None:
+            return _closed_form(self.config, times)
+        k, n = times.shape
+        position, velocity = held_out_state(self.config, self._paths.tiled(k), times.reshape(-1))
+        return position.reshape(k, n, 3), velocity.reshape(k, n, 3)
 
     @property
     def shrunk_box(self) -> tuple[np.ndarray, np.ndarray]:
@@ -426,6 +446,7 @@ class BatchedTargets:
                 assert rngs is not None
                 for i, rng in zip(idx.tolist(), rngs, strict=True):
                     self._paths.draw(i, self.config, rng)
+            self._ahead.clear()
             self.position[:], self.velocity[:] = self._state(self.time)
             return
         assert rngs is not None
@@ -460,8 +481,8 @@ class BatchedTargets:
             self._step_some(dt, np.asarray(active, dtype=bool))
             return
         self.time += dt
-        if not self._random:
-            self.position[:], self.velocity[:] = self._state(self.time)
+        if not self._random:  # the closed form, from a table of the next steps
+            self.position[:], self.velocity[:] = self._ahead.state(self.time, dt)
             return
         if not self._all_reset:
             missing = [i for i, rng in enumerate(self._rngs) if rng is None]

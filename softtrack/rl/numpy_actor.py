@@ -70,7 +70,11 @@ def _is_relu(activation: Any) -> bool:
 
 def _dense_layers(policy: Any) -> list[tuple[np.ndarray, np.ndarray]] | None:
     """The (kernel (in, out), bias (out,)) float32 pairs of an sbx TD3 actor, input to output;
-    ``None`` if ``policy`` is not one this module can run."""
+    ``None`` if ``policy`` is not one this module can run. Nothing is imported for another
+    backend's policy: importing JAX draws from NumPy's global generator, which Stable-Baselines3's
+    action noise uses, and validation must leave training unchanged."""
+    if not type(policy).__module__.startswith("sbx."):
+        return None
     try:
         import jax
         from gymnasium import spaces
