@@ -20,7 +20,8 @@ __all__ = ["ROWS_AHEAD", "AheadTable"]
 
 #: Control steps per table once stepping has gone on (10 s episodes of 2-ms steps: 5000).
 ROWS_AHEAD = 256
-#: Rows of the first table after a reset or a change of step: short, for short rollouts.
+#: Rows of the first table after a reset, and after a table left early (a step of some
+#: environments only): short, so that stepping few steps at a time costs little.
 FIRST_ROWS = 16
 
 StateAt = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -41,13 +42,11 @@ class AheadTable:
         self._position = np.empty((0, 0, 3))
         self._velocity = np.empty((0, 0, 3))
         self._row = 0
-        self._rows = FIRST_ROWS
         self.exact = True
 
     def clear(self) -> None:
         """Forget the table (a reset moved some environment's time or path)."""
         self._times = np.empty((0, 0))
-        self._rows = FIRST_ROWS
 
     def state(self, time: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities (n, 3) at ``time`` (n,), s, which the caller reached by
@@ -59,8 +58,9 @@ class AheadTable:
             and row < len(self._times)
             and np.array_equal(self._times[row], time)
         ):
-            if self.exact:
-                self._build(time, dt)
+            if self.exact:  # a table left early (some environments rested): a short one
+                used_up = len(self._times) > 0 and row >= len(self._times)
+                self._build(time, dt, ROWS_AHEAD if used_up else FIRST_ROWS)
             if not self.exact:
                 position, velocity = self._state_at(time[None])
                 return position[0], velocity[0]
@@ -68,8 +68,8 @@ class AheadTable:
         self._row = row + 1
         return self._position[row], self._velocity[row]
 
-    def _build(self, time: np.ndarray, dt: float) -> None:
-        steps = np.full((self._rows, len(time)), dt)
+    def _build(self, time: np.ndarray, dt: float, rows: int) -> None:
+        steps = np.full((rows, len(time)), dt)
         steps[0] = time
         times = np.add.accumulate(steps, axis=0)
         position, velocity = self._state_at(times)
@@ -80,4 +80,3 @@ class AheadTable:
         )
         self._dt, self._times, self._position, self._velocity = dt, times, position, velocity
         self._row = 0
-        self._rows = ROWS_AHEAD
