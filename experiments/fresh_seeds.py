@@ -418,6 +418,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     store = RunStore(resolve_runs_dir(args.runs_dir))
+    failed: list[int] = []  # seeds whose training ended with an error
     if not args.no_train:
         pending = list(seeds)
         lock = threading.Lock()
@@ -428,7 +429,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                     if not pending:
                         return
                     seed = pending.pop(0)
-                train_seed(args.spec, seed, store, core)
+                try:
+                    train_seed(args.spec, seed, store, core)
+                except RuntimeError as exc:  # e.g. another process trains that seed
+                    failed.append(seed)
+                    print(
+                        f"error: {exc}; its result is left out (run the command again to "
+                        "resume it)",
+                        file=sys.stderr,
+                        flush=True,
+                    )
 
         threads = [threading.Thread(target=worker, args=(core,)) for core in cores]
         for thread in threads:
@@ -439,7 +449,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(summary(results, args.budget_minutes))
     if args.record is not None:
         write_record(args.record, load_spec(args.spec).name, args.spec, results)
-    return 0
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -137,3 +137,26 @@ def test_the_frontier_reads_records_and_counts_seeds_by_minutes(
     assert frontier.main([str(tmp_path / "bad.json")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not a record" in err[0]
+
+
+def test_a_seed_whose_training_fails_is_one_line_and_the_others_go_on(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A training that ends with an error (e.g. another process is training that seed) is
+    one line naming the seed; the other seeds are still trained and summarised, exit 1."""
+    trained: list[int] = []
+
+    def train_seed(spec: Path, seed: int, store: object, core: object) -> None:
+        if seed == 100:
+            raise RuntimeError("seed 100: softtrack train ended with exit code 2")
+        trained.append(seed)
+
+    monkeypatch.setattr(fs, "train_seed", train_seed)
+    assert fs.main([str(TTA), "--seeds", "100-101", "--runs-dir", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert trained == [101]
+    assert captured.err.strip().splitlines() == [
+        "error: seed 100: softtrack train ended with exit code 2; its result is left out "
+        "(run the command again to resume it)"
+    ]
+    assert "no fresh seed has a completed run yet" in captured.out
