@@ -392,6 +392,12 @@ JOBS: tuple[Job, ...] = (
         (0,),
         policy_only=True,
     ),
+    *seeded_jobs(
+        V + "td3-sbx-128-6e6-mirror-tta-stop-transport-reachable-gs8-lr3e-4.yaml",
+        "td3-sbx-128-mirror-tta-stop-transport-reachable-gs8-lr3e-4-6e6",
+        (0, 1, 2),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     Job(
