@@ -20,11 +20,12 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from softtrack.evaluation import EVAL_TRAJECTORIES
 from softtrack.evaluation.scores import validation_score
 from softtrack.spec.spec_io import load_spec
 from softtrack.store.tables import read_table
 
-PATHS = ("circle", "rectangle", "figure8")
+PATHS = EVAL_TRAJECTORIES
 
 
 @dataclass(frozen=True)
