@@ -15,6 +15,7 @@ pytest.importorskip("sbx", reason="sbx-rl (JAX) not installed")
 
 import jax
 import jax.numpy as jnp
+from stable_baselines3.common.buffers import NStepReplayBuffer, ReplayBuffer
 
 from softtrack.cli import app
 from softtrack.env.vec_env import TrackingVecEnv
@@ -46,6 +47,65 @@ def test_buffer_samples_the_shares_of_the_sampled_transitions() -> None:
     assert rewards.shape == (64, 2) and sample.dones.shape == (64, 1)
     np.testing.assert_array_equal(rewards[:, 0], first)
     np.testing.assert_array_equal(rewards[:, 1], -3 * first)
+
+
+def _fill_alike(buffers: list[Any], n_envs: int, steps: int, seed: int) -> None:
+    """Add the same random transitions, with episode ends and time-outs, to every buffer."""
+    rng = np.random.default_rng(seed)
+    for step in range(steps):
+        obs = rng.normal(size=(n_envs, 81)).astype(np.float32)
+        obs[:, 0] = step
+        next_obs = rng.normal(size=(n_envs, 81)).astype(np.float32)
+        shares = rng.normal(size=(n_envs, 2)).astype(np.float32)
+        done = rng.random(n_envs) < 0.15
+        timeout = done & (rng.random(n_envs) < 0.5)
+        infos = [
+            {"reward_shares": shares[e], "TimeLimit.truncated": bool(timeout[e])}
+            for e in range(n_envs)
+        ]
+        action = rng.uniform(-1, 1, (n_envs, 24)).astype(np.float32)
+        for buffer in buffers:
+            buffer.add(obs, next_obs, action, shares.sum(axis=1), done, infos)
+
+
+@pytest.mark.parametrize(("capacity", "steps"), [(100, 40), (30, 47)])
+def test_n_step_shares_sum_to_sb3s_n_step_return_of_the_summed_reward(
+    capacity: int, steps: int
+) -> None:
+    venv = TrackingVecEnv(3, episode_duration=0.01)
+    spaces_ = (venv.observation_space, venv.action_space)
+    shares = RewardShareReplayBuffer(capacity, *spaces_, "cpu", n_envs=3, n_steps=3, gamma=0.9)
+    summed = NStepReplayBuffer(capacity, *spaces_, "cpu", n_envs=3, n_steps=3, gamma=0.9)
+    _fill_alike([shares, summed], n_envs=3, steps=steps, seed=capacity)
+    np.random.seed(5)
+    ours = shares.sample(256)
+    np.random.seed(5)
+    theirs = summed.sample(256)
+    assert ours.rewards.shape == (256, 2) and ours.discounts.shape == (256, 1)
+    np.testing.assert_allclose(
+        ours.rewards.numpy().sum(axis=1), theirs.rewards.numpy()[:, 0], atol=1e-5
+    )
+    for field in ("observations", "actions", "next_observations", "dones", "discounts"):
+        np.testing.assert_array_equal(getattr(ours, field).numpy(), getattr(theirs, field).numpy())
+    assert (ours.discounts.numpy() < 0.9**2).any()  # some sequences run the full three steps
+
+
+def test_one_step_shares_sample_as_sb3s_one_step_buffer() -> None:
+    venv = TrackingVecEnv(3, episode_duration=0.01)
+    spaces_ = (venv.observation_space, venv.action_space)
+    shares = RewardShareReplayBuffer(50, *spaces_, "cpu", n_envs=3)
+    plain = ReplayBuffer(50, *spaces_, "cpu", n_envs=3)
+    _fill_alike([shares, plain], n_envs=3, steps=70, seed=1)
+    np.random.seed(2)
+    ours = shares.sample(128)
+    np.random.seed(2)
+    theirs = plain.sample(128)
+    np.testing.assert_allclose(
+        ours.rewards.numpy().sum(axis=1), theirs.rewards.numpy()[:, 0], atol=1e-5
+    )
+    for field in ("observations", "actions", "next_observations", "dones"):
+        np.testing.assert_array_equal(getattr(ours, field).numpy(), getattr(theirs, field).numpy())
+    np.testing.assert_array_equal(ours.discounts.numpy(), np.float32(0.99))
 
 
 def test_buffer_without_shares_in_the_infos_names_the_fix() -> None:

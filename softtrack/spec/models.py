@@ -282,13 +282,6 @@ class ExperimentSpec(SpecModel):
             _check_mirror_replay(self)
         if a.actor_preactivation_penalty > 0:
             _check_actor_preactivation_penalty(self)
-        if a.n_step_returns > 1 and a.critic != "joint":
-            raise custom_error(
-                f"n_step_returns {a.n_step_returns} needs SB3's n-step replay buffer, which "
-                "critic: per_arm replaces with its own; set algo.critic: joint or "
-                "n_step_returns: 1",
-                "algo.n_step_returns",
-            )
         if self.env.task.name == "transport" and self.controller == "independent":
             raise custom_error(
                 "controller: independent trains each arm's policy alone, in a one-arm scene "

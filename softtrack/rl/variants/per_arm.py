@@ -56,11 +56,19 @@ class RewardShareReplayBuffer(ReplayBuffer):
     """SB3 replay buffer that also keeps ``info["reward_shares"]`` and samples it as the reward.
 
     Samples hold ``rewards`` of shape (batch, n_shares), the per-arm shares of each transition's
-    reward, instead of SB3's (batch, 1). The environment must report the shares in every step's
-    info (``TrackingVecEnv(reward_shares=True)``).
+    reward, instead of SB3's (batch, 1), and ``discounts`` of shape (batch, 1), the factor of
+    the bootstrapped target. The environment must report the shares in every step's info
+    (``TrackingVecEnv(reward_shares=True)``).
+
+    With ``n_steps`` > 1 each share is an n-step return, Σ_{k<m} γᵏ·r_{i,t+k} up to the
+    episode's end (m ≤ n), bootstrapped from the m-th next observation with γᵐ: SB3's
+    :class:`~stable_baselines3.common.buffers.NStepReplayBuffer` (``algo.n_step_returns``)
+    applied to every share. With ``n_steps`` = 1 it samples exactly as SB3's one-step buffer.
 
     Args:
         n_shares: A, the number of reward shares (arms).
+        n_steps: n of the n-step returns (1 = one-step TD targets).
+        gamma: the discount γ of the n-step returns.
         (the others as :class:`stable_baselines3.common.buffers.ReplayBuffer`; the
         memory-optimised variant is not supported.)
     """
@@ -75,7 +83,11 @@ class RewardShareReplayBuffer(ReplayBuffer):
         optimize_memory_usage: bool = False,
         handle_timeout_termination: bool = True,
         n_shares: int = 2,
+        n_steps: int = 1,
+        gamma: float = 0.99,
     ) -> None:
+        if n_steps < 1:
+            raise ValueError(f"n_steps must be at least 1, not {n_steps}")
         if optimize_memory_usage:
             raise ValueError("RewardShareReplayBuffer does not support optimize_memory_usage")
         super().__init__(
@@ -88,6 +100,8 @@ class RewardShareReplayBuffer(ReplayBuffer):
             handle_timeout_termination,
         )
         self.reward_shares = np.zeros((self.buffer_size, self.n_envs, n_shares), dtype=np.float32)
+        self.n_steps = n_steps
+        self.gamma = gamma
 
     def add(
         self,
@@ -110,14 +124,36 @@ class RewardShareReplayBuffer(ReplayBuffer):
 
     def _get_samples(self, batch_inds: np.ndarray, env: Any = None) -> ReplayBufferSamples:
         env_indices = np.random.randint(0, high=self.n_envs, size=(len(batch_inds),))
-        not_timeout = 1 - self.timeouts[batch_inds, env_indices]
-        data = (
-            self._normalize_obs(self.observations[batch_inds, env_indices, :], env),
-            self.actions[batch_inds, env_indices, :],
-            self._normalize_obs(self.next_observations[batch_inds, env_indices, :], env),
-            (self.dones[batch_inds, env_indices] * not_timeout).reshape(-1, 1),
-            self.reward_shares[batch_inds, env_indices, :],
-        )
+        # buffers pickled before n-step returns were one-step
+        n_steps, gamma = getattr(self, "n_steps", 1), getattr(self, "gamma", 0.99)
+        # the newest slot may continue into the oldest one's episode: cut every sequence there
+        newest = self.pos - 1
+        newest_timeouts = self.timeouts[newest].copy()
+        self.timeouts[newest] = np.logical_or(newest_timeouts, np.logical_not(self.dones[newest]))
+        try:
+            indices = (batch_inds[:, None] + np.arange(n_steps)[None, :]) % self.buffer_size
+            ended = np.logical_or(
+                self.dones[indices, env_indices[:, None]],
+                self.timeouts[indices, env_indices[:, None]],
+            )  # (batch, n_steps)
+            last = np.where(ended.any(axis=1), ended.argmax(axis=1), n_steps - 1)  # (batch,)
+            kept = np.arange(n_steps)[None, :] <= last[:, None]  # (batch, n_steps)
+            weights = (gamma ** np.arange(n_steps, dtype=np.float32))[None, :] * kept
+            shares = self.reward_shares[indices, env_indices[:, None], :]  # (batch, n, A)
+            returns = (shares * weights[:, :, None]).sum(axis=1, dtype=np.float32)  # (batch, A)
+            discounts = gamma ** kept.sum(axis=1, keepdims=True).astype(np.float32)  # (batch, 1)
+            final = (batch_inds + last) % self.buffer_size
+            not_timeout = 1 - self.timeouts[final, env_indices]
+            data = (
+                self._normalize_obs(self.observations[batch_inds, env_indices, :], env),
+                self.actions[batch_inds, env_indices, :],
+                self._normalize_obs(self.next_observations[final, env_indices, :], env),
+                (self.dones[final, env_indices] * not_timeout).reshape(-1, 1),
+                returns,
+                discounts,
+            )
+        finally:
+            self.timeouts[newest] = newest_timeouts
         return ReplayBufferSamples(*tuple(map(self.to_torch, data)))
 
 
@@ -280,6 +316,13 @@ class PerArmTD3Policy(TD3Policy):
         self.actor.apply = jax.jit(self.actor.apply)  # type: ignore[method-assign]
 
 
+def _discounts(sampled: Any, n: int, gamma: float) -> np.ndarray:
+    """(n,) float32 bootstrap factors: the buffer's sampled ones, or γ for a buffer without."""
+    if sampled is None:
+        return np.full((n,), gamma, dtype=np.float32)
+    return np.asarray(sampled.numpy(), dtype=np.float32).reshape(n)
+
+
 class PerArmTD3(TD3):
     """SBX's TD3 with per-arm critic outputs (module docstring); same constructor arguments.
 
@@ -292,6 +335,8 @@ class PerArmTD3(TD3):
         per_arm_networks: one actor and one twin critic pair per arm (:class:`PerArmTD3Policy`).
         actor_observation: what each arm's actor sees, ``full`` or ``own_arm``
             (:class:`PerArmTD3Policy`).
+        n_steps: n of the n-step returns each share's critic learns from
+            (:class:`RewardShareReplayBuffer`).
     """
 
     policy_aliases: ClassVar[dict[str, type[TD3Policy]]] = {"MlpPolicy": PerArmTD3Policy}
@@ -317,10 +362,14 @@ class PerArmTD3(TD3):
             if not per_arm_networks:
                 raise ValueError("actor_observation other than full needs per_arm_networks")
             policy_kwargs["actor_observation"] = actor_observation
+        buffer_kwargs = {**(replay_buffer_kwargs or {}), "n_shares": n_reward_shares}
+        n_steps = kwargs.pop("n_steps", 1)  # SB3 ignores it beside a buffer class of our own
+        if n_steps > 1:
+            buffer_kwargs.update(n_steps=n_steps, gamma=kwargs.get("gamma", 0.99))
         # through kwargs: mypy cannot tell that *args stops before these parameters
         kwargs.update(
             replay_buffer_class=RewardShareReplayBuffer,
-            replay_buffer_kwargs={**(replay_buffer_kwargs or {}), "n_shares": n_reward_shares},
+            replay_buffer_kwargs=buffer_kwargs,
             policy_kwargs=policy_kwargs,
         )
         super().__init__(policy, env, *args, **kwargs)
@@ -335,7 +384,7 @@ class PerArmTD3(TD3):
             sample.next_observations.numpy(),
             sample.dones.numpy().flatten(),
             sample.rewards.numpy(),  # (batch·gradient_steps, A): not flattened
-            np.full((batch_size * gradient_steps,), self.gamma, dtype=np.float32),
+            _discounts(sample.discounts, batch_size * gradient_steps, self.gamma),
         )
         (
             self.policy.qf_state,
