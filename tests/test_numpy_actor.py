@@ -1,5 +1,5 @@
-"""``softtrack.rl.numpy_actor``: validation's NumPy copy of a trained sbx TD3/DDPG actor acts as
-the model's own ``predict`` does, to float32 rounding, and declines every other actor."""
+"""``softtrack.rl.numpy_actor``: validation's NumPy copy of a trained sbx TD3/DDPG or CrossQ actor
+acts as the model's own ``predict`` does, to float32 rounding, and declines every other actor."""
 
 from __future__ import annotations
 
@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from softtrack.rl.factory import model_class
+from softtrack.rl.factory import build_model, make_vec_env, model_class
 from softtrack.rl.numpy_actor import numpy_actor
 from softtrack.rl.policy import deterministic_policy, model_paths
 from softtrack.rl.target_actor import acting_with_target_actor
+from softtrack.spec.spec_io import parse_spec
 from softtrack.store.runs import RunStore
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -55,6 +56,45 @@ def test_the_numpy_actor_takes_the_weights_the_model_acts_with_now() -> None:
     assert own is not None and target is not None
     np.testing.assert_allclose(target(x), reference, atol=2e-5)
     assert np.abs(own(x) - target(x)).max() > 1e-2
+
+
+@pytest.mark.parametrize("batch_norm", [True, False])
+def test_a_crossq_actor_acts_as_the_model_does(batch_norm: bool) -> None:
+    """CrossQ's batch renormalisations, with running statistics far from 0 and 1, fold into
+    its dense layers; its deterministic action is the Gaussian mean's tanh."""
+    import jax
+
+    spec = parse_spec(
+        {
+            "training": {"n_envs": 2, "total_timesteps": 200},
+            "algo": {
+                "name": "crossq",
+                "backend": "sbx",
+                "policy_delay": 3,
+                "learning_starts": 20,
+                "buffer_size": 1000,
+                "batch_size": 8,
+                "policy_kwargs": {"net_arch": [16, 16], "batch_norm_actor": batch_norm},
+            },
+        }
+    )
+    model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
+    model.learn(64)
+    policy = model.policy
+    rng = np.random.default_rng(3)
+    stats = jax.tree_util.tree_map(
+        lambda leaf: (
+            rng.uniform(0.5, 2.0, np.shape(leaf)).astype(np.float32) if np.ndim(leaf) else leaf
+        ),
+        jax.device_get(policy.actor_state.batch_stats),
+    )
+    policy.actor_state = policy.actor_state.replace(batch_stats=stats)
+    act = numpy_actor(model)
+    assert act is not None
+    observations = rng.normal(size=(32, 81))
+    reference = deterministic_policy(model, batches=True)(observations)
+    np.testing.assert_allclose(act(observations), reference, rtol=0, atol=2e-5)
+    assert np.abs(reference).max() > 0.05  # the actions are not all near zero
 
 
 @pytest.mark.parametrize("run", ["sac-sbx-128-mirror-fast-1e6-seed0", "ppo-sbx-4e6-seed0"])
