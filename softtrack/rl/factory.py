@@ -199,6 +199,13 @@ def build_model(
     if noise is not None:
         kwargs["action_noise"] = noise
     kwargs.update(variants.model_kwargs(spec))
+    if spec.algo.learning_rate_final is not None:
+        from softtrack.rl.learning_rate import settable_adam
+
+        kwargs["policy_kwargs"] = {
+            **kwargs.get("policy_kwargs", {}),
+            "optimizer_class": settable_adam,
+        }
     return model_class(spec)(env=env, seed=int(seed), verbose=0, **kwargs)
 
 

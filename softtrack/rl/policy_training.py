@@ -319,6 +319,18 @@ class PolicyTrainer:
             if warmup_steps > 0:
                 step = int(self.model.num_timesteps)
                 callbacks.insert(0, curriculum(warmup_steps, self.model.get_env(), step))
+        if spec.algo.learning_rate_final is not None:
+            from softtrack.rl.learning_rate import LearningRateDecay
+
+            callbacks.insert(
+                0,
+                LearningRateDecay(
+                    job.total_timesteps,
+                    spec.algo.learning_rate,
+                    spec.algo.learning_rate_final,
+                    spec.algo.learning_rate_decay_from,
+                ),
+            )
         remaining = job.total_timesteps - int(self.model.num_timesteps)
         if validator is not None and validator.best is not None:  # resumed past the stop
             checkpointer.stopped_early = reached(validator.best.score, training.stop_score)

@@ -156,7 +156,24 @@ class AlgoSpec(SpecModel):
         ge=0,
     )
     policy_kwargs: PolicyKwargsSpec = section_field(PolicyKwargsSpec, "network architecture")
-    learning_rate: Float = unit_field(3.0e-4, "Adam learning rate (constant)", "-", gt=0)
+    learning_rate: Float = unit_field(
+        3.0e-4, "Adam learning rate (constant unless learning_rate_final is set)", "-", gt=0
+    )
+    learning_rate_final: Float | None = unit_field(
+        None,
+        "td3, ddpg with backend sbx: the learning rate falls linearly from learning_rate to "
+        "this, for the actor and the critics, from learning_rate_decay_from·total_timesteps "
+        "env steps to total_timesteps (null = constant)",
+        "-",
+        gt=0,
+    )
+    learning_rate_decay_from: Float = unit_field(
+        0.0,
+        "with learning_rate_final: the fraction of total_timesteps at which the decay starts",
+        "-",
+        ge=0,
+        lt=1,
+    )
     batch_size: Int = unit_field(
         128,
         "minibatch size (off-policy: per gradient step; PPO: per minibatch)",
@@ -305,6 +322,21 @@ class AlgoSpec(SpecModel):
                 f"{self.name} has no target actor (td3 and ddpg have one); set "
                 "algo.act_with_target_actor: false",
                 "act_with_target_actor",
+            )
+        if self.learning_rate_final is not None and (
+            self.name not in ("td3", "ddpg") or self.backend != "sbx"
+        ):
+            raise custom_error(
+                "learning_rate_final (a decaying learning rate) is implemented for td3 and "
+                f"ddpg with backend sbx, not {self.name} with backend {self.backend}; remove "
+                "algo.learning_rate_final",
+                "learning_rate_final",
+            )
+        if self.learning_rate_decay_from != 0.0 and self.learning_rate_final is None:
+            raise custom_error(
+                "learning_rate_decay_from applies to a decaying learning rate; set "
+                "algo.learning_rate_final or remove learning_rate_decay_from",
+                "learning_rate_decay_from",
             )
         if self.name == "crossq" and self.backend != "sbx":
             raise custom_error(

@@ -214,6 +214,8 @@ _FIELDS_ADDED_LATER: dict[tuple[str, ...], Any] = {
     ("algo", "actor_preactivation_penalty"): 0.0,
     ("algo", "n_step_returns"): 1,
     ("algo", "act_with_target_actor"): False,
+    ("algo", "learning_rate_final"): None,
+    ("algo", "learning_rate_decay_from"): 0.0,
     ("algo", "policy_kwargs", "layer_norm"): False,
     ("algo", "policy_kwargs", "log_std_init"): 0.0,
     ("training", "validation_episodes"): 0,
