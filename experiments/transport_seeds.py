@@ -181,23 +181,25 @@ def draw(records: Sequence[Path], out: Path, at_most: float, carried: int) -> No
             & (seeds["dropped_on"].map(len) == 0)
             & (seeds["carried"] >= carried)
         )
+        # seeds side by side within the column, so that equal errors stay apart
+        x = column + 0.08 * (seeds.index.to_numpy() - (len(seeds) - 1) / 2)
         for hit, face in ((True, "C0"), (False, "none")):
-            chosen = seeds[meets == hit]
             ax.scatter(
-                [column] * len(chosen),
-                chosen["worst_path"],
+                x[(meets == hit).to_numpy()],
+                seeds["worst_path"][meets == hit],
                 facecolors=face,
                 edgecolors="C0",
                 s=36,
                 zorder=3,
             )
-        for row in seeds.itertuples():
+        for at, row in zip(x, seeds.itertuples(), strict=True):
             ax.annotate(
                 str(row.seed),
-                (column, row.worst_path),
-                xytext=(6, -3),
+                (at, row.worst_path),
+                xytext=(0, 6),
                 textcoords="offset points",
                 fontsize=7,
+                ha="center",
             )
         if record.get("floors"):
             floors.append(max(record["floors"][t] for t in EVAL_TRAJECTORIES))
