@@ -11,8 +11,9 @@ import pytest
 
 pytest.importorskip("sbx", reason="sbx-rl (JAX) not installed")
 
+from softtrack.rl.callbacks import LearningRateDecay
 from softtrack.rl.factory import build_model, make_vec_env, model_class
-from softtrack.rl.learning_rate import LearningRateDecay, learning_rate_at
+from softtrack.rl.learning_rate import learning_rate_at
 from softtrack.spec.fields import SpecError
 from softtrack.spec.spec_io import parse_spec, spec_hash
 

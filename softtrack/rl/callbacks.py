@@ -39,9 +39,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from softtrack.env.vec_env import TrackingVecEnv
+from softtrack.rl.learning_rate import learning_rate_at
 from softtrack.rl.replay_file import save_replay_buffer as save_replay_buffer_file
 from softtrack.store.atomic import atomic_dir, atomic_write_json
 from softtrack.store.layout import PolicyDir
@@ -55,6 +57,7 @@ __all__ = [
     "Checkpointer",
     "EpisodeLogger",
     "GoalMotionWarmup",
+    "LearningRateDecay",
     "LinearWarmup",
     "ProgressMonitor",
     "RandomisationWarmup",
@@ -641,3 +644,47 @@ class ProgressMonitor(BaseCallback):
             self._bar.refresh()
             self._bar.close()
             self._bar = None
+
+
+class LearningRateDecay(BaseCallback):
+    """Sets the learning rate of an sbx TD3/DDPG model's actor and critic optimizers (built with
+    :func:`softtrack.rl.learning_rate.settable_adam`; the schedule: that module's docstring)
+    from the env steps so far, at the start and after each vectorised step (so before the
+    updates that follow it).
+
+    Args:
+        total_timesteps: T, the run's budget (env steps).
+        initial: lr₀. final: lr₁. decay_from: f, the fraction of T where the decay starts.
+    """
+
+    def __init__(self, total_timesteps: int, initial: float, final: float, decay_from: float):
+        super().__init__(verbose=0)
+        self.total_timesteps = int(total_timesteps)
+        self.initial, self.final, self.decay_from = float(initial), float(final), float(decay_from)
+
+    def _set_rate(self) -> None:
+        rate = learning_rate_at(
+            int(self.model.num_timesteps),
+            self.total_timesteps,
+            self.initial,
+            self.final,
+            self.decay_from,
+        )
+        policy: Any = self.model.policy
+        for state in (policy.actor_state, policy.qf_state):
+            hyperparams = getattr(state.opt_state, "hyperparams", None)
+            if hyperparams is None or "learning_rate" not in hyperparams:
+                raise ValueError(
+                    "a decaying learning rate needs optimizers built by "
+                    "softtrack.rl.learning_rate.settable_adam"
+                )
+            # a float32 array: the jitted update sees the same argument type every time
+            hyperparams["learning_rate"] = np.asarray(rate, dtype=np.float32)
+        self.logger.record("train/learning_rate", rate)
+
+    def _on_training_start(self) -> None:
+        self._set_rate()
+
+    def _on_step(self) -> bool:
+        self._set_rate()
+        return True

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from softtrack.rl import variants
+from softtrack.rl.learning_rate import settable_adam
 from softtrack.spec import ExperimentSpec, SpecError
 from softtrack.spec.env_config import env_config
 
@@ -200,8 +201,6 @@ def build_model(
         kwargs["action_noise"] = noise
     kwargs.update(variants.model_kwargs(spec))
     if spec.algo.learning_rate_final is not None:
-        from softtrack.rl.learning_rate import settable_adam
-
         kwargs["policy_kwargs"] = {
             **kwargs.get("policy_kwargs", {}),
             "optimizer_class": settable_adam,

@@ -3,8 +3,9 @@ TD3 and DDPG.
 
 sbx builds their optimizers with a constant rate (``optax.adam(learning_rate=...)``) and never
 changes it. With ``learning_rate_final`` the factory builds them through :func:`settable_adam`
-(Adam whose rate is a hyperparameter of its state), and :class:`LearningRateDecay` sets that
-rate on the actor's and the critics' optimizers after every vectorised env step, before the
+(Adam whose rate is a hyperparameter of its state), and a training callback sets that
+rate on the actor's and the critics' optimizers
+(:class:`softtrack.rl.callbacks.LearningRateDecay`) after every vectorised env step, before the
 updates that follow it:
 
     lr(t) = lr₀                                      for t ≤ f·T
@@ -19,15 +20,12 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-from stable_baselines3.common.callbacks import BaseCallback
-
-__all__ = ["LearningRateDecay", "learning_rate_at", "settable_adam"]
+__all__ = ["learning_rate_at", "settable_adam"]
 
 
 def settable_adam(learning_rate: float, **kwargs: Any) -> Any:
     """optax's Adam with its learning rate in the optimizer state (``optax.inject_hyperparams``),
-    where :class:`LearningRateDecay` changes it; the same updates as ``optax.adam`` at a
+    where :class:`softtrack.rl.callbacks.LearningRateDecay` changes it; the same updates as ``optax.adam`` at a
     constant rate. A module-level function, so saved models pickle it by name."""
     import optax
 
@@ -43,46 +41,3 @@ def learning_rate_at(
         return float(initial)
     fraction = min(1.0, (step - start) / (total - start))
     return float(initial + (final - initial) * fraction)
-
-
-class LearningRateDecay(BaseCallback):
-    """Sets the learning rate of an sbx TD3/DDPG model's actor and critic optimizers (built with
-    :func:`settable_adam`) from the env steps so far, at the start and after each vectorised
-    step (so before the updates that follow it).
-
-    Args:
-        total_timesteps: T, the run's budget (env steps).
-        initial: lr₀. final: lr₁. decay_from: f, the fraction of T where the decay starts.
-    """
-
-    def __init__(self, total_timesteps: int, initial: float, final: float, decay_from: float):
-        super().__init__(verbose=0)
-        self.total_timesteps = int(total_timesteps)
-        self.initial, self.final, self.decay_from = float(initial), float(final), float(decay_from)
-
-    def _set_rate(self) -> None:
-        rate = learning_rate_at(
-            int(self.model.num_timesteps),
-            self.total_timesteps,
-            self.initial,
-            self.final,
-            self.decay_from,
-        )
-        policy: Any = self.model.policy
-        for state in (policy.actor_state, policy.qf_state):
-            hyperparams = getattr(state.opt_state, "hyperparams", None)
-            if hyperparams is None or "learning_rate" not in hyperparams:
-                raise ValueError(
-                    "a decaying learning rate needs optimizers built by "
-                    "softtrack.rl.learning_rate.settable_adam"
-                )
-            # a float32 array: the jitted update sees the same argument type every time
-            hyperparams["learning_rate"] = np.asarray(rate, dtype=np.float32)
-        self.logger.record("train/learning_rate", rate)
-
-    def _on_training_start(self) -> None:
-        self._set_rate()
-
-    def _on_step(self) -> bool:
-        self._set_rate()
-        return True

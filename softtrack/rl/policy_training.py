@@ -30,6 +30,7 @@ from softtrack.rl.callbacks import (
     Checkpointer,
     EpisodeLogger,
     GoalMotionWarmup,
+    LearningRateDecay,
     ProgressMonitor,
     RandomisationWarmup,
     TrainingClock,
@@ -320,8 +321,6 @@ class PolicyTrainer:
                 step = int(self.model.num_timesteps)
                 callbacks.insert(0, curriculum(warmup_steps, self.model.get_env(), step))
         if spec.algo.learning_rate_final is not None:
-            from softtrack.rl.learning_rate import LearningRateDecay
-
             callbacks.insert(
                 0,
                 LearningRateDecay(
