@@ -1,4 +1,4 @@
-"""A trained sbx TD3/DDPG or CrossQ actor as plain NumPy, for validation's batched policy calls.
+"""A trained sbx TD3/DDPG, SAC/TQC or CrossQ actor as plain NumPy, for validation's batched policy calls.
 
 Validation runs one policy call per control step for a batch of 32 episodes (5,000 steps per
 checkpoint). Through sbx each call crosses into JAX (dispatch, a device array, its copy back)
@@ -11,7 +11,9 @@ reproduce bit for bit) and only validation, which already batches, uses this.
 CrossQ's actor normalises its input and every hidden layer with batch renormalisation; in
 evaluation each of those is an affine map per feature (its running mean and variance, its scale
 and bias), which folds into the next dense layer's kernel and bias, and its deterministic action
-is the tanh of the Gaussian's mean. So both actors run as the same few matrix products.
+is the tanh of the Gaussian's mean. SAC's and TQC's actor (sbx ``SquashedGaussianActor``) is a
+plain perceptron with a mean and a log-std head; its deterministic action is the tanh of the mean
+too. So every one of these actors runs as the same few matrix products.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ def numpy_actor(model: Any, normalizer: Any = None) -> Policy | None:
     (obs_dim,) → (act_dim,)), the observation first scaled by ``normalizer`` (a frozen
     ``VecNormalize``) if given.
 
-    Returns ``None`` where the actor is not sbx TD3's plain perceptron or CrossQ's (dense layers
+    Returns ``None`` where the actor is not sbx TD3's, SAC's/TQC's or CrossQ's perceptron (dense layers
     with ReLU, tanh on the output, a bounded action space): another backend, algorithm or
     activation; the caller then uses the model's own ``predict``."""
     policy: Any = getattr(model, "policy", None)
@@ -74,16 +76,17 @@ def _is_relu(activation: Any) -> bool:
 
 
 def _dense_layers(policy: Any) -> list[tuple[np.ndarray, np.ndarray]] | None:
-    """The (kernel (in, out), bias (out,)) float32 pairs of an sbx TD3 or CrossQ actor, input to
-    output (CrossQ's normalisations folded in); ``None`` if ``policy`` is not one this module
-    can run. Nothing is imported for another backend's policy: importing JAX draws from NumPy's
-    global generator, which Stable-Baselines3's action noise uses, and validation must leave
-    training unchanged."""
+    """The (kernel (in, out), bias (out,)) float32 pairs of an sbx TD3, SAC/TQC or CrossQ actor,
+    input to output (CrossQ's normalisations folded in, the Gaussian actors' log-std head left
+    out); ``None`` if ``policy`` is not one this module can run. Nothing is imported for another
+    backend's policy: importing JAX draws from NumPy's global generator, which
+    Stable-Baselines3's action noise uses, and validation must leave training unchanged."""
     if not type(policy).__module__.startswith("sbx."):
         return None
     try:
         import jax
         from gymnasium import spaces
+        from sbx.common.policies import SquashedGaussianActor
         from sbx.crossq.policies import Actor as CrossQActor
         from sbx.td3.policies import Actor
     except ImportError:
@@ -91,7 +94,7 @@ def _dense_layers(policy: Any) -> list[tuple[np.ndarray, np.ndarray]] | None:
     actor = getattr(policy, "actor", None)
     state = getattr(policy, "actor_state", None)
     if (
-        not isinstance(actor, (Actor, CrossQActor))
+        not isinstance(actor, (Actor, CrossQActor, SquashedGaussianActor))
         or not _is_relu(actor.activation_fn)
         or state is None
         or not isinstance(policy.action_space, spaces.Box)
@@ -103,10 +106,11 @@ def _dense_layers(policy: Any) -> list[tuple[np.ndarray, np.ndarray]] | None:
         params = jax.device_get(state.params)
         return _crossq_layers(params, stats, len(actor.net_arch), actor.use_batch_norm)
     params = jax.device_get(state.params).get("params", {})
-    names = [f"Dense_{k}" for k in range(len(actor.net_arch) + 1)]
+    heads = 2 if isinstance(actor, SquashedGaussianActor) else 1  # the mean's, the log-std's
+    names = [f"Dense_{k}" for k in range(len(actor.net_arch) + heads)]
     if set(params) != set(names):
         return None
-    return [_dense(params[name]) for name in names]
+    return [_dense(params[name]) for name in names[: len(actor.net_arch) + 1]]
 
 
 def _dense(layer: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
