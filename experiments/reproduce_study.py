@@ -398,6 +398,14 @@ JOBS: tuple[Job, ...] = (
         (0, 1, 2),
         policy_only=True,
     ),
+    # the same with a learning rate falling to 3e-5 over the second half: seed 3 (where the
+    # constant rate missed, the lever's screen) and the fresh seeds 8-12 of its claim
+    *seeded_jobs(
+        V + "td3-sbx-128-6e6-mirror-tta-stop-transport-reachable-gs8-lr3e-4-decay.yaml",
+        "td3-sbx-128-mirror-tta-stop-transport-reachable-gs8-lr3e-4-decay-6e6",
+        (3, 8, 9, 10, 11, 12),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     Job(
