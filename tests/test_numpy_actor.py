@@ -4,6 +4,7 @@ acts as the model's own ``predict`` does, to float32 rounding, and declines ever
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -65,28 +66,34 @@ def test_the_numpy_actor_takes_the_weights_the_model_acts_with_now() -> None:
     assert np.abs(own(x) - target(x)).max() > 1e-2
 
 
+def _tiny_trained_model(algo: str, **algo_fields: object) -> Any:
+    """An sbx ``algo`` model of a 2-env spec (``algo_fields`` added to its ``algo``) after 64
+    env steps of learning: weights, and CrossQ's running statistics, away from their start."""
+    algo_spec = {
+        "name": algo,
+        "backend": "sbx",
+        "learning_starts": 20,
+        "buffer_size": 1000,
+        "batch_size": 8,
+        **algo_fields,
+    }
+    spec = parse_spec({"training": {"n_envs": 2, "total_timesteps": 200}, "algo": algo_spec})
+    model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
+    model.learn(64)
+    return model
+
+
 @pytest.mark.parametrize("batch_norm", [True, False])
 def test_a_crossq_actor_acts_as_the_model_does(batch_norm: bool) -> None:
     """CrossQ's batch renormalisations, with running statistics far from 0 and 1, fold into
     its dense layers; its deterministic action is the Gaussian mean's tanh."""
     import jax
 
-    spec = parse_spec(
-        {
-            "training": {"n_envs": 2, "total_timesteps": 200},
-            "algo": {
-                "name": "crossq",
-                "backend": "sbx",
-                "policy_delay": 3,
-                "learning_starts": 20,
-                "buffer_size": 1000,
-                "batch_size": 8,
-                "policy_kwargs": {"net_arch": [16, 16], "batch_norm_actor": batch_norm},
-            },
-        }
+    model = _tiny_trained_model(
+        "crossq",
+        policy_delay=3,
+        policy_kwargs={"net_arch": [16, 16], "batch_norm_actor": batch_norm},
     )
-    model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
-    model.learn(64)
     policy = model.policy
     rng = np.random.default_rng(3)
     stats = jax.tree_util.tree_map(
@@ -106,21 +113,7 @@ def test_a_crossq_actor_acts_as_the_model_does(batch_norm: bool) -> None:
 
 def test_a_tqc_actor_acts_as_the_model_does() -> None:
     """TQC's actor is SAC's: its log-std head does not act, the mean's tanh does."""
-    spec = parse_spec(
-        {
-            "training": {"n_envs": 2, "total_timesteps": 200},
-            "algo": {
-                "name": "tqc",
-                "backend": "sbx",
-                "learning_starts": 20,
-                "buffer_size": 1000,
-                "batch_size": 8,
-                "policy_kwargs": {"net_arch": [16, 16]},
-            },
-        }
-    )
-    model = build_model(spec, make_vec_env(spec, seed=0), seed=0)
-    model.learn(64)
+    model = _tiny_trained_model("tqc", policy_kwargs={"net_arch": [16, 16]})
     act = numpy_actor(model)
     assert act is not None
     observations = np.random.default_rng(4).normal(size=(32, 81))
