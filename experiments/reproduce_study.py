@@ -406,6 +406,13 @@ JOBS: tuple[Job, ...] = (
         (3, 8, 9, 10, 11, 12),
         policy_only=True,
     ),
+    # its independent baseline set up alike (own-arm actors, per-arm critics), seeds 0-4
+    *seeded_jobs(
+        V + "td3-sbx-128-6e6-tta-stop-transport-reachable-gs8-decay-own-arm.yaml",
+        "td3-sbx-128-tta-stop-transport-reachable-gs8-decay-own-arm-6e6",
+        (0, 1, 2),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     Job(
