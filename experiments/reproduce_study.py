@@ -410,7 +410,7 @@ JOBS: tuple[Job, ...] = (
     *seeded_jobs(
         V + "td3-sbx-128-6e6-tta-stop-transport-reachable-gs8-decay-own-arm.yaml",
         "td3-sbx-128-tta-stop-transport-reachable-gs8-decay-own-arm-6e6",
-        (0, 1, 2),
+        range(5),
         policy_only=True,
     ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
