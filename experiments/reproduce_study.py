@@ -413,6 +413,13 @@ JOBS: tuple[Job, ...] = (
         range(5),
         policy_only=True,
     ),
+    # the same centralized recipe with gravity on, the second row
+    *seeded_jobs(
+        V + "td3-sbx-128-6e6-mirror-tta-stop-transport-reachable-decay-gravity.yaml",
+        "td3-sbx-128-mirror-tta-stop-transport-reachable-decay-gravity-6e6",
+        (0, 1),
+        policy_only=True,
+    ),
     Job(V + "mpc-mppi-64x50-transport.yaml", 0, "mpc-mppi-64x50-transport-seed0"),
     Job(V + "mpc-mppi-64x50-transport-grip.yaml", 0, "mpc-mppi-64x50-transport-grip-seed0"),
     Job(
